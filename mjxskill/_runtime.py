@@ -1,0 +1,93 @@
+"""Process-wide JAX settings that must be in place before JAX creates a backend.
+
+Why this exists: on jax 0.7-0.10, XLA's CPU *fusion emitters* make `jax.vmap` over MJX
+kinematics roughly 2000x slower (17 control steps/s instead of 33,600 at batch 8, and a 50 s
+instead of 8 s compile; see ../shared/spec/reference.md). The flag only affects the CPU
+backend, so it is harmless on GPUs, but it must be in ``XLA_FLAGS`` before jax initialises
+its CPU client. ``mjxskill/__init__.py`` therefore calls :func:`configure_xla_flags` before
+anything imports jax.
+
+Compiling MJX code costs tens of seconds on a 2-core CPU, so the persistent compilation
+cache is on by default (``MJXSKILL_CACHE_DIR`` moves it, ``MJXSKILL_CACHE_DIR=off`` turns it
+off).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import warnings
+from pathlib import Path
+
+CPU_FUSION_FLAG = "--xla_cpu_use_fusion_emitters"
+CPU_FUSION_SETTING = f"{CPU_FUSION_FLAG}=false"
+
+
+def configure_xla_flags(environ: "os._Environ[str] | dict[str, str]" = os.environ) -> str:
+    """Adds ``--xla_cpu_use_fusion_emitters=false`` to ``XLA_FLAGS`` unless the user set it.
+
+    A user's own setting of the same flag (either value) wins; other flags are kept as they are.
+    Returns the resulting ``XLA_FLAGS`` string.
+    """
+    flags = environ.get("XLA_FLAGS", "")
+    if CPU_FUSION_FLAG not in flags:
+        flags = f"{flags} {CPU_FUSION_SETTING}".strip()
+        environ["XLA_FLAGS"] = flags
+    if "jax" in sys.modules and environ is os.environ:
+        # The flag is read when the CPU client is created, which is lazy: importing jax
+        # earlier is fine as long as no computation ran yet. We cannot detect that cheaply,
+        # so only warn when a backend is already live.
+        try:
+            from jax._src import xla_bridge
+
+            if xla_bridge.backends_are_initialized():
+                warnings.warn(
+                    "mjxskill was imported after JAX initialised its backends; "
+                    f"{CPU_FUSION_SETTING} may not be in effect and CPU rollouts can be "
+                    "orders of magnitude slower. Import mjxskill first or export "
+                    f"XLA_FLAGS={CPU_FUSION_SETTING}.",
+                    RuntimeWarning,
+                    stacklevel=3,
+                )
+        except Exception:  # private API moved: the warning is a courtesy only
+            pass
+    return flags
+
+
+def default_cache_dir() -> Path | None:
+    """Where compiled XLA executables are kept between processes (None: cache off)."""
+    setting = os.environ.get("MJXSKILL_CACHE_DIR")
+    if setting is not None:
+        return None if setting.strip().lower() in ("", "0", "off", "none", "false") else Path(setting)
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "mjxskill" / "jax"
+
+
+def enable_compilation_cache(path: Path | None = None) -> Path | None:
+    """Turns on JAX's persistent compilation cache (called at import of the package).
+
+    Done through JAX's own environment variables when jax is not imported yet, so that
+    importing mjxskill stays cheap for commands that never touch JAX (``mjxskill.plan``), and
+    a user's own ``JAX_COMPILATION_CACHE_DIR`` wins.
+    """
+    path = default_cache_dir() if path is None else path
+    if path is None:
+        return None
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return None  # read-only home: run without a cache rather than fail
+    settings = {
+        "JAX_COMPILATION_CACHE_DIR": (str(path), str),
+        # Cache everything that took noticeable time; MJX steps take seconds to compile.
+        "JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": ("0.5", float),
+        "JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES": ("0", int),
+    }
+    for name, (value, _) in settings.items():
+        os.environ.setdefault(name, value)
+    if "jax" in sys.modules:  # jax read its environment already: tell it directly
+        import jax
+
+        for name, (_, parse) in settings.items():
+            jax.config.update(name.lower(), parse(os.environ[name]))
+    return Path(os.environ["JAX_COMPILATION_CACHE_DIR"])
