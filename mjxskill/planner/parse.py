@@ -192,6 +192,9 @@ def _type_ancestors(src: Source, types) -> dict[str, frozenset[str]]:
     parent = {str(t).lower(): (str(p).lower() if p is not None else OBJECT)
               for t, p in types.items()}
     parent.pop(OBJECT, None)
+    for p in list(parent.values()):
+        parent.setdefault(p, OBJECT)
+    parent.pop(OBJECT, None)
     ancestors = {OBJECT: frozenset({OBJECT})}
     for start in parent:
         chain, t = [], start
@@ -200,10 +203,9 @@ def _type_ancestors(src: Source, types) -> dict[str, frozenset[str]]:
                 raise src.error(f"type hierarchy has a cycle through {t!r}",
                                 src.locate([([t], False)], src.section([":types"])))
             chain.append(t)
-            if t not in parent:
-                raise src.error(f"type {t!r} is used as a parent but never declared",
-                                src.locate([([t], False)], src.section([":types"])))
-            t = parent[t]
+            # a parent named but not declared itself (`a b - c`) is a child of `object`, as
+            # in Fast Downward
+            t = parent.get(t, OBJECT)
         ancestors[start] = frozenset(chain) | {OBJECT}
     return ancestors
 
