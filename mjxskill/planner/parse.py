@@ -89,8 +89,10 @@ def _run_pddl_parser(parser_cls, src: Source):
             raise _semantic_error(src, error) from None
 
 
-_TERMINALS = {"LPAR": "'('", "RPAR": "')'", "$END": "end of input", "NAME": "a name",
-              "VARIABLE": "a variable", "TYPE_SEP": "'-'", "NUMBER": "a number"}
+_END = {"$END", "<END-OF-FILE>"}  # lark's names for the end of the text
+_TERMINALS = {"LPAR": "'('", "RPAR": "')'", "$END": "end of input",
+              "<END-OF-FILE>": "end of input", "NAME": "a name", "VARIABLE": "a variable",
+              "TYPE_SEP": "'-'", "NUMBER": "a number", "QMARK": "a variable"}
 
 
 def _describe_terminals(names) -> str:
@@ -103,9 +105,9 @@ def _syntax_error(src: Source, error: lark.exceptions.UnexpectedInput) -> PDDLEr
     if line is None or line < 0:
         line, column = src.line_column(len(src.text))
     if isinstance(error, lark.exceptions.UnexpectedToken):
-        if error.token.type == "$END":
+        if error.token.type in _END:
             what = "unexpected end of input (unbalanced parentheses?)"
-        elif error.token.type == "RPAR" and error.expected == {"$END"}:
+        elif error.token.type == "RPAR" and set(error.expected) <= _END:
             what = "unexpected ')' after the end of the definition (unbalanced parentheses?)"
         else:
             what = f"unexpected {error.token.value!r}"
@@ -120,16 +122,32 @@ def _syntax_error(src: Source, error: lark.exceptions.UnexpectedInput) -> PDDLEr
     return PDDLError(src.kind, line, column, what)
 
 
+# The construct that needs each requirement, to point at it when pddl reports one missing.
+_REQUIREMENT_KEYWORDS = {
+    ":equality": ("=",), ":disjunctive-preconditions": ("or", "imply"),
+    ":universal-preconditions": ("forall",), ":existential-preconditions": ("exists",),
+    ":quantified-preconditions": ("forall", "exists"), ":typing": ("either", ":types"),
+    ":non-deterministic": ("oneof",), ":numeric-fluents": ("increase", "decrease", "assign"),
+    ":action-costs": ("total-cost", "increase"),
+}
+
+
 def _semantic_error(src: Source, error: Exception) -> PDDLError:
     message = str(error) or type(error).__name__
     requirement = getattr(error, "requirement", None)
     if requirement is not None:
         # e.g. (= ...) without :equality: pddl names the requirement but not the place
-        what = f"uses {requirement} but the domain does not declare it in :requirements"
-        return src.error(what, src.locate([(["="], True)]))
+        if str(requirement) in SUPPORTED_REQUIREMENTS:
+            what = f"uses {requirement} but :requirements does not declare it"
+        else:
+            what = f"uses {requirement}, which is not supported"
+        keywords = _REQUIREMENT_KEYWORDS.get(str(requirement), ())
+        return src.error(what, src.locate([([k], True) for k in keywords]))
     # pddl quotes the offending names, e.g. "Constant 'kitchen' not defined."
     names = [part for i, part in enumerate(message.split("'")) if i % 2 == 1]
     offset = src.locate([([n], False) for n in names])
+    if message.startswith("Constant '") and message.endswith("' not defined."):
+        message = f"unknown constant {names[0]!r} (objects in a domain must be in :constants)"
     return src.error(message.rstrip("."), offset)
 
 
@@ -274,7 +292,8 @@ def _condition(src, formula, predicates, objects, variables, span, where,
         negated = isinstance(literal, Not)
         inner = literal.argument if negated else literal
         if isinstance(inner, EqualTo):
-            pair = tuple(_checked_term(src, t, objects, variables, span, where, ["="])
+            here = src.locate([(["="], True)], span)
+            pair = tuple(_checked_term(src, t, objects, variables, span, where, here)
                          for t in (inner.left, inner.right))
             (not_equal if negated else equal).append(pair)
         elif isinstance(inner, Predicate):
@@ -282,7 +301,8 @@ def _condition(src, formula, predicates, objects, variables, span, where,
             if negated and not negation_declared:
                 raise src.error(f"negated atom (not {_format(atom)}) in {where} needs "
                                 ":negative-preconditions in the domain's :requirements",
-                                src.locate([(["not"], True)], span))
+                                src.locate([(["not", "(" + atom.predicate, *atom.args], True),
+                                            (["not"], True)], span))
             (neg if negated else pos).append(atom)
         else:
             raise src.error(f"unsupported condition {literal} in {where} (only conjunctions of "
@@ -292,15 +312,17 @@ def _condition(src, formula, predicates, objects, variables, span, where,
     return Condition(tuple(pos), tuple(neg), tuple(equal), tuple(not_equal))
 
 
-def _checked_term(src, term, objects, variables, span, where, context) -> str:
+def _checked_term(src, term, objects, variables, span, where, offset=None) -> str:
+    """The term's name, after checking it is a declared variable or object; errors point at
+    ``offset`` (the enclosing atom) when given, else at the name itself."""
     name = _term(term)
     if name.startswith("?"):
         if name not in variables:
             raise src.error(f"undeclared variable {name} in {where}",
-                            src.locate([([name], False)], span))
+                            src.locate([([name], False)], span) if offset is None else offset)
     elif name not in objects:
         raise src.error(f"unknown object {name!r} in {where}",
-                        src.locate([(context + [name], True), ([name], False)], span))
+                        src.locate([([name], False)], span) if offset is None else offset)
     return name
 
 
@@ -314,7 +336,7 @@ def _atom(src, predicate, predicates, objects, variables, span, where) -> Atom:
         raise src.error(f"predicate {name!r} takes {predicates[name]} argument(s) but "
                         f"{len(args)} are given in {where}", here)
     for term in predicate.terms:
-        _checked_term(src, term, objects, variables, span, where, [name])
+        _checked_term(src, term, objects, variables, span, where, here)
     return Atom(name, tuple(args))
 
 
