@@ -25,7 +25,7 @@ from pddl.parser.problem import ProblemParser
 import mjxskill.planner as planner
 from mjxskill.planner import PDDLError, Unsolvable, parse, solve, validate
 from mjxskill.planner.ground import ground
-from mjxskill.planner.heuristics import hmax
+from mjxskill.planner.heuristics import hmax, lmcut
 
 sys.path.insert(0, os.path.dirname(__file__))
 from test_planner_domains import (  # noqa: E402
@@ -169,6 +169,34 @@ def test_hmax_equals_pyperplans_hmax_along_the_plan():
         if step is not None:
             state = planner.apply(ops[step], state)
     assert values[0] > 0 and values[-1] == 0
+
+
+@pytest.mark.parametrize("name", ["gripper", "logistics", "hanoi-neg-eq", "robot-skills"])
+def test_lmcut_is_admissible_and_dominates_hmax(name):
+    # along an optimal plan the true distance to the goal is the number of steps left
+    case = CASES[name]
+    task = ground(parse(case.domain, case.problem))
+    h_lmcut, h_max = lmcut(task), hmax(task)
+    plan = solve(case.domain, case.problem, heuristic="lmcut")
+    assert len(plan) == cached_oracle_length(name)
+    ops = {op.name: op for op in task.operators}
+    state = task.init
+    for steps_left in range(len(plan), -1, -1):
+        assert h_max(state) <= h_lmcut(state) <= steps_left
+        if steps_left:
+            state = planner.apply(ops[plan[len(plan) - steps_left]], state)
+    assert h_lmcut(task.init) > h_max(task.init) or name != "gripper"  # strictly better here
+
+
+def test_goal_true_initially_gives_the_empty_plan():
+    problem = blocks_problem([["a", "b"]], [["a", "b"]])
+    assert solve(BLOCKS_DOMAIN, problem) == []
+    assert validate(BLOCKS_DOMAIN, problem, [])
+
+
+def test_pddl_is_case_insensitive_and_plans_are_lower_case():
+    case = CASES["gripper"]
+    assert solve(case.domain.upper(), case.problem.upper()) == solve(case.domain, case.problem)
 
 
 def test_grounding_prunes_statics_and_resolves_equality():

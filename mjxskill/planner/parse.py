@@ -79,8 +79,12 @@ def _run_pddl_parser(parser_cls, src: Source):
         if parser is None:
             parser = _PARSERS[parser_cls] = parser_cls()
         parser._transformer.__init__()
+        # PDDL is case-insensitive but pddl's grammar only knows lower-case keywords; lower()
+        # keeps offsets (checked) so positions still match the user's text.
+        lowered = src.text.lower()
+        text = lowered if len(lowered) == len(src.text) else src.text
         try:
-            return parser(src.text)
+            return parser(text)
         except lark.exceptions.UnexpectedInput as error:
             raise _syntax_error(src, error) from None
         except PDDLError:
