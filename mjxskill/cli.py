@@ -43,7 +43,5 @@ def run(main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentPars
         return main(args)
     except (CommandError, *user_errors()) as err:
         message = str(err) or type(err).__name__
-        if type(err).__name__ == "Unsolvable":
-            message = f"no plan reaches the goal: {message}"
         print(f"{parser.prog}: error: {message}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -10,6 +10,7 @@ SkiROS' namespaced form ``(skiros:at skiros:Peg-1 skiros:BoxWithHole-1)`` as wel
 from __future__ import annotations
 
 import difflib
+import functools
 import re
 from typing import TYPE_CHECKING, Mapping
 
@@ -24,6 +25,20 @@ if TYPE_CHECKING:  # pragma: no cover
 
 class GoalError(ValueError):
     """A goal that is not valid PDDL or names something the world model does not know."""
+
+
+@functools.cache
+def _cached_parser(cls):
+    return cls()
+
+
+def _parse(cls, text: str):
+    """Parses with one ``pddl`` parser per class: building its lark parser costs ~0.1 s, a
+    parse of our small files milliseconds. The parser's transformer keeps tables from the
+    previous text, so it is re-initialised (in place: lark holds it) before every parse."""
+    parser = _cached_parser(cls)
+    parser._transformer.__init__()
+    return parser(text)
 
 
 # A literal as written in the scenario files: (pred arg ...) or (not (pred arg ...)).
@@ -122,7 +137,7 @@ def goal_literals(scn: "Scenario", goal: str) -> tuple[tuple[bool, str, tuple[st
     if not plain.startswith("("):
         raise GoalError(f"goal {goal!r}: a goal is a parenthesised PDDL formula, e.g. (at peg-1 boxwithhole-1)")
     try:
-        problem = ProblemParser()(f"(define (problem goal) (:domain {scn.name}) (:init) (:goal {plain}))")
+        problem = _parse(ProblemParser, f"(define (problem goal) (:domain {scn.name}) (:init) (:goal {plain}))")
     except Exception as err:  # lark's errors: report the first line, which names the token
         first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
         raise GoalError(f"goal {goal!r} is not valid PDDL: {first}") from None
@@ -203,7 +218,7 @@ def domain_pddl(scn: "Scenario", negative_goal: bool = False) -> str:
         f"  (:types {type_lines})\n"
         f"  (:predicates\n    {predicate_lines})\n" + "\n".join(actions) + ")\n"
     )
-    DomainParser()(text)  # the generated text must be readable by a standard PDDL reader
+    _parse(DomainParser, text)  # the generated text must be readable by a standard PDDL reader
     return text
 
 
@@ -223,5 +238,5 @@ def problem_pddl(scn: "Scenario", goal: str) -> str:
         f"  (:init\n    {init})\n"
         f"  (:goal {goal_text}))\n"
     )
-    ProblemParser()(text)
+    _parse(ProblemParser, text)
     return text

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 import numpy as np
 
 from mjxskill import cli
-from mjxskill.ebt.from_plan import LearnableParameter, PlanStep, ground_plan, plan_to_tree
+from mjxskill.ebt.from_plan import LearnableParameter, PlanError, PlanStep, ground_plan, plan_to_tree
 from mjxskill.ebt.nodes import Node, render
 from mjxskill.pddl_gen import domain_pddl, goal_literals, problem_pddl
 from mjxskill.scenario_schema import frozen_array
@@ -66,7 +66,8 @@ def plan_task(scn: "Scenario", goal: str | None = None, *, solve: Solver | None 
 
     solve: ``(domain_text, problem_text) -> ["(action arg ...)", ...]``; default
     ``mjxskill.planner.solve`` (optimal A*). Raises GoalError for a bad goal, the planner's
-    Unsolvable when no plan exists, PlanError when the plan does not fit the skill library.
+    PlanError when no plan exists (the planner's Unsolvable) or the plan does not fit the skill
+    library.
     """
     goal = scn.goal if goal is None else goal
     literals = goal_literals(scn, goal)
@@ -74,10 +75,21 @@ def plan_task(scn: "Scenario", goal: str | None = None, *, solve: Solver | None 
     problem = problem_pddl(scn, goal)
     if solve is None:
         from mjxskill.planner import solve
-    plan = tuple(solve(domain, problem))
+    try:
+        plan = tuple(solve(domain, problem))
+    except _unsolvable() as err:
+        raise PlanError(f"no plan reaches the goal {goal!r} from the initial state of {scn.source}: {err}") from err
     steps = ground_plan(scn, plan)
     tree, parameters = plan_to_tree(scn, steps)
     return PlannedTask(goal, domain, problem, plan, steps, tree, parameters)
+
+
+def _unsolvable() -> tuple[type[BaseException], ...]:
+    try:
+        from mjxskill.planner import Unsolvable
+    except ImportError:
+        return ()
+    return (Unsolvable,)
 
 
 def describe(scn: "Scenario", task: PlannedTask) -> str:
