@@ -1,0 +1,10 @@
+"""Compiled behavior trees: an eBT as static arrays plus a pure, jittable, vmappable tick.
+
+``compile_tree(tree)`` flattens an eBT (``mjxskill.ebt``) once on the host; ``init_state`` and
+``tick`` are the optax-style pair that run it as a state machine under ``jit``/``vmap``/``scan``.
+"""
+
+from mjxskill.bt_compiled.compile import CompiledTree, LeafSpec, compile_tree
+from mjxskill.bt_compiled.tick import BTState, init_state, tick, tick_sequence
+
+__all__ = ["BTState", "CompiledTree", "LeafSpec", "compile_tree", "init_state", "tick", "tick_sequence"]
