@@ -1,0 +1,321 @@
+"""The scenario (digital twin) as immutable values: what ``load_scenario`` returns.
+
+Everything here is frozen: dataclasses are ``frozen=True``, sequences are tuples, name-keyed
+tables are ``MappingProxyType`` and arrays are numpy arrays with ``writeable=False``.
+
+Conventions (the same in the YAML files under ``assets/scenarios/``):
+
+* Lengths in m, angles in the YAML in degrees (``rpy_deg``), joint angles in rad, forces in N,
+  torques in Nm, stiffness in N/m (translational) and Nm/rad (rotational).
+* World frame: robot base at the origin, z up, table top at z = 0.
+* A pose is ``position`` (3,) m plus ``rpy_deg`` (3,) = roll, pitch, yaw in degrees about the
+  fixed world axes x, y, z (extrinsic "xyz": R = Rz(yaw) Ry(pitch) Rx(roll)); ``quat`` gives the
+  same rotation as a (4,) quaternion (w, x, y, z), MuJoCo's order.
+* Names of objects, poses and the robot are PDDL objects; PDDL is case-insensitive, so the
+  generated PDDL uses ``pddl_name`` = the name in lower case, and names must differ in more than
+  case.
+* Objectives are maximized: every reward is a "more is better" term times its weight, so
+  penalties (applied wrench) carry negative weights.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Mapping
+
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.plan import PlannedTask
+
+
+def frozen_array(values, dtype=np.float64) -> np.ndarray:
+    """A read-only copy of ``values``."""
+    array = np.array(values, dtype=dtype)
+    array.flags.writeable = False
+    return array
+
+
+def frozen_mapping(items) -> Mapping:
+    return MappingProxyType(dict(items))
+
+
+@dataclass(frozen=True)
+class Pose:
+    """position: (3,) m in the world frame. rpy_deg: (3,) deg, extrinsic x-y-z (see module doc)."""
+
+    position: np.ndarray
+    rpy_deg: np.ndarray
+
+    @property
+    def quat(self) -> np.ndarray:
+        """(4,) unit quaternion (w, x, y, z) of ``rpy_deg``."""
+        from scipy.spatial.transform import Rotation
+
+        x, y, z, w = Rotation.from_euler("xyz", self.rpy_deg, degrees=True).as_quat()
+        return frozen_array([w, x, y, z])
+
+    @property
+    def yaw(self) -> float:
+        """Rotation about world z in rad (the planar tasks' orientation)."""
+        return float(np.deg2rad(self.rpy_deg[2]))
+
+
+@dataclass(frozen=True)
+class WorldObject:
+    """An object or a named pose of the world model.
+
+    type: PDDL type (a key of ``Scenario.types``). mjcf_body: body name in the scene's MJCF
+    (None for abstract poses without a body). shape: e.g. "right_triangle_prism", "box",
+    "box_with_hole", "pose". size: shape-specific (m), documented per object in the YAML.
+    com_offset: (3,) m, centre of mass relative to ``pose.position`` in the object frame.
+    approach_offset: (3,) m, world-frame offset from ``pose.position`` of the object's approach
+    pose (where GoToLinear takes the tool). extra: further named constants (hole depth, ...).
+    relations: PDDL facts about the object in the initial state, e.g. "(pushable triangle-1)".
+    """
+
+    name: str
+    type: str
+    pose: Pose
+    mjcf_body: str | None
+    shape: str
+    size: np.ndarray
+    mass: float | None
+    friction: float | None
+    com_offset: np.ndarray
+    approach_offset: np.ndarray
+    extra: Mapping[str, float]
+    relations: tuple[str, ...]
+
+    @property
+    def pddl_name(self) -> str:
+        return self.name.lower()
+
+
+@dataclass(frozen=True)
+class Robot:
+    """The arm.
+
+    start_configs: (n, 7) rad, sampled uniformly per training world. eval_configs: (m, 7) rad,
+    the unseen ones used only for evaluation. home: (7,) rad. joint_limits: (2, 7) rad.
+    nullspace_stiffness: Nm/rad toward the start posture. default_stiffness: (6,) N/m x3,
+    Nm/rad x3, used when no skill sets one. tool_site: MJCF site at the tool tip.
+    relations: initial PDDL facts about the robot.
+    """
+
+    name: str
+    type: str
+    tool_site: str
+    home: np.ndarray
+    joint_limits: np.ndarray
+    start_configs: np.ndarray
+    eval_configs: np.ndarray
+    nullspace_stiffness: float
+    default_stiffness: np.ndarray
+    relations: tuple[str, ...]
+
+    @property
+    def pddl_name(self) -> str:
+        return self.name.lower()
+
+
+@dataclass(frozen=True)
+class SkillParameter:
+    """One parameter of a skill.
+
+    plan: True when the planner grounds it (a PDDL action argument; ``type`` is then a PDDL type);
+    otherwise ``type`` is "float" or "vector" and ``default`` its value. learnable: left open by
+    the plan and searched by the optimizer within ``bounds`` = (lower, upper).
+    """
+
+    name: str
+    type: str
+    plan: bool
+    unit: str = ""
+    default: float | tuple[float, ...] | None = None
+    bounds: tuple[float, float] | None = None
+    learnable: bool = False
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class Skill:
+    """A skill of the library: PDDL action plus how it expands into an eBT (``from_plan``).
+
+    parameters: in declaration order; the ``plan`` ones are the PDDL action's arguments in that
+    order. preconditions / holdconditions / postconditions: PDDL literals over ``?argument``
+    variables; hold-conditions must hold while the skill runs, so they become preconditions in
+    PDDL; negated postconditions are delete effects.
+    """
+
+    name: str
+    parameters: tuple[SkillParameter, ...]
+    preconditions: tuple[str, ...]
+    holdconditions: tuple[str, ...]
+    postconditions: tuple[str, ...]
+
+    @property
+    def pddl_name(self) -> str:
+        return self.name.lower()
+
+    @property
+    def arguments(self) -> tuple[SkillParameter, ...]:
+        return tuple(p for p in self.parameters if p.plan)
+
+    def parameter(self, name: str) -> SkillParameter:
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(f"skill {self.name} has no parameter {name!r}")
+
+    def value(self, name: str):
+        """Default value of a fixed (non-plan) parameter."""
+        return self.parameter(name).default
+
+
+REWARD_KINDS = {
+    # kind: required constants (see the YAML files for what each means)
+    "task_completion": ("value",),
+    "ee_distance_to_box": ("w", "d_o"),
+    "applied_wrench": (),
+    "exp_ee_to_goal": ("sigma_w", "d_o"),
+    "exp_ee_to_reference": ("sigma_w", "d_o"),
+    "object_pose_divergence": ("sigma_w", "d_o", "position_weight", "orientation_weight"),
+}
+
+
+@dataclass(frozen=True)
+class Reward:
+    """One reward term.
+
+    task_completion: ``value`` per step while the BT has returned SUCCESS.
+    ee_distance_to_box: 1 / (w (d + d_o)), d = tool to ``target`` distance (m).
+    applied_wrench: |Fx| + |Fy| + |Fz| of the commanded force (N); use a negative weight.
+    exp_*: exp(-(d_m + d_o) / (2 sigma_w^2)) with d_m the tool-to-``target`` distance
+    (exp_ee_to_goal), the tool reference-to-actual distance (exp_ee_to_reference) or
+    position_weight * |p_obj - p_target| + orientation_weight * |angle (rad)| between ``object``
+    and ``target`` (object_pose_divergence). Target points are ``target``'s position plus
+    ``target_offset`` (world frame).
+    """
+
+    name: str
+    kind: str
+    weight: float
+    objective: str
+    constants: Mapping[str, float]
+    object: str | None = None
+    target: str | None = None
+    target_offset: np.ndarray | None = None  # (3,) m added to the target's position
+
+
+@dataclass(frozen=True)
+class Success:
+    """The task's success test.
+
+    kind "object_at_pose": ``object`` within ``position_tolerance`` m and
+    ``orientation_tolerance_deg`` of ``target``. kind "inserted": ``object`` (the peg) deeper than
+    ``depth`` m below the top of ``target``'s hole.
+    """
+
+    kind: str
+    object: str
+    target: str
+    position_tolerance: float | None = None
+    orientation_tolerance_deg: float | None = None
+    depth: float | None = None
+
+
+@dataclass(frozen=True)
+class Randomization:
+    """Domain randomization of one evaluation world.
+
+    xy_sigma: object/pose name -> standard deviation (m) of a Gaussian x, y offset.
+    clip_sigmas: offsets clipped to +- clip_sigmas * sigma (None: not clipped).
+    friction_range: (low, high) uniform friction of the randomized objects, or None.
+    n_worlds: worlds per parameter set; the robot start configuration is drawn uniformly from
+    ``Robot.start_configs``.
+    """
+
+    xy_sigma: Mapping[str, float]
+    clip_sigmas: float | None
+    friction_range: tuple[float, float] | None
+    n_worlds: int
+
+
+@dataclass(frozen=True)
+class Optimizer:
+    budget: int  # evaluations (parameter sets) per run
+    batch_size: int  # parameter sets per batch
+    n_init: int  # uniform random warm-up evaluations
+    seed: int
+    repetitions: int  # independent runs in the paper's experiments
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario. See the module docstring for units and frames.
+
+    name: "push" / "peg". source: the YAML file. scene: the MJCF file. gravity: False runs the
+    scene without gravity (SkiREIL's peg). types: PDDL type -> parent type (None: root).
+    predicates: name -> argument types. objects: name -> WorldObject (poses included).
+    skills: name -> Skill. goal: the default goal. task: the planned task of the default goal
+    (``mjxskill.plan.plan_task``); the learnable parameters below come from it.
+    manual_parameters: name -> (P,) operator-chosen parameter vectors (illustrative values).
+    """
+
+    name: str
+    source: str
+    scene: str
+    gravity: bool
+    episode_seconds: float
+    bt_hz: int
+    control_hz: int
+    types: Mapping[str, str | None]
+    predicates: Mapping[str, tuple[str, ...]]
+    objects: Mapping[str, WorldObject]
+    robot: Robot
+    skills: Mapping[str, Skill]
+    goal: str
+    rewards: tuple[Reward, ...]
+    objective_names: tuple[str, ...]
+    success: Success
+    randomization: Randomization
+    optimizer: Optimizer
+    manual_parameters: Mapping[str, np.ndarray]
+    task: "PlannedTask"
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """Learnable parameters in parameter-vector order, e.g. "Push.offset_x_start"."""
+        return tuple(p.name for p in self.task.parameters)
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, P) lower and upper bounds."""
+        return self.task.bounds
+
+    @property
+    def parameter_units(self) -> tuple[str, ...]:
+        return tuple(p.unit for p in self.task.parameters)
+
+    @property
+    def parameter_defaults(self) -> np.ndarray:
+        """(P,) the values used when nothing is learned (the plain planner solution)."""
+        return self.task.defaults
+
+    @property
+    def episode_ticks(self) -> int:
+        """BT ticks per episode."""
+        return int(round(self.episode_seconds * self.bt_hz))
+
+    @property
+    def steps_per_tick(self) -> int:
+        """Control steps per BT tick."""
+        return self.control_hz // self.bt_hz
+
+    def object_by_pddl_name(self, pddl_name: str) -> WorldObject | Robot:
+        for obj in (*self.objects.values(), self.robot):
+            if obj.pddl_name == pddl_name.lower():
+                return obj
+        raise KeyError(pddl_name)
