@@ -1,0 +1,284 @@
+"""One episode of one world: the compiled BT at ``bt_hz`` over the impedance controller and MJX at
+``control_hz``, as two nested ``lax.scan``s. Written for one world; batching is a wrapper.
+
+Per BT tick: leaf statuses -> compiled tick -> leaf effects -> ``steps_per_tick`` control steps
+(motion generator -> controller -> ``mjx.step``) -> rewards of the tick. Nothing is stored per
+step or per tick: the scan carries running totals only, so memory does not grow with the
+episode length.
+
+Containment: after every tick, a world whose state is not finite, whose joints spin faster than
+``MAX_QVEL`` or whose free objects sink below ``MIN_OBJECT_Z`` is marked diverged and frozen at
+its last good state; its rewards are replaced by each term's worst value for the whole episode
+and it counts as a failure, so one exploding world never poisons its batch or the optimizer.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from mujoco import mjx
+
+from mjxskill.bt_compiled import CompiledTree, init_state, tick
+from mjxskill.ebt.nodes import Status
+from mjxskill.rollout.bindings import FREE, MOCAP, SceneBindings, nominal_poses
+from mjxskill.rollout.leaves import Blackboard, LeafPrograms, LeafWorld, advance, init_blackboard, reference_pose
+from mjxskill.rollout.rewards import Observation, RewardTerm, raw_rewards
+from mjxskill.rollout.worlds import Worlds
+from mjxskill.sim.controller import (
+    N_ARM,
+    ControllerConfig,
+    ControllerState,
+    impedance_control,
+    init_controller_state,
+    make_command,
+    tool_pose,
+)
+from mjxskill.sim.rotations import quat_angle
+
+MAX_QVEL = 100.0  # rad/s (or m/s for free objects): far beyond anything the arm can do
+MIN_OBJECT_Z = -0.05  # m: a free object this far below the table top fell through it
+
+
+class EpisodeSpec(NamedTuple):
+    """Everything static about an episode (host values, closed over by the traced function)."""
+
+    ct: CompiledTree
+    leaves: LeafPrograms
+    terms: tuple[RewardTerm, ...]
+    bindings: SceneBindings
+    ctrl: ControllerConfig
+    default_stiffness: tuple[float, ...]
+    ticks: int
+    steps_per_tick: int
+    success_kind: str  # "object_at_pose" or "inserted"
+    success_object: int  # slot index
+    success_target: int  # slot index
+    position_tolerance: float
+    orientation_tolerance: float  # rad
+    depth: float
+    hole_top_local: tuple[float, float, float]
+    hole_half_width: float
+
+
+class EpisodeResult(NamedTuple):
+    """Per-world outcome (scalars unless noted).
+
+    reward_totals (R,): sum over ticks of each term's raw value (worst values if diverged).
+    success: the scenario's success test at the end. diverged: physics blew up. bt_status: the
+    root's last status (RUNNING if it never finished). bt_done_tick: tick the root finished (-1:
+    never). position_error m, orientation_error rad: success object to target at the end (peg:
+    tool to hole axis, 0). insertion_depth m: below the hole's top (peg; 0 for push).
+    max_force N: largest |feed-forward force| commanded.
+    """
+
+    reward_totals: jax.Array
+    success: jax.Array
+    diverged: jax.Array
+    bt_status: jax.Array
+    bt_done_tick: jax.Array
+    position_error: jax.Array
+    orientation_error: jax.Array
+    insertion_depth: jax.Array
+    max_force: jax.Array
+
+
+class _Carry(NamedTuple):
+    data: mjx.Data
+    ctrl: ControllerState
+    bb: Blackboard
+    bt: object
+    done: jax.Array  # the root finished
+    status: jax.Array  # the root's last status
+    done_tick: jax.Array
+    diverged: jax.Array
+    totals: jax.Array
+    max_force: jax.Array
+
+
+def initial_data(spec: EpisodeSpec, model: mjx.Model, template: mjx.Data, world: Worlds) -> mjx.Data:
+    """MJX data at the world's initial conditions, kinematics computed."""
+    qpos = template.qpos.at[jnp.asarray(spec.bindings.arm_qpos)].set(world.arm_qpos)
+    mocap_pos, mocap_quat = template.mocap_pos, template.mocap_quat
+    for k, slot in enumerate(spec.bindings.slots):
+        if slot.how == FREE:
+            qpos = qpos.at[slot.qpos_adr : slot.qpos_adr + 3].set(world.object_pos[k])
+            qpos = qpos.at[slot.qpos_adr + 3 : slot.qpos_adr + 7].set(world.object_quat[k])
+        elif slot.how == MOCAP:
+            mocap_pos = mocap_pos.at[slot.mocap_id].set(world.object_pos[k])
+            mocap_quat = mocap_quat.at[slot.mocap_id].set(world.object_quat[k])
+    data = template.replace(qpos=qpos, qvel=jnp.zeros_like(template.qvel), mocap_pos=mocap_pos, mocap_quat=mocap_quat)
+    return mjx.forward(model, data)
+
+
+def world_model(spec: EpisodeSpec, model: mjx.Model, world: Worlds) -> mjx.Model:
+    """The model with this world's friction on the randomized object's contact pairs."""
+    if not spec.bindings.randomized_pairs:
+        return model
+    pairs = jnp.asarray(spec.bindings.randomized_pairs)
+    friction = model.pair_friction
+    new = friction.at[pairs, 0].set(world.friction).at[pairs, 1].set(world.friction)
+    return model.replace(pair_friction=jnp.where(jnp.isnan(world.friction), friction, new))
+
+
+def slot_poses(spec: EpisodeSpec, data: mjx.Data, world: Worlds):
+    """(K, 3), (K, 4): current poses of the bound objects (free bodies move; others do not)."""
+    pos, quat = world.object_pos, world.object_quat
+    for k, slot in enumerate(spec.bindings.slots):
+        if slot.how == FREE:
+            pos = pos.at[k].set(data.xpos[slot.body_id])
+            quat = quat.at[k].set(data.xquat[slot.body_id])
+    return pos, quat
+
+
+def _healthy(spec: EpisodeSpec, data: mjx.Data) -> jax.Array:
+    ok = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
+    ok &= jnp.all(jnp.abs(data.qvel) < MAX_QVEL)
+    for slot in spec.bindings.slots:
+        if slot.how == FREE:
+            ok &= data.qpos[slot.qpos_adr + 2] > MIN_OBJECT_Z
+    return ok
+
+
+def _where(cond, new, old):
+    return jax.tree.map(lambda n, o: jnp.where(cond, n, o), new, old)
+
+
+class TickRecord(NamedTuple):
+    """Per-tick trace of one world (only when asked for: it grows with the episode).
+
+    qpos (nq,): joint and object positions at the end of the tick (for rendering).
+    tool_pos (3,), ref_pos (3,): tool and reference positions. root: root status this tick.
+    active (L,) bool: the leaves ticked. rewards (R,): raw reward values of the tick.
+    """
+
+    qpos: jax.Array
+    tool_pos: jax.Array
+    ref_pos: jax.Array
+    root: jax.Array
+    active: jax.Array
+    rewards: jax.Array
+
+
+def run_episode(
+    spec: EpisodeSpec, model: mjx.Model, template: mjx.Data, params: jax.Array, world: Worlds, record: bool = False
+):
+    """Rolls out parameter vector ``params`` (P,) in ``world`` (unbatched fields).
+
+    Returns the EpisodeResult, or (EpisodeResult, TickRecord with a leading (T,) axis) when
+    ``record`` is True.
+    """
+    model = world_model(spec, model, world)
+    data = initial_data(spec, model, template, world)
+    tool_pos, tool_quat = tool_pose(spec.ctrl, model, data)
+    bb = init_blackboard(tool_pos, tool_quat, spec.default_stiffness, len(spec.ct.leaves))
+    ref = reference_pose(bb)
+    ctrl = init_controller_state(data, make_command(ref.pos, ref.quat, bb.wrench, bb.stiffness))
+    nullspace_target = world.arm_qpos
+    dt = spec.ctrl.dt
+    nominal_pos = jnp.asarray(nominal_poses(spec.bindings)[0])
+    n_terms = len(spec.terms)
+
+    def control_step(carry, _):
+        data, ctrl, bb = carry
+        ref = reference_pose(bb)
+        command = make_command(ref.pos, ref.quat, bb.wrench, bb.stiffness)
+        tau, ctrl = impedance_control(spec.ctrl, model, data, command, nullspace_target, ctrl)
+        data = mjx.step(model, data.replace(ctrl=data.ctrl.at[:N_ARM].set(tau)))
+        return (data, ctrl, advance(bb, dt)), None
+
+    def bt_tick(c: _Carry, t):
+        tool_pos, tool_quat = tool_pose(spec.ctrl, model, c.data)
+        # The skills see the world *model* (the YAML's nominal poses), not the randomized world:
+        # that mismatch is what the learned parameters must be robust to.
+        leaf_world = LeafWorld(tool_pos, tool_quat, nominal_pos)
+        leaf_status = spec.leaves.status(c.bb, leaf_world, params)
+        bt, root, active = tick(spec.ct, c.bt, leaf_status)
+        # Once the root has finished the tree is no longer ticked: every leaf is idle.
+        active = active & ~c.done
+        bt = _where(c.done, c.bt, bt)
+        root = jnp.where(c.done, c.status, root)
+        bb = spec.leaves.effects(c.bb, active, leaf_world, params)
+        (data, ctrl, bb), _ = jax.lax.scan(control_step, (c.data, c.ctrl, bb), None, length=spec.steps_per_tick)
+
+        healthy = _healthy(spec, data) & ~c.diverged
+        data, ctrl, bb = _where(healthy, (data, ctrl, bb), (c.data, c.ctrl, c.bb))
+        finished = root != Status.RUNNING
+        tool_pos, tool_quat = tool_pose(spec.ctrl, model, data)
+        slot_pos, slot_quat = slot_poses(spec, data, world)
+        obs = Observation(
+            tool_pos=tool_pos,
+            tool_quat=tool_quat,
+            ref_pos=reference_pose(bb).pos,
+            slot_pos=slot_pos,
+            slot_quat=slot_quat,
+            wrench=ctrl.wrench,
+            bt_succeeded=root == Status.SUCCESS,
+        )
+        raw = raw_rewards(spec.terms, obs) if n_terms else jnp.zeros(0, jnp.float32)
+        totals = c.totals + raw
+        trace = TickRecord(data.qpos, tool_pos, obs.ref_pos, root, active, raw) if record else None
+        return (
+            _Carry(
+                data=data,
+                ctrl=ctrl,
+                bb=bb,
+                bt=bt,
+                done=c.done | finished,
+                status=root,
+                done_tick=jnp.where(~c.done & finished, t, c.done_tick),
+                diverged=~healthy,
+                totals=totals,
+                max_force=jnp.maximum(c.max_force, jnp.linalg.norm(ctrl.wrench[:3])),
+            ),
+            trace,
+        )
+
+    carry = _Carry(
+        data=data,
+        ctrl=ctrl,
+        bb=bb,
+        bt=init_state(spec.ct),
+        done=jnp.zeros((), bool),
+        status=jnp.int32(Status.RUNNING),
+        done_tick=jnp.int32(-1),
+        diverged=jnp.zeros((), bool),
+        totals=jnp.zeros(n_terms, jnp.float32),
+        max_force=jnp.zeros((), jnp.float32),
+    )
+    c, trace = jax.lax.scan(bt_tick, carry, jnp.arange(spec.ticks, dtype=jnp.int32))
+    worst = jnp.asarray([t.worst_raw * spec.ticks for t in spec.terms], jnp.float32).reshape(n_terms)
+    totals = jnp.where(c.diverged, worst, c.totals)
+    success, pos_err, rot_err, depth = _success(spec, c.data, world)
+    result = EpisodeResult(
+        reward_totals=totals,
+        success=success & ~c.diverged,
+        diverged=c.diverged,
+        bt_status=jnp.where(c.diverged, jnp.int32(Status.FAILURE), c.status),
+        bt_done_tick=c.done_tick,
+        position_error=pos_err,
+        orientation_error=rot_err,
+        insertion_depth=depth,
+        max_force=c.max_force,
+    )
+    return (result, trace) if record else result
+
+
+def _success(spec: EpisodeSpec, data: mjx.Data, world: Worlds):
+    """(success, position error, orientation error, insertion depth) at the end of the episode."""
+    slot_pos, slot_quat = slot_poses(spec, data, world)
+    zero = jnp.zeros((), jnp.float32)
+    if spec.success_kind == "object_at_pose":
+        d_pos = jnp.linalg.norm(slot_pos[spec.success_object, :2] - slot_pos[spec.success_target, :2])
+        d_rot = quat_angle(slot_quat[spec.success_object], slot_quat[spec.success_target])
+        ok = (d_pos < spec.position_tolerance) & (d_rot < spec.orientation_tolerance)
+        return ok, d_pos, d_rot, zero
+    # "inserted": the tool (peg tip) is inside the hole's footprint, deeper than ``depth``.
+    tool_pos = data.site_xpos[spec.ctrl.site_id]
+    hole_top = slot_pos[spec.success_target] + jnp.asarray(spec.hole_top_local, jnp.float32)
+    lateral = jnp.linalg.norm(tool_pos[:2] - hole_top[:2])
+    depth = hole_top[2] - tool_pos[2]
+    inside = jnp.all(jnp.abs(tool_pos[:2] - hole_top[:2]) < spec.hole_half_width)
+    return inside & (depth > spec.depth), lateral, zero, depth
+

@@ -1,0 +1,225 @@
+"""Leaf programs: what each eBT primitive (``mjxskill/ebt/from_plan.py``) does to the controller
+command, as pure JAX over a small blackboard state.
+
+Every BT tick runs in two phases, so that no Python runs per tick and the tick itself stays the
+compiled state machine of ``mjxskill.bt_compiled``:
+
+1. ``leaf_status``: the status each leaf would return if ticked, from the blackboard and the world
+   as they are before the tick. ``set_goal_from_object`` succeeds at once; the "holding" leaves
+   (``goal_pose``, ``change_stiffness``, ``apply_force``, ``overlay_spiral``) run until preempted;
+   ``ee_pose_distance`` succeeds once the tool is within its threshold of the motion goal, but
+   only after the motion generator has run on that goal for at least one tick (a monitor must
+   observe before it can judge); ``wait`` succeeds after its duration.
+2. ``apply_effects``: the leaves the tick activated write the blackboard, in tick order (so a goal
+   written by ``set_goal_from_object`` reaches the ``goal_pose`` ticked after it in the same
+   tick). Stiffness, wrench and the spiral are held only while their leaf is active: a halted
+   ``change_stiffness`` falls back to the robot's default stiffness, a halted ``apply_force`` to
+   no force (the controller ramps both at its rate limits).
+
+The motion generator starts a new straight-line trajectory from the current reference to the
+blackboard goal whenever a ``goal_pose`` leaf becomes active; the spiral restarts whenever an
+``overlay_spiral`` leaf becomes active.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjxskill.bt_compiled import CompiledTree
+from mjxskill.ebt.nodes import Status
+from mjxskill.rollout.bindings import SceneBindings
+from mjxskill.sim.motion import MotionLimits, Pose, SpiralState, init_spiral, linear_trajectory, spiral_offset, spiral_step
+
+SPIRAL_NORMAL = np.array([0.0, 0.0, 1.0], np.float32)  # the search plane is horizontal
+
+
+class Blackboard(NamedTuple):
+    """Per-world state the leaf programs share (all float32 unless noted).
+
+    goal_pos (3,), goal_quat (4,): the last pose ``set_goal_from_object`` wrote.
+    mg_start (Pose), mg_goal (Pose), mg_time (): the motion generator's trajectory and the time
+      since it started, s.
+    stiffness (6,), wrench (6,): commanded stiffness and feed-forward wrench (before the
+      controller's rate limits).
+    spiral (SpiralState), spiral_on () bool, spiral_params (3,): radius cap m, path velocity m/s,
+      pitch m.
+    leaf_ticks (L,) int32: consecutive ticks each leaf has been active, up to the last tick.
+    """
+
+    goal_pos: jax.Array
+    goal_quat: jax.Array
+    mg_start: Pose
+    mg_goal: Pose
+    mg_time: jax.Array
+    stiffness: jax.Array
+    wrench: jax.Array
+    spiral: SpiralState
+    spiral_on: jax.Array
+    spiral_params: jax.Array
+    leaf_ticks: jax.Array
+
+
+def init_blackboard(tool_pos, tool_quat, default_stiffness, n_leaves: int) -> Blackboard:
+    """The reference starts where the tool is, with the default stiffness and no force."""
+    pose = Pose(tool_pos, tool_quat)
+    return Blackboard(
+        goal_pos=tool_pos,
+        goal_quat=tool_quat,
+        mg_start=pose,
+        mg_goal=pose,
+        mg_time=jnp.zeros((), jnp.float32),
+        stiffness=jnp.asarray(default_stiffness, jnp.float32),
+        wrench=jnp.zeros(6, jnp.float32),
+        spiral=init_spiral(),
+        spiral_on=jnp.zeros((), bool),
+        spiral_params=jnp.zeros(3, jnp.float32),
+        leaf_ticks=jnp.zeros(n_leaves, jnp.int32),
+    )
+
+
+def reference_pose(bb: Blackboard, limits: MotionLimits = MotionLimits()) -> Pose:
+    """Controller reference: the trajectory at mg_time plus the spiral offset when it is on."""
+    base = linear_trajectory(bb.mg_start, bb.mg_goal, bb.mg_time, limits)
+    offset = jnp.where(bb.spiral_on, spiral_offset(bb.spiral, jnp.asarray(SPIRAL_NORMAL)), 0.0)
+    return Pose(base.pos + offset, base.quat)
+
+
+def advance(bb: Blackboard, dt: float) -> Blackboard:
+    """One control period of the motion generator and the spiral."""
+    radius, velocity, pitch = bb.spiral_params[0], bb.spiral_params[1], bb.spiral_params[2]
+    spiral = jax.tree.map(
+        lambda new, old: jnp.where(bb.spiral_on, new, old), spiral_step(bb.spiral, radius, velocity, pitch, dt), bb.spiral
+    )
+    return bb._replace(mg_time=bb.mg_time + dt, spiral=spiral)
+
+
+class LeafWorld(NamedTuple):
+    """What leaf programs read: the tool pose and the world model's object positions (K, 3)."""
+
+    tool_pos: jax.Array
+    tool_quat: jax.Array
+    slot_pos: jax.Array
+
+
+def _input(leaf, name: str, parameter_index: dict, default=0.0) -> Callable:
+    """A leaf input: a learnable parameter (looked up in the parameter vector) or a fixed arg."""
+    if name in leaf.params:
+        idx = parameter_index.get(leaf.params[name])
+        if idx is None:
+            raise ValueError(f"leaf {leaf.name!r}: input {name!r} names parameter {leaf.params[name]!r}, which is not learnable here")
+        return lambda params: params[idx]
+    value = float(leaf.args.get(name, default))
+    return lambda params: jnp.float32(value)
+
+
+class LeafPrograms(NamedTuple):
+    """status(bb, world, params) -> (L,) int32; effects(bb, active (L,), world, params) -> bb."""
+
+    status: Callable
+    effects: Callable
+
+
+def build_leaf_programs(
+    ct: CompiledTree,
+    parameter_names: tuple[str, ...],
+    bindings: SceneBindings,
+    default_stiffness,
+    tick_seconds: float,
+) -> LeafPrograms:
+    """Leaf programs for the compiled tree's leaves (host-side; the closures trace into jit)."""
+    index = {name: i for i, name in enumerate(parameter_names)}
+    default_stiffness = np.asarray(default_stiffness, np.float32)
+    status_fns, effect_fns = [], []
+    for i, leaf in enumerate(ct.leaves):
+        status, effect = _program(i, leaf, index, bindings, tick_seconds)
+        status_fns.append(status)
+        effect_fns.append(effect)
+
+    def status(bb: Blackboard, world: LeafWorld, params) -> jax.Array:
+        return jnp.stack([jnp.asarray(f(bb, world, params), jnp.int32) for f in status_fns])
+
+    def effects(bb: Blackboard, active: jax.Array, world: LeafWorld, params) -> Blackboard:
+        # Held effects fall back to their defaults unless an active leaf sets them again.
+        bb = bb._replace(
+            stiffness=jnp.asarray(default_stiffness),
+            wrench=jnp.zeros(6, jnp.float32),
+            spiral_on=jnp.zeros((), bool),
+        )
+        for i, f in enumerate(effect_fns):
+            new = f(bb, world, params)
+            bb = jax.tree.map(lambda n, o: jnp.where(active[i], n, o), new, bb)
+        return bb._replace(leaf_ticks=jnp.where(active, bb.leaf_ticks + 1, 0))
+
+    return LeafPrograms(status, effects)
+
+
+def _program(i: int, leaf, index: dict, bindings: SceneBindings, tick_seconds: float):
+    """(status_fn, effect_fn) of leaf number ``i``."""
+    running = lambda bb, world, params: Status.RUNNING  # noqa: E731
+    keep = lambda bb, world, params: bb  # noqa: E731
+    primitive = leaf.primitive
+    if primitive == "set_goal_from_object":
+        obj = leaf.args.get("object")
+        if obj not in bindings.slot_of:
+            raise ValueError(f"leaf {leaf.name!r}: object {obj!r} is not bound to the scene")
+        slot = bindings.slot_of[obj]
+        fixed = np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), np.float32)
+        dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
+
+        def set_goal(bb, world, params):
+            offset = jnp.asarray(fixed) + jnp.stack([dx(params), dy(params), jnp.float32(0.0)])
+            # Orientation "tool_down": keep the current reference orientation (the start
+            # configurations hold the tool pointing down).
+            return bb._replace(goal_pos=world.slot_pos[slot] + offset, goal_quat=reference_pose(bb).quat)
+
+        return (lambda bb, world, params: Status.SUCCESS), set_goal
+    if primitive == "goal_pose":
+
+        def start_motion(bb, world, params):
+            fresh = bb.leaf_ticks[i] == 0
+            ref = reference_pose(bb)
+            start = jax.tree.map(lambda n, o: jnp.where(fresh, n, o), ref, bb.mg_start)
+            goal = jax.tree.map(lambda n, o: jnp.where(fresh, n, o), Pose(bb.goal_pos, bb.goal_quat), bb.mg_goal)
+            return bb._replace(mg_start=start, mg_goal=goal, mg_time=jnp.where(fresh, 0.0, bb.mg_time))
+
+        return running, start_motion
+    if primitive == "change_stiffness":
+        stiffness = np.asarray(leaf.args["stiffness"], np.float32)
+        return running, lambda bb, world, params: bb._replace(stiffness=jnp.asarray(stiffness))
+    if primitive == "apply_force":
+        base = np.asarray(leaf.args.get("wrench", (0.0,) * 6), np.float32)
+        overrides = [(axis, _input(leaf, f"force_{c}", index)) for axis, c in enumerate("xyz") if f"force_{c}" in leaf.params or f"force_{c}" in leaf.args]
+
+        def apply_force(bb, world, params):
+            wrench = jnp.asarray(base)
+            for axis, value in overrides:
+                wrench = wrench.at[axis].set(value(params))
+            return bb._replace(wrench=wrench)
+
+        return running, apply_force
+    if primitive == "overlay_spiral":
+        radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
+
+        def overlay(bb, world, params):
+            fresh = bb.leaf_ticks[i] == 0
+            spiral = jax.tree.map(lambda o: jnp.where(fresh, jnp.zeros_like(o), o), bb.spiral)
+            p = jnp.stack([radius(params), velocity(params), pitch(params)])
+            return bb._replace(spiral=spiral, spiral_on=jnp.ones((), bool), spiral_params=p)
+
+        return running, overlay
+    if primitive == "ee_pose_distance":
+        threshold = float(leaf.args["threshold"])
+
+        def reached(bb, world, params):
+            close = jnp.linalg.norm(world.tool_pos - bb.mg_goal.pos) < threshold
+            return jnp.where((bb.leaf_ticks[i] >= 1) & close, Status.SUCCESS, Status.RUNNING)
+
+        return reached, keep
+    if primitive == "wait":
+        ticks = int(np.ceil(float(leaf.args["seconds"]) / tick_seconds - 1e-9))
+        return (lambda bb, world, params: jnp.where(bb.leaf_ticks[i] >= ticks, Status.SUCCESS, Status.RUNNING)), keep
+    raise ValueError(f"leaf {leaf.name!r}: no leaf program for primitive {primitive!r}")

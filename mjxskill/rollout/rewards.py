@@ -1,0 +1,143 @@
+"""Reward terms of the paper (section "Reward Functions"), configured from the scenario YAML.
+
+Each term maps an :class:`Observation` of one world at one BT tick to a raw per-tick value; the
+rollout sums ``weight * raw`` over the episode's ticks, and an objective is the sum of its
+rewards, averaged over the worlds of a parameter set. Larger is better everywhere.
+
+Kinds (constants in brackets, defaults after ``=``):
+
+* ``task_completion`` [value = 8.0]: ``value`` per tick once the BT has returned SUCCESS.
+* ``ee_distance_to_box`` [w = 2.0, d_o = 0.006]: ``1 / (w (d + d_o))``, d = tool to target (m).
+* ``applied_wrench`` [cap = 100.0]: ``min(|Fx| + |Fy| + |Fz|, cap)`` of the force the controller
+  feeds forward (N); give it a negative weight. The cap bounds the worst value, which a diverged
+  world receives.
+* ``exp_ee_to_goal`` [sigma_w = 0.4, d_o = 0.0]: ``exp(-(d + d_o) / (2 sigma_w^2))``, d = tool to
+  target.
+* ``exp_ee_to_reference``: the same with d = tool to the controller's reference position.
+* ``object_pose_divergence`` [sigma_w, d_o, position_weight = 1, orientation_weight = 0]:
+  ``position_weight exp(-(d_p + d_o) / (2 sigma_w^2)) + orientation_weight exp(-(d_r + d_o) /
+  (2 sigma_w^2))`` with d_p the object-to-target distance (m) and d_r their angle (rad).
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjxskill.rollout.bindings import SceneBindings
+from mjxskill.scenario_schema import Reward, Scenario
+from mjxskill.sim.rotations import quat_angle
+
+KINDS = (
+    "task_completion",
+    "ee_distance_to_box",
+    "applied_wrench",
+    "exp_ee_to_goal",
+    "exp_ee_to_reference",
+    "object_pose_divergence",
+)
+
+
+class Observation(NamedTuple):
+    """What the rewards see of one world at the end of a BT tick.
+
+    tool_pos (3,), tool_quat (4,): tool site pose. ref_pos (3,): controller reference position.
+    slot_pos (K, 3), slot_quat (K, 4): current poses of the bound scenario objects.
+    wrench (6,): feed-forward wrench the controller applies (after rate limiting).
+    bt_succeeded (): bool, the BT's root has returned SUCCESS.
+    """
+
+    tool_pos: jax.Array
+    tool_quat: jax.Array
+    ref_pos: jax.Array
+    slot_pos: jax.Array
+    slot_quat: jax.Array
+    wrench: jax.Array
+    bt_succeeded: jax.Array
+
+
+def exp_reward(d, sigma_w, d_o):
+    """The paper's exponential family r(d) = exp(-(d + d_o) / (2 sigma_w^2))."""
+    return jnp.exp(-(d + d_o) / (2.0 * sigma_w**2))
+
+
+def _constant(reward: Reward, key: str, default: float) -> float:
+    return float(reward.constants.get(key, default))
+
+
+class RewardTerm(NamedTuple):
+    """A configured reward: ``raw(obs) -> ()`` per tick, its weight, objective index and the
+    worst raw value per tick (what a diverged world is charged)."""
+
+    name: str
+    raw: Callable[[Observation], jax.Array]
+    weight: float
+    objective: int
+    worst_raw: float
+
+
+def build_terms(scn: Scenario, bindings: SceneBindings) -> tuple[RewardTerm, ...]:
+    """Reward terms of the scenario, in YAML order (host-side; the closures trace into jit)."""
+    terms = []
+    for reward in scn.rewards:
+        raw, best, worst = _raw_term(reward, bindings)
+        # The worst *weighted* value: a negative weight turns the best raw value into the worst.
+        worst_raw = worst if reward.weight >= 0 else best
+        terms.append(RewardTerm(reward.name, raw, float(reward.weight), scn.objective_names.index(reward.objective), worst_raw))
+    return tuple(terms)
+
+
+def _target(reward: Reward, bindings: SceneBindings):
+    slot = bindings.slot_of[reward.target]
+    offset = np.zeros(3) if reward.target_offset is None else np.asarray(reward.target_offset, np.float32)
+    return lambda obs: obs.slot_pos[slot] + offset
+
+
+def _raw_term(reward: Reward, bindings: SceneBindings):
+    """(raw function, best raw value, worst raw value) of one reward."""
+    kind = reward.kind
+    if kind == "task_completion":
+        value = _constant(reward, "value", 8.0)
+        return (lambda obs: jnp.where(obs.bt_succeeded, value, 0.0)), max(value, 0.0), min(value, 0.0)
+    if kind == "ee_distance_to_box":
+        w, d_o = _constant(reward, "w", 2.0), _constant(reward, "d_o", 0.006)
+        target = _target(reward, bindings)
+        return (lambda obs: 1.0 / (w * (jnp.linalg.norm(obs.tool_pos - target(obs)) + d_o))), 1.0 / (w * d_o), 0.0
+    if kind == "applied_wrench":
+        cap = _constant(reward, "cap", 100.0)
+        return (lambda obs: jnp.minimum(jnp.sum(jnp.abs(obs.wrench[:3])), cap)), 0.0, cap
+    sigma_w, d_o = _constant(reward, "sigma_w", 0.4), _constant(reward, "d_o", 0.0)
+    best = float(np.exp(-d_o / (2.0 * sigma_w**2)))
+    if kind == "exp_ee_to_goal":
+        target = _target(reward, bindings)
+        return (lambda obs: exp_reward(jnp.linalg.norm(obs.tool_pos - target(obs)), sigma_w, d_o)), best, 0.0
+    if kind == "exp_ee_to_reference":
+        return (lambda obs: exp_reward(jnp.linalg.norm(obs.tool_pos - obs.ref_pos), sigma_w, d_o)), best, 0.0
+    if kind == "object_pose_divergence":
+        w_pos = _constant(reward, "position_weight", 1.0)
+        w_rot = _constant(reward, "orientation_weight", 0.0)
+        obj, tgt = bindings.slot_of[reward.object], bindings.slot_of[reward.target]
+
+        def divergence(obs):
+            d_pos = jnp.linalg.norm(obs.slot_pos[obj] - obs.slot_pos[tgt])
+            d_rot = quat_angle(obs.slot_quat[obj], obs.slot_quat[tgt])
+            return w_pos * exp_reward(d_pos, sigma_w, d_o) + w_rot * exp_reward(d_rot, sigma_w, d_o)
+
+        return divergence, (w_pos + w_rot) * best, 0.0
+    raise ValueError(f"reward {reward.name!r}: unknown kind {kind!r}; expected one of {KINDS}")
+
+
+def raw_rewards(terms: tuple[RewardTerm, ...], obs: Observation) -> jax.Array:
+    """(R,) raw per-tick values of all terms."""
+    return jnp.stack([t.raw(obs) for t in terms]) if terms else jnp.zeros((0,))
+
+
+def objective_matrix(terms: tuple[RewardTerm, ...], n_objectives: int) -> np.ndarray:
+    """(R, O) weights mapping summed raw rewards to objectives."""
+    m = np.zeros((len(terms), n_objectives), np.float32)
+    for r, t in enumerate(terms):
+        m[r, t.objective] = t.weight
+    return m
