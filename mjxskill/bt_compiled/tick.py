@@ -9,8 +9,10 @@ How it compiles: the tree is static, so ``tick`` walks it in Python at trace tim
 handful of scalar ``jnp.where`` ops per node (no ``lax.cond``, no loop over nodes at run time).
 Each node gets an ``enabled`` flag (is it ticked this tick?) from its parent; a node's status
 is only ever used behind its ``enabled`` flag, so disabled subtrees compute harmless garbage.
-The result is straight-line, branch-free code that XLA fuses and that vmaps over batches of
-independent state machines. Cost grows linearly with the number of nodes.
+The result is straight-line, branch-free code (about 20 scalar ops per node) that vmaps over
+batches of independent state machines; op count, compile time and run time grow linearly with
+the number of nodes (benchmarks/bt_tick.py: the 8-node Push tree compiles in well under a
+second, and a tick costs well under a microsecond per machine on CPU inside a scan).
 
 ``started_leaves(ct, previous_state, active)`` tells which active leaves start afresh (their
 programs must reset) rather than carry on from the last tick.
