@@ -31,7 +31,11 @@ def push_tree() -> N.Node:
     stiffness = {"stiffness": (700.0, 700.0, 700.0, 50.0, 50.0, 50.0)}
     return N.serial_star(
         "Push",
-        N.parallel_fs("ToStart", N.action("GoToStart", "go_to_linear_offset"), N.action("Stiffen1", "change_stiffness", args=stiffness)),
+        N.parallel_fs(
+            "ToStart",
+            N.action("GoToStart", "go_to_linear_offset"),
+            N.action("Stiffen1", "change_stiffness", args=stiffness),
+        ),
         N.parallel_fs(
             "PushToGoal",
             N.action("GoToGoal", "go_to_linear_offset"),
@@ -44,7 +48,11 @@ def push_tree() -> N.Node:
 def all_kinds_tree() -> N.Node:
     return N.serial_star(
         "root",
-        N.selector("pick", N.inverter(N.condition("c0")), N.sequence("seq", N.condition("c1"), N.timeout(N.action("a1"), 3))),
+        N.selector(
+            "pick",
+            N.inverter(N.condition("c0")),
+            N.sequence("seq", N.condition("c1"), N.timeout(N.action("a1"), 3)),
+        ),
         N.parallel(
             "par",
             N.repeat(N.action("a2"), 2),
@@ -100,7 +108,10 @@ def bench(name: str, tree: N.Node, ticks: int, batch: int) -> None:
         jax.block_until_ready(root)
 
     t_loop = best_of(loop) / ticks
-    print(f"  jit(tick), Python loop, batch 1     {t_loop * 1e6:9.2f} us/tick           {t_interp / t_loop:6.2f}x  (compile {compile_one:.2f} s)")
+    print(
+        f"  jit(tick), Python loop, batch 1     {t_loop * 1e6:9.2f} us/tick           "
+        f"{t_interp / t_loop:6.2f}x  (compile {compile_one:.2f} s)"
+    )
 
     many = jax.jit(jax.vmap(lambda state, leaf_status: tick(ct, state, leaf_status)))
     states = jax.vmap(lambda _: init_state(ct))(np.arange(batch))
@@ -116,7 +127,8 @@ def bench(name: str, tree: N.Node, ticks: int, batch: int) -> None:
 
     t_many = best_of(loop_many) / ticks
     print(
-        f"  jit(vmap(tick)), Python loop, batch {batch:<5} {t_many * 1e6:6.2f} us/tick  {t_many / batch * 1e9:9.1f} ns/tick/machine"
+        f"  jit(vmap(tick)), Python loop, batch {batch:<5} {t_many * 1e6:6.2f} us/tick  "
+        f"{t_many / batch * 1e9:9.1f} ns/tick/machine"
         f"  {t_interp / (t_many / batch):9.1f}x  (compile {compile_many:.2f} s)"
     )
 

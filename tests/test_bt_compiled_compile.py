@@ -34,7 +34,9 @@ def push_tree(force=FORCE) -> N.Node:
 def test_push_tree_arrays():
     ct = compile_tree(push_tree())
     #            Push ToStart GoToStart Stiffen1 PushToGoal GoToGoal Stiffen2 Press
-    np.testing.assert_array_equal(ct.kind, [K.SERIAL_STAR, K.PARALLEL_FS, K.ACTION, K.ACTION, K.PARALLEL_FS, K.ACTION, K.ACTION, K.ACTION])
+    np.testing.assert_array_equal(
+        ct.kind, [K.SERIAL_STAR, K.PARALLEL_FS, K.ACTION, K.ACTION, K.PARALLEL_FS, K.ACTION, K.ACTION, K.ACTION]
+    )
     np.testing.assert_array_equal(ct.parent, [-1, 0, 1, 1, 0, 4, 4, 4])
     np.testing.assert_array_equal(
         ct.child_table,

@@ -38,7 +38,11 @@ def push_tree(force: float = -7.0) -> N.Node:
     stiffness = {"stiffness": (700.0, 700.0, 700.0, 50.0, 50.0, 50.0)}
     return N.serial_star(
         "Push",
-        N.parallel_fs("ToStart", N.action("GoToStart", "go_to_linear_offset"), N.action("Stiffen1", "change_stiffness", args=stiffness)),
+        N.parallel_fs(
+            "ToStart",
+            N.action("GoToStart", "go_to_linear_offset"),
+            N.action("Stiffen1", "change_stiffness", args=stiffness),
+        ),
         N.parallel_fs(
             "PushToGoal",
             N.action("GoToGoal", "go_to_linear_offset"),
@@ -109,7 +113,8 @@ def test_vmapped_batch_of_64_equals_64_separate_runs_and_the_interpreter(all_kin
             table = dict(zip(leaf_ids, scripts[b, t].tolist()))
             result = interpreters[b].tick(lambda nid, node: N.Status(table[nid]))
             assert int(root) == int(result.status)
-            np.testing.assert_array_equal(np.flatnonzero(np.asarray(active)), [leaf_ids.index(i) for i in result.active_leaves])
+            expected_active = [leaf_ids.index(i) for i in result.active_leaves]
+            np.testing.assert_array_equal(np.flatnonzero(np.asarray(active)), expected_active)
             finished += int(root) != R
     assert finished > 0, "the scripts should drive some machines to a finish"
 

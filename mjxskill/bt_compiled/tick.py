@@ -37,7 +37,9 @@ SUCCESS = int(Status.SUCCESS)
 FAILURE = int(Status.FAILURE)
 NOT_TICKED = -1
 
-_KINDS_WITH_MEMORY = frozenset({Kind.SERIAL_STAR, Kind.SELECTOR_STAR, Kind.PARALLEL, Kind.REPEAT, Kind.RETRY, Kind.TIMEOUT})
+_KINDS_WITH_MEMORY = frozenset(
+    {Kind.SERIAL_STAR, Kind.SELECTOR_STAR, Kind.PARALLEL, Kind.REPEAT, Kind.RETRY, Kind.TIMEOUT}
+)
 
 
 class BTState(NamedTuple):
