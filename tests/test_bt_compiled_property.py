@@ -1,7 +1,8 @@
 """Property: the compiled tick does what the reference interpreter does, tick by tick.
 
 Random trees (every node kind, depth up to 5, up to 8 children) and random leaf-status scripts;
-root status, every node's status and the active leaves must agree at every tick.
+root status, every node's status, the active leaves and the halting rule's "live" nodes (hence
+the leaves that start afresh) must agree at every tick.
 
 Cost: a jit compiles once per tree structure (about 1 s for 25 nodes on the 2-core CPU), while
 running ``tick`` eagerly costs about 15 ms per tick, so most examples run the un-jitted tick
@@ -17,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import mjxskill  # noqa: F401  (XLA flags before jax runs anything)
-from mjxskill.bt_compiled import compile_tree, format_trace, init_state, tick, tick_sequence
+from mjxskill.bt_compiled import compile_tree, format_trace, init_state, started_leaves, tick, tick_sequence
 from mjxskill.ebt import nodes as N
 from mjxskill.ebt.interpreter import Interpreter, run_script
 
@@ -68,22 +69,28 @@ def scripts(tree: N.Node, min_ticks: int = 8, max_ticks: int = 25):
 
 
 def reference_trace(tree: N.Node, leaf_status: np.ndarray):
-    """Interpreter results as arrays: root (T,), node_status (T, n) with -1, active (T, L)."""
+    """Interpreter results as arrays: root (T,), node_status (T, n) with -1, active (T, L),
+    live (T, n): ticked and RUNNING together with all ancestors (the halting rule)."""
     results = run_script(tree, [[N.Status(s) for s in row] for row in leaf_status.tolist()])
-    n = sum(1 for _ in tree.walk())
-    leaf_ids = [i for i, node in enumerate(tree.walk()) if node.is_leaf]
-    node_status = np.full((len(results), n), -1, np.int32)
-    active = np.zeros((len(results), len(leaf_ids)), bool)
+    interp = Interpreter(tree)
+    parent = {child: nid for nid, kids in enumerate(interp.children) for child in kids}
+    leaf_ids = [i for i, node in enumerate(interp.nodes) if node.is_leaf]
+    ticks, n = len(results), len(interp.nodes)
+    node_status = np.full((ticks, n), -1, np.int32)
+    active = np.zeros((ticks, len(leaf_ids)), bool)
+    live = np.zeros((ticks, n), bool)
     for t, result in enumerate(results):
         for nid, status in result.node_status.items():
             node_status[t, nid] = int(status)
         active[t] = np.isin(leaf_ids, result.active_leaves)
+        for nid in range(n):  # pre-order: the parent's flag is already set
+            live[t, nid] = node_status[t, nid] == N.Status.RUNNING and (nid == 0 or live[t, parent[nid]])
     root = np.array([int(r.status) for r in results], np.int32)
-    return root, node_status, active
+    return root, node_status, active, live
 
 
-def assert_same_trace(ct, leaf_status, root, node_status, active, reference):
-    ref_root, ref_status, ref_active = reference
+def assert_same_trace(ct, leaf_status, root, node_status, active, live, reference):
+    ref_root, ref_status, ref_active, ref_live = reference
     message = (
         f"tree:\n{N.render(ct.tree)}\nleaf statuses (T, L):\n{leaf_status}\n"
         f"compiled:\n{format_trace(ct, node_status)}\nreference:\n{format_trace(ct, ref_status)}"
@@ -91,6 +98,7 @@ def assert_same_trace(ct, leaf_status, root, node_status, active, reference):
     np.testing.assert_array_equal(np.asarray(node_status), ref_status, err_msg=message)
     np.testing.assert_array_equal(np.asarray(root), ref_root, err_msg=message)
     np.testing.assert_array_equal(np.asarray(active), ref_active, err_msg=message)
+    np.testing.assert_array_equal(np.asarray(live), ref_live, err_msg=message)
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -104,13 +112,21 @@ def test_eager_tick_matches_reference_interpreter(data):
     assert [list(ct.children(i)) for i in range(ct.num_nodes)] == interp.children
 
     state = init_state(ct)
-    roots, statuses, actives = [], [], []
+    roots, statuses, actives, lives, starts = [], [], [], [], []
     for row in leaf_status:
+        previous = state
         state, root, active = tick(ct, state, row)
         roots.append(root)
         statuses.append(state.node_status)
         actives.append(active)
-    assert_same_trace(ct, leaf_status, roots, np.stack(statuses), np.stack(actives), reference_trace(tree, leaf_status))
+        lives.append(state.live)
+        starts.append(started_leaves(ct, previous, active))
+    reference = reference_trace(tree, leaf_status)
+    assert_same_trace(ct, leaf_status, roots, np.stack(statuses), np.stack(actives), np.stack(lives), reference)
+    # a leaf starts afresh when ticked without having been live (running on) after the last tick
+    _, _, ref_active, ref_live = reference
+    was_live = np.vstack([np.zeros((1, ct.num_nodes), bool), ref_live[:-1]])[:, ct.leaf_ids]
+    np.testing.assert_array_equal(np.stack(starts), ref_active & ~was_live)
 
 
 BATCH = 16
@@ -128,7 +144,7 @@ def test_jitted_vmapped_sequence_matches_reference_interpreter(tree, seed):
     leaf_status[..., is_condition] = rng.integers(1, 3, size=leaf_status[..., is_condition].shape)
     states = jax.vmap(lambda _: init_state(ct))(np.arange(BATCH))
 
-    _, root, active, node_status = jitted_batch_sequence(ct, states, leaf_status)
+    _, root, active, trace = jitted_batch_sequence(ct, states, leaf_status)
     for b in range(BATCH):
         reference = reference_trace(tree, leaf_status[b])
-        assert_same_trace(ct, leaf_status[b], root[b], node_status[b], active[b], reference)
+        assert_same_trace(ct, leaf_status[b], root[b], trace.node_status[b], active[b], trace.live[b], reference)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import mjxskill  # noqa: F401  (XLA flags before jax runs anything)
-from mjxskill.bt_compiled import compile_tree, format_trace, init_state, tick_sequence
+from mjxskill.bt_compiled import compile_tree, format_trace, init_state, started_leaves, tick, tick_sequence
 from mjxskill.ebt import nodes as N
 from mjxskill.ebt.interpreter import run_script
 
@@ -23,6 +23,10 @@ LETTER_STATUS = {"R": N.Status.RUNNING, "S": N.Status.SUCCESS, "F": N.Status.FAI
 jitted_sequence = jax.jit(tick_sequence, static_argnums=0)
 
 
+START_OFFSETS = {"offset_x": "Push.offset_x_start", "offset_y": "Push.offset_y_start"}
+GOAL_OFFSETS = {"offset_x": "Push.offset_x_goal", "offset_y": "Push.offset_y_goal"}
+
+
 def push_tree() -> N.Node:
     """SkiREIL's Push skill: SerialStar of two ParallelFs blocks (reference.md)."""
     stiffness = {"stiffness": (700.0, 700.0, 700.0, 50.0, 50.0, 50.0)}
@@ -30,12 +34,12 @@ def push_tree() -> N.Node:
         "Push",
         N.parallel_fs(
             "ToStart",
-            N.action("GoToStart", "go_to_linear_offset", params={"offset_x": "Push.offset_x_start", "offset_y": "Push.offset_y_start"}),
+            N.action("GoToStart", "go_to_linear_offset", params=START_OFFSETS),
             N.action("Stiffen1", "change_stiffness", args=stiffness),
         ),
         N.parallel_fs(
             "PushToGoal",
-            N.action("GoToGoal", "go_to_linear_offset", params={"offset_x": "Push.offset_x_goal", "offset_y": "Push.offset_y_goal"}),
+            N.action("GoToGoal", "go_to_linear_offset", params=GOAL_OFFSETS),
             N.action("Stiffen2", "change_stiffness", args=stiffness),
             N.action("Press", "apply_force", args={"force": (0.0, 0.0, -7.0, 0.0, 0.0, 0.0)}),
         ),
@@ -55,7 +59,8 @@ def check_table(tree: N.Node, script: dict[str, str], expected: str) -> None:
     letters = np.array([rows(script[leaf.name])[0] for leaf in ct.leaves]).T  # (T, L)
     leaf_status = np.vectorize(lambda c: int(LETTER_STATUS[c]))(letters).astype(np.int32)
 
-    _, root, active, node_status = jitted_sequence(ct, init_state(ct), leaf_status)
+    _, root, active, trace = jitted_sequence(ct, init_state(ct), leaf_status)
+    node_status = trace.node_status
     compiled = format_trace(ct, node_status)
     assert rows(compiled) == rows(expected), f"compiled tick:\n{compiled}"
     np.testing.assert_array_equal(root, np.asarray(node_status)[:, 0])
@@ -259,3 +264,39 @@ def test_timeout_firing_halts_the_serial_star_below_it():
             q   R R - R
         """,
     )
+
+
+def started_table(tree: N.Node, script: dict[str, str]) -> dict[str, str]:
+    """leaf name -> per tick "x" where ``started_leaves`` says the leaf starts afresh."""
+    ct = compile_tree(tree)
+    letters = np.array([rows(script[leaf.name])[0] for leaf in ct.leaves]).T
+    state = init_state(ct)
+    marks = []
+    for row in letters:
+        previous = state
+        state, _, active = tick(ct, state, np.array([int(LETTER_STATUS[c]) for c in row], np.int32))
+        marks.append(np.asarray(started_leaves(ct, previous, active)))
+    return {leaf.name: " ".join("x" if m else "." for m in np.stack(marks)[:, i]) for i, leaf in enumerate(ct.leaves)}
+
+
+def test_started_leaves_mark_fresh_starts_not_continuations():
+    # GoToStart runs on through ticks 2-3 (it was RUNNING), starts again after Push succeeded;
+    # GoToGoal starts once, at tick 3.
+    assert started_table(
+        push_tree(),
+        {
+            "GoToStart": "R R S R R R R",
+            "Stiffen1": "R R R R R R R",
+            "GoToGoal": "R R R R S R R",
+            "Stiffen2": "R R R R R R R",
+            "Press": "R R R R R R R",
+        },
+    ) == {
+        "GoToStart": "x . . . . x .",
+        "Stiffen1": "x . . . . x .",
+        "GoToGoal": ". . x . . . .",
+        "Stiffen2": ". . x . . . .",
+        "Press": ". . x . . . .",
+    }
+    # Repeat restarts its child after each success although the child is ticked every tick.
+    assert started_table(N.repeat(N.action("Wave"), 2), {"Wave": "S R S S F"}) == {"Wave": "x x . x x"}

@@ -5,7 +5,17 @@
 """
 
 from mjxskill.bt_compiled.compile import CompiledTree, LeafSpec, compile_tree
-from mjxskill.bt_compiled.tick import BTState, init_state, tick, tick_sequence
+from mjxskill.bt_compiled.tick import BTState, init_state, started_leaves, tick, tick_sequence
 from mjxskill.bt_compiled.trace import format_trace
 
-__all__ = ["BTState", "CompiledTree", "LeafSpec", "compile_tree", "format_trace", "init_state", "tick", "tick_sequence"]
+__all__ = [
+    "BTState",
+    "CompiledTree",
+    "LeafSpec",
+    "compile_tree",
+    "format_trace",
+    "init_state",
+    "started_leaves",
+    "tick",
+    "tick_sequence",
+]
