@@ -20,7 +20,7 @@ import jax
 import jax.numpy as jnp
 from mujoco import mjx
 
-from mjxskill.bt_compiled import CompiledTree, init_state, tick
+from mjxskill.bt_compiled import CompiledTree, init_state, started_leaves, tick
 from mjxskill.ebt.nodes import Status
 from mjxskill.rollout.bindings import FREE, MOCAP, SceneBindings, nominal_poses
 from mjxskill.rollout.leaves import Blackboard, LeafPrograms, LeafWorld, advance, init_blackboard, reference_pose
@@ -193,13 +193,15 @@ def run_episode(
         # The skills see the world *model* (the YAML's nominal poses), not the randomized world:
         # that mismatch is what the learned parameters must be robust to.
         leaf_world = LeafWorld(tool_pos, tool_quat, nominal_pos)
-        leaf_status = spec.leaves.status(c.bb, leaf_world, params)
+        live = c.bt.live[jnp.asarray(spec.ct.leaf_ids)]
+        leaf_status = spec.leaves.status(c.bb, leaf_world, params, live)
         bt, root, active = tick(spec.ct, c.bt, leaf_status)
+        started = started_leaves(spec.ct, c.bt, active)
         # Once the root has finished the tree is no longer ticked: every leaf is idle.
         active = active & ~c.done
         bt = _where(c.done, c.bt, bt)
         root = jnp.where(c.done, c.status, root)
-        bb = spec.leaves.effects(c.bb, active, leaf_world, params)
+        bb = spec.leaves.effects(c.bb, active, started, leaf_world, params)
         (data, ctrl, bb), _ = jax.lax.scan(control_step, (c.data, c.ctrl, bb), None, length=spec.steps_per_tick)
 
         healthy = _healthy(spec, data) & ~c.diverged

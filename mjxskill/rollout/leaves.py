@@ -8,8 +8,9 @@ compiled state machine of ``mjxskill.bt_compiled``:
    as they are before the tick. ``set_goal_from_object`` succeeds at once; the "holding" leaves
    (``goal_pose``, ``change_stiffness``, ``apply_force``, ``overlay_spiral``) run until preempted;
    ``ee_pose_distance`` succeeds once the tool is within its threshold of the motion goal, but
-   only after the motion generator has run on that goal for at least one tick (a monitor must
-   observe before it can judge); ``wait`` succeeds after its duration.
+   only when it was already running on the last tick, so the motion generator has run on that
+   goal for at least one tick (a monitor must observe before it can judge); ``wait`` succeeds
+   after its duration.
 2. ``apply_effects``: the leaves the tick activated write the blackboard, in tick order (so a goal
    written by ``set_goal_from_object`` reaches the ``goal_pose`` ticked after it in the same
    tick). Stiffness, wrench and the spiral are held only while their leaf is active: a halted
@@ -17,8 +18,8 @@ compiled state machine of ``mjxskill.bt_compiled``:
    no force (the controller ramps both at its rate limits).
 
 The motion generator starts a new straight-line trajectory from the current reference to the
-blackboard goal whenever a ``goal_pose`` leaf becomes active; the spiral restarts whenever an
-``overlay_spiral`` leaf becomes active.
+blackboard goal whenever a ``goal_pose`` leaf starts (afresh: newly ticked, or restarted by a
+decorator); the spiral restarts whenever an ``overlay_spiral`` leaf starts.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ class Blackboard(NamedTuple):
       controller's rate limits).
     spiral (SpiralState), spiral_on () bool, spiral_params (3,): radius cap m, path velocity m/s,
       pitch m.
-    leaf_ticks (L,) int32: consecutive ticks each leaf has been active, up to the last tick.
+    leaf_ticks (L,) int32: ticks each leaf has been active since it (re)started, 0 when idle.
     """
 
     goal_pos: jax.Array
@@ -117,7 +118,9 @@ def _input(leaf, name: str, parameter_index: dict, default=0.0) -> Callable:
 
 
 class LeafPrograms(NamedTuple):
-    """status(bb, world, params) -> (L,) int32; effects(bb, active (L,), world, params) -> bb."""
+    """status(bb, world, params, live (L,)) -> (L,) int32: ``live`` marks leaves still running on
+    from the last tick. effects(bb, active (L,), started (L,), world, params) -> bb: ``started``
+    marks active leaves that start afresh (``bt_compiled.started_leaves``)."""
 
     status: Callable
     effects: Callable
@@ -139,10 +142,10 @@ def build_leaf_programs(
         status_fns.append(status)
         effect_fns.append(effect)
 
-    def status(bb: Blackboard, world: LeafWorld, params) -> jax.Array:
-        return jnp.stack([jnp.asarray(f(bb, world, params), jnp.int32) for f in status_fns])
+    def status(bb: Blackboard, world: LeafWorld, params, live: jax.Array) -> jax.Array:
+        return jnp.stack([jnp.asarray(f(bb, world, params, live), jnp.int32) for f in status_fns])
 
-    def effects(bb: Blackboard, active: jax.Array, world: LeafWorld, params) -> Blackboard:
+    def effects(bb: Blackboard, active: jax.Array, started: jax.Array, world: LeafWorld, params) -> Blackboard:
         # Held effects fall back to their defaults unless an active leaf sets them again.
         bb = bb._replace(
             stiffness=jnp.asarray(default_stiffness),
@@ -150,17 +153,17 @@ def build_leaf_programs(
             spiral_on=jnp.zeros((), bool),
         )
         for i, f in enumerate(effect_fns):
-            new = f(bb, world, params)
+            new = f(bb, world, params, started[i])
             bb = jax.tree.map(lambda n, o: jnp.where(active[i], n, o), new, bb)
-        return bb._replace(leaf_ticks=jnp.where(active, bb.leaf_ticks + 1, 0))
+        return bb._replace(leaf_ticks=jnp.where(active, jnp.where(started, 1, bb.leaf_ticks + 1), 0))
 
     return LeafPrograms(status, effects)
 
 
 def _program(i: int, leaf, index: dict, bindings: SceneBindings, tick_seconds: float):
     """(status_fn, effect_fn) of leaf number ``i``."""
-    running = lambda bb, world, params: Status.RUNNING  # noqa: E731
-    keep = lambda bb, world, params: bb  # noqa: E731
+    running = lambda bb, world, params, live: Status.RUNNING  # noqa: E731
+    keep = lambda bb, world, params, fresh: bb  # noqa: E731
     primitive = leaf.primitive
     if primitive == "set_goal_from_object":
         obj = leaf.args.get("object")
@@ -170,17 +173,16 @@ def _program(i: int, leaf, index: dict, bindings: SceneBindings, tick_seconds: f
         fixed = np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), np.float32)
         dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
 
-        def set_goal(bb, world, params):
+        def set_goal(bb, world, params, fresh):
             offset = jnp.asarray(fixed) + jnp.stack([dx(params), dy(params), jnp.float32(0.0)])
             # Orientation "tool_down": keep the current reference orientation (the start
             # configurations hold the tool pointing down).
             return bb._replace(goal_pos=world.slot_pos[slot] + offset, goal_quat=reference_pose(bb).quat)
 
-        return (lambda bb, world, params: Status.SUCCESS), set_goal
+        return (lambda bb, world, params, live: Status.SUCCESS), set_goal
     if primitive == "goal_pose":
 
-        def start_motion(bb, world, params):
-            fresh = bb.leaf_ticks[i] == 0
+        def start_motion(bb, world, params, fresh):
             ref = reference_pose(bb)
             start = jax.tree.map(lambda n, o: jnp.where(fresh, n, o), ref, bb.mg_start)
             goal = jax.tree.map(lambda n, o: jnp.where(fresh, n, o), Pose(bb.goal_pos, bb.goal_quat), bb.mg_goal)
@@ -189,12 +191,12 @@ def _program(i: int, leaf, index: dict, bindings: SceneBindings, tick_seconds: f
         return running, start_motion
     if primitive == "change_stiffness":
         stiffness = np.asarray(leaf.args["stiffness"], np.float32)
-        return running, lambda bb, world, params: bb._replace(stiffness=jnp.asarray(stiffness))
+        return running, lambda bb, world, params, fresh: bb._replace(stiffness=jnp.asarray(stiffness))
     if primitive == "apply_force":
         base = np.asarray(leaf.args.get("wrench", (0.0,) * 6), np.float32)
         overrides = [(axis, _input(leaf, f"force_{c}", index)) for axis, c in enumerate("xyz") if f"force_{c}" in leaf.params or f"force_{c}" in leaf.args]
 
-        def apply_force(bb, world, params):
+        def apply_force(bb, world, params, fresh):
             wrench = jnp.asarray(base)
             for axis, value in overrides:
                 wrench = wrench.at[axis].set(value(params))
@@ -204,8 +206,7 @@ def _program(i: int, leaf, index: dict, bindings: SceneBindings, tick_seconds: f
     if primitive == "overlay_spiral":
         radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
 
-        def overlay(bb, world, params):
-            fresh = bb.leaf_ticks[i] == 0
+        def overlay(bb, world, params, fresh):
             spiral = jax.tree.map(lambda o: jnp.where(fresh, jnp.zeros_like(o), o), bb.spiral)
             p = jnp.stack([radius(params), velocity(params), pitch(params)])
             return bb._replace(spiral=spiral, spiral_on=jnp.ones((), bool), spiral_params=p)
@@ -214,12 +215,12 @@ def _program(i: int, leaf, index: dict, bindings: SceneBindings, tick_seconds: f
     if primitive == "ee_pose_distance":
         threshold = float(leaf.args["threshold"])
 
-        def reached(bb, world, params):
+        def reached(bb, world, params, live):
             close = jnp.linalg.norm(world.tool_pos - bb.mg_goal.pos) < threshold
-            return jnp.where((bb.leaf_ticks[i] >= 1) & close, Status.SUCCESS, Status.RUNNING)
+            return jnp.where(live[i] & close, Status.SUCCESS, Status.RUNNING)
 
         return reached, keep
     if primitive == "wait":
         ticks = int(np.ceil(float(leaf.args["seconds"]) / tick_seconds - 1e-9))
-        return (lambda bb, world, params: jnp.where(bb.leaf_ticks[i] >= ticks, Status.SUCCESS, Status.RUNNING)), keep
+        return (lambda bb, world, params, live: jnp.where(live[i] & (bb.leaf_ticks[i] >= ticks), Status.SUCCESS, Status.RUNNING)), keep
     raise ValueError(f"leaf {leaf.name!r}: no leaf program for primitive {primitive!r}")
