@@ -132,3 +132,23 @@ def test_quaternion_helpers_match_mujoco(a, b):
     np.testing.assert_allclose(quat_to_rotvec(jnp.asarray(a)), rotvec, atol=2e-5)
     back = np.asarray(rotvec_to_quat(jnp.asarray(rotvec)))
     assert min(np.abs(back - a).max(), np.abs(back + a).max()) < 2e-5
+
+
+@pytest.mark.parametrize("strategy,chunk", [("map", None), ("chunked", 2)])
+def test_batching_strategies_agree_with_vmap(strategy, chunk):
+    """Every strategy maps the same per-world function; zero-size leaves like MJX's are kept."""
+    from mjxskill.sim.batching import over_worlds
+
+    def per_world(x, tree):
+        return {"y": jnp.sin(x) * tree["a"].sum(), "empty": tree["empty"] + 1.0}
+
+    x = jnp.arange(6.0)
+    tree = {"a": jnp.arange(18.0).reshape(6, 3), "empty": jnp.zeros((6, 0))}
+    expected = jax.vmap(per_world)(x, tree)
+    got = jax.jit(over_worlds(per_world, strategy, chunk))(x, tree)
+    np.testing.assert_allclose(got["y"], expected["y"], rtol=1e-6)
+    assert got["empty"].shape == (6, 0)
+    with pytest.raises(ValueError, match="unknown batching strategy 'pmap'"):
+        over_worlds(per_world, "pmap")
+    with pytest.raises(ValueError, match="do not split"):
+        over_worlds(per_world, "chunked", 4)(x, tree)
