@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from mjxskill.sim.motion import (
     MotionLimits, Pose, init_spiral, linear_trajectory, plane_basis, ramp, spiral_offset, spiral_step,
     trajectory_duration)
-from mjxskill.sim.rotations import quat_angle, rotvec_to_quat
+from mjxskill.sim.rotations import quat_angle, quat_mul, rotvec_to_quat
 
 LIMITS = MotionLimits()
 DT = 0.002
@@ -35,7 +35,6 @@ def _profile(delta_pos, rotvec, t_end=8.0):
     times = jnp.arange(0.0, t_end, DT)
     start_q = jnp.array([0.9238795, 0.0, 0.3826834, 0.0])  # any non-trivial start orientation
     goal_q = jnp.asarray(np.asarray(rotvec_to_quat(jnp.asarray(rotvec, jnp.float32))))
-    from mjxskill.sim.rotations import quat_mul
     poses, duration = _sample(jnp.zeros(3), start_q, jnp.asarray(delta_pos, jnp.float32),
                               quat_mul(goal_q, start_q), times)
     dist = np.linalg.norm(np.asarray(poses.pos), axis=1)
