@@ -188,6 +188,18 @@ def test_lmcut_is_admissible_and_dominates_hmax(name):
     assert h_lmcut(task.init) > h_max(task.init) or name != "gripper"  # strictly better here
 
 
+def test_delete_then_add():
+    # a fact both deleted and added by one action stays true (STRIPS semantics, also FD's)
+    domain = """(define (domain relabel) (:requirements :strips)
+      (:predicates (ready) (done))
+      (:action redo :parameters () :precondition (ready)
+        :effect (and (not (ready)) (ready) (done))))"""
+    problem = """(define (problem p) (:domain relabel) (:init (ready))
+      (:goal (and (ready) (done))))"""
+    assert solve(domain, problem) == ["(redo)"] == fast_downward_plan(domain, problem)
+    assert lifted_run(domain, problem, ["(redo)"])
+
+
 def test_goal_true_initially_gives_the_empty_plan():
     problem = blocks_problem([["a", "b"]], [["a", "b"]])
     assert solve(BLOCKS_DOMAIN, problem) == []

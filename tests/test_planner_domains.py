@@ -356,7 +356,9 @@ def fast_downward_plan(domain: str, problem: str) -> list[str] | None:
             assert run.returncode in (11, 12), run.stdout[-2000:] + run.stderr[-2000:]
             return None
         with open(plan_file) as f:
-            return [line.strip().lower() for line in f if not line.startswith(";")]
+            # FD writes "(name a b)" but "(name )" for actions without parameters
+            return ["(" + " ".join(line.strip().strip("()").lower().split()) + ")"
+                    for line in f if not line.startswith(";")]
 
 
 def oracle_plan(domain: str, problem: str, oracle: str) -> list[str] | None:
