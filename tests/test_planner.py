@@ -372,6 +372,36 @@ def test_domain_name_mismatch():
     expect_error(GRIPPER_DOMAIN, problem, "problem", "(:domain gripper)", "'gripper'")
 
 
+@st.composite
+def mutated_cases(draw):
+    """A case whose domain or problem text had one token deleted, duplicated or replaced."""
+    case = CASES[draw(st.sampled_from(sorted(CASES)))]
+    in_domain = draw(st.booleans())
+    tokens = (case.domain if in_domain else case.problem).split(" ")
+    i = draw(st.integers(0, len(tokens) - 1))
+    edit = draw(st.sampled_from(["delete", "duplicate", "replace"]))
+    if edit == "delete":
+        del tokens[i]
+    elif edit == "duplicate":
+        tokens.insert(i, tokens[draw(st.integers(0, len(tokens) - 1))])
+    else:
+        tokens[i] = draw(st.sampled_from(["(", ")", "(and)", "?zz", "foo", "-", "(not", "()",
+                                          "(= ?a ?b)", ":typing", "(either"]))
+    text = " ".join(tokens)
+    return (text, case.problem) if in_domain else (case.domain, text)
+
+
+@settings(max_examples=40, deadline=None)
+@given(mutated_cases())
+def test_mangled_pddl_raises_only_pddl_errors(texts):
+    # any edit either still makes sense (a plan or Unsolvable) or is reported as PDDLError;
+    # never a stray exception from the parser library
+    try:
+        solve(*texts, max_expansions=20_000)
+    except (PDDLError, Unsolvable):
+        pass
+
+
 # ---- determinism -------------------------------------------------------------------------
 
 
