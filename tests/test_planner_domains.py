@@ -1,8 +1,9 @@
 """Classic PDDL domains and problems used by the planner tests and benchmark.
 
 Each entry of `CASES` names the independent planner that can read it: ``"pyperplan"`` (STRIPS +
-typing) or ``"fd"`` (Fast Downward: also negative preconditions and equality, but not `either`). The tests in this file only
-check that the texts are what the oracles accept, so a typo here cannot pass silently.
+typing) or ``"fd"`` (Fast Downward: also negative preconditions and equality, but not
+`either`). The test in this file checks that pyperplan's cases stay inside pyperplan's language,
+so a case it would misread cannot pass silently.
 """
 
 from __future__ import annotations
