@@ -306,13 +306,16 @@ CASES = {
 
 
 def pyperplan_plan(domain: str, problem: str, heuristic: str = "hmax") -> list[str] | None:
-    """Optimal plan from pyperplan's A* (h_max or blind), as lower-case ground actions."""
+    """Optimal plan from pyperplan's A* (h_max, LM-cut or blind), as lower-case ground
+    actions."""
     from pyperplan.heuristics.blind import BlindHeuristic
+    from pyperplan.heuristics.lm_cut import LmCutHeuristic
     from pyperplan.heuristics.relaxation import hMaxHeuristic
     from pyperplan.planner import search_plan
     from pyperplan.search import astar_search
 
-    heuristic_class = {"hmax": hMaxHeuristic, "blind": BlindHeuristic}[heuristic]
+    heuristic_class = {"hmax": hMaxHeuristic, "blind": BlindHeuristic,
+                       "lmcut": LmCutHeuristic}[heuristic]
     with tempfile.TemporaryDirectory() as tmp:
         dfile, pfile = os.path.join(tmp, "domain.pddl"), os.path.join(tmp, "problem.pddl")
         with open(dfile, "w") as f:
