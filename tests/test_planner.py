@@ -450,3 +450,36 @@ def test_random_blocksworld_matches_pyperplan(instance):
     plan = solve(BLOCKS_DOMAIN, problem)
     assert len(plan) == len(pyperplan_plan(BLOCKS_DOMAIN, problem))
     assert lifted_run(BLOCKS_DOMAIN, problem, plan)
+
+
+# ---- random visit-once graphs: negative preconditions and equality vs Fast Downward -------
+
+
+@st.composite
+def visit_instances(draw):
+    n = draw(st.integers(3, 6))
+    cells = [f"r{i}" if draw(st.booleans()) else f"h{i}" for i in range(n)]
+    pairs = [(a, b) for i, a in enumerate(cells) for b in cells[i + 1:]]
+    doors = draw(st.lists(st.sampled_from(pairs), min_size=1, max_size=2 * n, unique=True))
+    return visit_problem(cells, doors, cells[0])
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(visit_instances())
+def test_random_visit_once_matches_fast_downward(problem):
+    reference = fast_downward_plan(VISIT_DOMAIN_WITHOUT_EITHER, problem)
+    if reference is None:
+        with pytest.raises(Unsolvable):
+            solve(VISIT_DOMAIN, problem)
+    else:
+        plan = solve(VISIT_DOMAIN, problem)
+        assert len(plan) == len(reference)
+        assert lifted_run(VISIT_DOMAIN, problem, plan)
+
+
+def test_expansion_limit():
+    case = CASES["gripper"]
+    with pytest.raises(RuntimeError, match="expansions"):
+        solve(case.domain, case.problem, max_expansions=3)
+    with pytest.raises(ValueError, match="heuristic"):
+        solve(case.domain, case.problem, heuristic="hff")
