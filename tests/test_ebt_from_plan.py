@@ -6,7 +6,6 @@ import dataclasses
 from types import MappingProxyType
 
 import pytest
-from fallback_planner import solve
 
 from mjxskill.ebt.from_plan import PRIMITIVES, PlanError, ground_plan, plan_to_tree
 from mjxskill.ebt.interpreter import Interpreter
@@ -16,12 +15,12 @@ from mjxskill.scenario import load_scenario
 
 @pytest.fixture(scope="module")
 def push():
-    return load_scenario("push", solve=solve)
+    return load_scenario("push")
 
 
 @pytest.fixture(scope="module")
 def peg():
-    return load_scenario("peg", solve=solve)
+    return load_scenario("peg")
 
 
 def shape(node: Node):

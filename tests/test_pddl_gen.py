@@ -2,7 +2,7 @@
 Downward (an independent planner) to the same optimal plan; goals in SkiROS and plain form."""
 
 import pytest
-from fallback_planner import fast_downward_plan, solve
+from fast_downward import fast_downward_plan
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pddl.logic.base import And, Not
@@ -16,7 +16,7 @@ from mjxskill.scenario import load_scenario
 
 @pytest.fixture(scope="module")
 def scenarios():
-    return {name: load_scenario(name, solve=solve) for name in ("push", "peg")}
+    return {name: load_scenario(name) for name in ("push", "peg")}
 
 
 def _atoms(formula):
@@ -114,7 +114,7 @@ def test_negated_goal_needs_negative_preconditions_and_fast_downward_solves_it(s
 
 def test_another_goal_in_the_same_world(scenarios):
     # Only going to the box: one GoToLinear and nothing to learn.
-    task = plan_task(scenarios["peg"], "(ee-at iiwa-1 boxwithhole-1)", solve=solve)
+    task = plan_task(scenarios["peg"], "(ee-at iiwa-1 boxwithhole-1)")
     assert [str(s) for s in task.steps] == ["GoToLinear(robot=iiwa-1, from=Home-1, target=BoxWithHole-1)"]
     assert task.parameters == () and task.bounds.shape == (2, 0)
 

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from fallback_planner import SHIM_DIR, fast_downward_plan
+from fast_downward import fast_downward_plan
 
 from mjxskill.scenario import SCENARIO_DIR
 
@@ -16,8 +16,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def cli(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
     env = dict(os.environ)
-    # this checkout first; the shim supplies a stand-in planner only while mjxskill.planner is missing
-    env["PYTHONPATH"] = os.pathsep.join([str(SHIM_DIR), str(ROOT), env.get("PYTHONPATH", "")])
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])  # this checkout first
     return subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, cwd=cwd, env=env, timeout=120)
 
 

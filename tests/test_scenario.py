@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fallback_planner import solve
 
 from mjxskill.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 
@@ -17,12 +16,12 @@ PUSH_YAML = SCENARIO_DIR / "push.yaml"
 
 @pytest.fixture(scope="module")
 def push():
-    return load_scenario("push", solve=solve)
+    return load_scenario("push")
 
 
 @pytest.fixture(scope="module")
 def peg():
-    return load_scenario("peg", solve=solve)
+    return load_scenario("peg")
 
 
 def test_push_world_model_has_the_papers_numbers(push):
@@ -119,13 +118,13 @@ def test_scenario_is_immutable(push):
 
 
 def test_load_by_path_equals_load_by_name(push):
-    again = load_scenario(PUSH_YAML, solve=solve)
+    again = load_scenario(PUSH_YAML)
     assert again.parameter_names == push.parameter_names and again.source == push.source
 
 
 def test_unknown_task_name_lists_the_available_ones():
     with pytest.raises(ScenarioError, match=r"unknown task 'pusj'.*available: peg, push"):
-        load_scenario("pusj", solve=solve)
+        load_scenario("pusj")
 
 
 # -- invalid files ------------------------------------------------------------------------------
@@ -218,7 +217,7 @@ def test_invalid_file_fails_naming_file_key_and_line(kind, tmp_path):
     path = tmp_path / "push.yaml"
     path.write_text(mutated)
     with pytest.raises(ScenarioError) as info:
-        load_scenario(path, solve=solve)
+        load_scenario(path)
     error = str(info.value)
     assert error.startswith(f"{path}: "), error
     assert re.search(rf": {key_path} \(line (\d+)\): ", error), error
@@ -236,19 +235,19 @@ def test_not_yaml_at_all(tmp_path):
     path = tmp_path / "bad.yaml"
     path.write_text("name: push\nrobot: [1, 2\n")
     with pytest.raises(ScenarioError, match=rf"^{re.escape(str(path))} \(line \d+, column \d+\): not valid YAML"):
-        load_scenario(path, solve=solve)
+        load_scenario(path)
 
 
 def test_empty_and_missing_files(tmp_path):
     (tmp_path / "empty.yaml").write_text("")
     with pytest.raises(ScenarioError, match="the file is empty"):
-        load_scenario(tmp_path / "empty.yaml", solve=solve)
+        load_scenario(tmp_path / "empty.yaml")
     with pytest.raises(ScenarioError, match="cannot read the scenario file"):
-        load_scenario(tmp_path / "missing.yaml", solve=solve)
+        load_scenario(tmp_path / "missing.yaml")
 
 
 def test_yaml_tags_are_not_executed(tmp_path):
     path = tmp_path / "evil.yaml"
     path.write_text(PUSH_YAML.read_text().replace("name: push", "name: !!python/object/apply:os.system ['echo hi']"))
     with pytest.raises(ScenarioError, match="name"):
-        load_scenario(path, solve=solve)
+        load_scenario(path)
