@@ -1,13 +1,18 @@
 """Scenario files: the numbers of the paper/reference, immutability, and one clear error (file,
 key path, line) for every kind of invalid file."""
 
+import copy
 import dataclasses
+import functools
 import math
 import re
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from mjxskill.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 
@@ -202,6 +207,7 @@ MUTATIONS = {
     "goal with an unknown object": ("goal: (skiros:at skiros:ObjectToBePushed-1 skiros:ObjectGoalPose-1)",
                                     "goal: (skiros:at skiros:ObjectToBePushed-1 skiros:ObjectGoalPose-2)",
                                     "goal", "unknown object 'objectgoalpose-2'.*did you mean objectgoalpose-1"),
+    "goal no plan reaches": ("    - (can-push iiwa-1)\n", "", "goal", "no plan reaches the goal", "goal: (skiros:at"),
     "goal not balanced": ("goal: (skiros:at skiros:ObjectToBePushed-1 skiros:ObjectGoalPose-1)",
                           "goal: (skiros:at skiros:ObjectToBePushed-1 skiros:ObjectGoalPose-1",
                           "goal", "unbalanced parentheses"),
@@ -251,3 +257,36 @@ def test_yaml_tags_are_not_executed(tmp_path):
     path.write_text(PUSH_YAML.read_text().replace("name: push", "name: !!python/object/apply:os.system ['echo hi']"))
     with pytest.raises(ScenarioError, match="name"):
         load_scenario(path)
+
+
+def _paths(tree, prefix=()):
+    """Every key path of a loaded YAML tree (mappings and lists)."""
+    items = tree.items() if isinstance(tree, dict) else enumerate(tree) if isinstance(tree, list) else ()
+    for key, value in items:
+        yield (*prefix, key)
+        yield from _paths(value, (*prefix, key))
+
+
+PUSH_TREE = yaml.safe_load(PUSH_YAML.read_text())
+PUSH_PATHS = list(_paths(PUSH_TREE))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    path=st.sampled_from(PUSH_PATHS),
+    edit=st.sampled_from(["delete", "text", "number", "list", "mapping", "null", "negative"]),
+)
+def test_any_edit_loads_or_fails_with_a_located_scenario_error(tmp_path, path, edit):
+    tree = copy.deepcopy(PUSH_TREE)
+    parent = functools.reduce(lambda node, key: node[key], path[:-1], tree)
+    replacement = {"text": "zzz", "number": 3, "list": [1, 2], "mapping": {"a": 1}, "null": None, "negative": -1.0}
+    if edit == "delete":
+        del parent[path[-1]]
+    else:
+        parent[path[-1]] = replacement[edit]
+    target = tmp_path / f"edited-{abs(hash((path, edit)))}.yaml"
+    target.write_text(yaml.safe_dump(tree, sort_keys=False))
+    try:
+        load_scenario(target)
+    except ScenarioError as err:  # the only exception a bad file may raise
+        assert str(err).startswith(f"{target}: ") and "(line " in str(err) and "\n" not in str(err), str(err)
