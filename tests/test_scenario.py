@@ -122,6 +122,11 @@ def test_scenario_is_immutable(push):
         push.skills["Push"].parameters[0] = None
 
 
+def test_scenario_is_hashable_for_use_as_a_static_jit_argument(push):
+    assert hash(push) == hash(push) and push == push
+    assert {push: 1}[push] == 1
+
+
 def test_load_by_path_equals_load_by_name(push):
     again = load_scenario(PUSH_YAML)
     assert again.parameter_names == push.parameter_names and again.source == push.source
