@@ -38,7 +38,7 @@ def test_plan_push_prints_goal_plan_tree_and_parameters():
     assert "2. Push(robot=iiwa-1, workpiece=ObjectToBePushed-1, goal=ObjectGoalPose-1)" in out
     for symbol in ("->* plan", "-> GoToLinear", "||FS Push.start", "||FS Push.goal"):
         assert symbol in out
-    assert "Push.offset_x_start  [0, 0.2] m" in out and "Push.offset_y_goal   [-0.2, 0] m" in out
+    assert "Push.offset_x_start  [-0.3, 0.3] m" in out and "Push.offset_y_goal   [-0.3, 0.3] m" in out
 
 
 def test_plan_peg_with_a_goal_exports_pddl_fast_downward_solves(tmp_path):

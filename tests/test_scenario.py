@@ -60,7 +60,7 @@ def test_push_world_model_has_the_papers_numbers(push):
 def test_peg_world_model_has_the_papers_numbers(peg):
     assert (peg.episode_seconds, peg.gravity) == (18.0, False)
     box = peg.objects["BoxWithHole-1"]
-    assert box.mjcf_body == "box" and peg.objects["Peg-1"].mjcf_body == "peg"
+    assert box.mjcf_body == "box" and peg.objects["Peg-1"].mjcf_body == "tool_tool"
     assert box.extra["hole_clearance"] == 0.0015 and box.extra["hole_depth"] > 0.01
     assert box.friction == 0.3
     assert peg.robot.start_configs.shape == (5, 7) and peg.robot.eval_configs.shape == (10, 7)
@@ -76,7 +76,7 @@ def test_learnable_parameters_come_from_the_plan(push, peg):
     assert push.parameter_names == (
         "Push.offset_x_start", "Push.offset_y_start", "Push.offset_x_goal", "Push.offset_y_goal",
     )
-    np.testing.assert_array_equal(push.bounds, [[0, 0, -0.2, -0.2], [0.2, 0.2, 0, 0]])
+    np.testing.assert_array_equal(push.bounds, [[-0.3] * 4, [0.3] * 4])
     assert push.parameter_units == ("m",) * 4
     np.testing.assert_array_equal(push.parameter_defaults, np.zeros(4))
     assert peg.parameter_names == (
@@ -144,28 +144,28 @@ def test_unknown_task_name_lists_the_available_ones():
 MUTATIONS = {
     "missing key": ("episode_seconds: 12.0\n", "", "<top level>", "missing key 'episode_seconds'"),
     "unknown key": (
-        "    com_offset: [0.015", "    bogus: 1\n    com_offset: [0.015",
+        "    com_offset: [-0.02", "    bogus: 1\n    com_offset: [-0.02",
         "objects.ObjectToBePushed-1.bogus", "unknown key 'bogus'", "bogus: 1",
     ),
     "wrong type": ("    mass: 2.5", "    mass: heavy", "objects.ObjectToBePushed-1.mass", "expected a number, got 'heavy'"),
     "wrong type in a list": (
-        "- [0.4247, 1.2567,", "- [0.4247, x,", r"robot.start_configs\[0\]\[1\]", "expected a number, got 'x'",
+        "- [-0.1200, 0.7679,", "- [-0.1200, x,", r"robot.start_configs\[0\]\[1\]", "expected a number, got 'x'",
     ),
     "wrong vector length": (
         "default_stiffness: [400, 400, 400, 50, 50, 50]", "default_stiffness: [400, 400]",
         "robot.default_stiffness", "expected a list of 6 numbers, got 2",
     ),
     "lower bound above upper": (
-        "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [0.0, 0.2]",
-        "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [0.3, 0.2]",
-        "skills.Push.parameters.offset_x_start.bounds", "lower bound 0.3 is above the upper bound 0.2",
+        "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3]",
+        "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [0.4, 0.3]",
+        "skills.Push.parameters.offset_x_start.bounds", "lower bound 0.4 is above the upper bound 0.3",
     ),
     "default outside bounds": (
         "force: {type: float, unit: N, default: -5.0,", "force: {type: float, unit: N, default: 5.0,",
         "skills.PegInsertion.parameters.force.default", r"default 5.0 is outside the bounds \[-10.0, 0.0\]",
     ),
     "learnable without bounds": (
-        "offset_y_goal: {type: float, unit: m, default: 0.0, bounds: [-0.2, 0.0], learnable: true}",
+        "offset_y_goal: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3], learnable: true}",
         "offset_y_goal: {type: float, unit: m, default: 0.0, learnable: true}",
         "skills.Push.parameters.offset_y_goal", "a learnable parameter needs bounds",
     ),
@@ -203,11 +203,11 @@ MUTATIONS = {
                           "{name: ee_to_goal, kind: exp_ee_to_goal, objective: sucess,",
                           r"rewards\[2\].objective", "unknown objective 'sucess'"),
     "unknown reward kind": ("kind: exp_ee_to_reference", "kind: exp_ee_to_ref", r"rewards\[3\].kind", "'exp_ee_to_ref' is not one of"),
-    "joint angle outside its limit": ("- [0.4247, 1.2567,", "- [0.4247, 2.2567,", r"robot.start_configs\[0\]\[1\]", "outside the joint limit"),
+    "joint angle outside its limit": ("- [-0.1200, 0.7679,", "- [-0.1200, 2.7679,", r"robot.start_configs\[0\]\[1\]", "outside the joint limit"),
     "n_init above budget": ("  n_init: 48", "  n_init: 480", "optimizer.n_init", "exceeds the budget 400"),
-    "manual parameter not learnable": ("operator_a: {Push.offset_x_start: 0.05,", "operator_a: {Push.offset_z_start: 0.05,",
+    "manual parameter not learnable": ("operator_a: {Push.offset_x_start: -0.02,", "operator_a: {Push.offset_z_start: -0.02,",
                                        "manual_parameters.operator_a.Push.offset_z_start", "not a learnable parameter"),
-    "manual parameter outside bounds": ("operator_b: {Push.offset_x_start: 0.10,", "operator_b: {Push.offset_x_start: 0.50,",
+    "manual parameter outside bounds": ("operator_b: {Push.offset_x_start: 0.0,", "operator_b: {Push.offset_x_start: 0.5,",
                                         "manual_parameters.operator_b.Push.offset_x_start", "outside the bounds"),
     "goal with an unknown object": ("goal: (skiros:at skiros:ObjectToBePushed-1 skiros:ObjectGoalPose-1)",
                                     "goal: (skiros:at skiros:ObjectToBePushed-1 skiros:ObjectGoalPose-2)",
