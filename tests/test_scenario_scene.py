@@ -51,3 +51,11 @@ def test_start_postures_hold_the_tool_down_above_the_table(scene):
         mujoco.mj_kinematics(model, data)
         assert 0.05 <= site.xpos[2] <= 0.2, q
         assert site.xmat.reshape(3, 3)[:, 2] @ [0, 0, -1] > 0.99, q  # tool z along world -z
+
+
+def test_start_postures_are_the_sim_packages(scene):
+    postures = pytest.importorskip("mjxskill.sim.postures")
+    scn, _ = scene
+    name = scn.name.upper()
+    np.testing.assert_array_equal(scn.robot.start_configs, getattr(postures, f"{name}_STARTS"))
+    np.testing.assert_array_equal(scn.robot.eval_configs, getattr(postures, f"{name}_EVAL_STARTS"))
