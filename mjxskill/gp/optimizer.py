@@ -54,6 +54,7 @@ class MOBOConfig:
     n_opt_steps: int = 60
     fit_starts: int = 2
     fit_steps: int = 30
+    shared_fit: bool = True  # one GP fit per batch (False: one per batch element)
 
     def __post_init__(self):
         b = np.asarray(self.bounds, dtype=np.float64)
@@ -91,6 +92,7 @@ class MOBOConfig:
             n_opt_steps=int(self.n_opt_steps),
             fit_starts=int(self.fit_starts),
             fit_steps=int(self.fit_steps),
+            shared_fit=bool(self.shared_fit),
         )
 
 

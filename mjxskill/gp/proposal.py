@@ -39,6 +39,8 @@ class ProposalSettings(NamedTuple):
     learning_rate: float = 0.02  # unit-cube coordinates per step
     fit_starts: int = 2
     fit_steps: int = 30
+    # False: one GP fit per batch element (q times the fit cost, see module docstring).
+    shared_fit: bool = True
 
 
 def standardize(s: jnp.ndarray, mask: jnp.ndarray) -> jnp.ndarray:
@@ -121,12 +123,17 @@ def propose_batch(x, y_norm, mask, key, *, q: int, settings: ProposalSettings = 
     k_w, k_fit, k_acq = jax.random.split(key, 3)
     weights = sample_simplex(k_w, q, m)
     scal = jax.vmap(lambda w: standardize(chebyshev(y_norm, w, settings.alpha), mask))(weights)  # (q, n)
-    params = gpm.fit(x, scal[0], mask, k_fit, n_starts=settings.fit_starts, n_steps=settings.fit_steps)
-    post = gpm.condition(params, x, scal[0], mask)
+    fit = lambda y: gpm.fit(x, y, mask, k_fit, n_starts=settings.fit_starts, n_steps=settings.fit_steps)
+    if settings.shared_fit:
+        params = jax.tree.map(lambda a: jnp.broadcast_to(a, (q,) + a.shape), fit(scal[0]))
+    else:
+        params = jax.lax.map(fit, scal)
+    posts = jax.vmap(lambda p, y: gpm.condition(p, x, y, mask))(params, scal)
     acq_keys = jax.random.split(k_acq, q)
 
     def choose(carry, j):
         fantasies, fantasy_mask = carry
+        post = jax.tree.map(lambda a: a[j], posts)
         acq = _acquisition_for_element(post, scal[j], fantasies, fantasy_mask)
         xj = _maximize(acq, acq_keys[j], d, settings)
         return (fantasies.at[j].set(xj), fantasy_mask.at[j].set(True)), xj
