@@ -106,7 +106,7 @@ def main(argv=None):
     options = {}
     for kv in args.option:
         k, v = kv.split("=")
-        options[k] = {"True": True, "False": False}.get(v, None) if v in ("True", "False") else (float(v) if "." in v else int(v))
+        options[k] = float(v) if "." in v else int(v)
     rows = []
     for name in args.problems:
         problem = PROBLEMS[name]

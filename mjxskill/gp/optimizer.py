@@ -49,12 +49,12 @@ class MOBOConfig:
     seed: int = 0
     alpha: float = 0.05
     bucket: int = 64  # training sets are padded to a multiple of this many rows
-    n_raw: int = 512
+    n_raw: int = 1024
     n_restarts: int = 10
-    n_opt_steps: int = 60
+    n_opt_steps: int = 100
     fit_starts: int = 2
-    fit_steps: int = 30
-    shared_fit: bool = True  # one GP fit per batch (False: one per batch element)
+    fit_steps: int = 50
+    per_element_fit_max_rows: int = 128  # own GP fit per batch element up to this padded size
 
     def __post_init__(self):
         b = np.asarray(self.bounds, dtype=np.float64)
@@ -92,7 +92,7 @@ class MOBOConfig:
             n_opt_steps=int(self.n_opt_steps),
             fit_starts=int(self.fit_starts),
             fit_steps=int(self.fit_steps),
-            shared_fit=bool(self.shared_fit),
+            per_element_fit_max_rows=int(self.per_element_fit_max_rows),
         )
 
 
