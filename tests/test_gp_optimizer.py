@@ -23,7 +23,10 @@ from mjxskill.gp.proposal import propose_batch
 
 BOUNDS = [[-1.0, 0.0], [1.0, 2.0]]
 # Small acquisition/fit budgets and a small bucket keep compiles and runs cheap.
-CHEAP = dict(bucket=16, n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1, fit_steps=5)
+# fit_max_rows and per_element_fit_max_rows are set so that both the subset fit and the
+# shared and per-element fits run (buckets of 16 and 32 rows).
+CHEAP = dict(bucket=16, n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1, fit_steps=5,
+             fit_max_rows=8, per_element_fit_max_rows=16)
 
 
 def objectives(x):
