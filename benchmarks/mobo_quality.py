@@ -106,7 +106,10 @@ def main(argv=None):
     options = {}
     for kv in args.option:
         k, v = kv.split("=")
-        options[k] = float(v) if "." in v else int(v)
+        try:
+            options[k] = float(v) if "." in v else int(v)
+        except ValueError:
+            options[k] = v
     rows = []
     for name in args.problems:
         problem = PROBLEMS[name]
