@@ -83,7 +83,9 @@ class MOBOConfig:
         if not 0.0 <= float(self.alpha):
             raise ValueError(f"MOBOConfig.alpha: must be >= 0, got {self.alpha!r}")
         if self.model not in ("per_objective", "scalarized", "hybrid"):
-            raise ValueError(f"MOBOConfig.model: expected 'per_objective' or 'scalarized', got {self.model!r}")
+            raise ValueError(
+                f"MOBOConfig.model: expected 'per_objective', 'scalarized' or 'hybrid', got {self.model!r}"
+            )
         if self.ei not in ("draws", "moments"):
             raise ValueError(f"MOBOConfig.ei: expected 'draws' or 'moments', got {self.ei!r}")
         if not float(self.tau) > 0.0:
