@@ -1,15 +1,19 @@
 """One model-based batch: fit GPs, then pick q points by sequential greedy log-EI.
 
-Two models of element j's scalarization, combined by ``settings.model`` ("hybrid", the
-default: the first ceil(q/2) elements use the scalarized model, the rest the per-objective
-one; on BraninCurrin this raised the 10-seed median final hypervolume from 54.72 to 56.14,
-either model alone measured 54.5-54.7 and 53.8-54.6; see benchmarks/RESULTS.md):
+Element j of the batch uses its own Dirichlet weight w_j. Two models of its scalarization,
+combined by ``settings.model``:
 
-* scalarized (below): one GP on the element's Chebyshev-scalarized values;
-* per-objective: one GP per objective (standardized), log-EI of the scalarization of
-  quasi-random posterior draws (``scalarized_posterior.py``), shared by all elements.
+* "scalarized": a GP fitted to the element's scalarized values (details below);
+* "per_objective": one GP per objective (standardized), shared by all elements; the
+  acquisition is the log-EI of the scalarization of quasi-random posterior draws
+  (``scalarized_posterior.py``);
+* "hybrid" (default): the first ceil(q/2) elements scalarized, the rest per-objective, all
+  in one greedy sequence. On BraninCurrin (10 seeds) it raised the median final hypervolume
+  to 56.1 from 54.5-54.7 (scalarized) and 53.8-54.6 (per-objective): the per-objective
+  model refines the front better but can get trapped exploiting one edge, the scalarized
+  one explores robustly (benchmarks/RESULTS.md).
 
-Element j of the batch uses its own Dirichlet weight w_j: the targets are the augmented
+Scalarized model: element j uses its own Dirichlet weight w_j: the targets are the augmented
 Chebyshev scalarizations of the normalized objectives, standardized. While the padded
 training set is small (at most ``per_element_fit_max_rows`` rows) each element gets its own
 GP hyperparameter fit: on BraninCurrin that raised the median final hypervolume from 51.4

@@ -1,13 +1,16 @@
-"""Gaussian approximation of the augmented Chebyshev scalarization of per-objective posteriors.
+"""log-EI of the augmented Chebyshev scalarization of per-objective GP posteriors.
 
 With one GP per objective, the objectives at a point x are independent Gaussians
 f_i ~ N(mu_i, var_i) (normalized scale). Their scalarization s = cheb_w(f) is a max of
-Gaussians plus a linear term, not Gaussian; log-EI needs a Gaussian, so s is replaced by
-N(E[s], Var[s]) (moment matching). Where one weighted objective dominates, s is nearly
-linear in f and the approximation is nearly exact; where two compete it keeps the max's
+Gaussians plus a linear term, not Gaussian. Two estimates of its log-EI:
+``log_ei_draws``, a quasi-Monte Carlo average of the softplus-smoothed improvement over
+fixed draws (like BoTorch's qLogNParEGO, but with the observed incumbent, the problems
+being noiseless; the default), and the analytic log-EI of the moment-matched Gaussian
+N(E[s], Var[s]) from ``chebyshev_moments``. Where one weighted objective dominates, s is
+nearly linear in f and the Gaussian is nearly exact; where two compete it keeps the max's
 upward shift of the mean and its variance.
 
-The moments are quasi-Monte Carlo averages over one fixed set of standard normal draws
+Both are quasi-Monte Carlo averages over one fixed set of standard normal draws
 (scrambled Sobol points mapped through the normal quantile, fixed seed): the same draws at
 every x and for every batch element (common random numbers), so the acquisition is
 deterministic and, as an average of piecewise-linear functions of (mu, sigma), smooth
