@@ -98,6 +98,7 @@ def summarize(values):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--first-seed", type=int, default=0, help="seeds first-seed .. first-seed + seeds - 1")
     ap.add_argument("--botorch", action="store_true", help="add BoTorch's qLogNParEGO column")
     ap.add_argument("--write", help="append the table to this markdown file")
     ap.add_argument("--problems", nargs="*", default=list(PROBLEMS))
@@ -106,7 +107,10 @@ def main(argv=None):
     options = {}
     for kv in args.option:
         k, v = kv.split("=")
-        options[k] = float(v) if "." in v else int(v)
+        try:
+            options[k] = float(v) if "." in v else int(v)
+        except ValueError:
+            options[k] = v
     rows = []
     for name in args.problems:
         problem = PROBLEMS[name]
@@ -114,7 +118,7 @@ def main(argv=None):
         if args.botorch:
             cols["BoTorch qLogNParEGO"] = []
         times = {k: 0.0 for k in cols}
-        for seed in range(args.seeds):
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
             for col, fn in (("mjxskill.gp", lambda: run_ours(problem, seed, **options)), ("random", lambda: run_random(problem, seed)),
                             ("BoTorch qLogNParEGO", lambda: run_botorch(problem, seed))):
                 if col not in cols:
@@ -126,7 +130,7 @@ def main(argv=None):
         rows.append((name, problem, cols, times))
     lines = [
         f"Measured {datetime.date.today().isoformat()} on the 2-core CPU machine (shared with other jobs), "
-        f"budget {N_INIT} + {N_BATCHES} x {BATCH} = {BUDGET}, {args.seeds} seeds, noiseless problems. "
+        f"budget {N_INIT} + {N_BATCHES} x {BATCH} = {BUDGET}, {args.seeds} seeds from {args.first_seed}, noiseless problems. "
         "Final hypervolume, median [25th, 75th percentile]; wall time is per run.",
         "",
         "| problem | max HV | " + " | ".join(rows[0][2]) + " |",

@@ -119,6 +119,9 @@ def test_non_finite_objectives_are_kept_and_do_not_break_the_model():
         (dict(bounds=[[0.0, np.nan], [1.0, 1.0]]), "must be finite"),
         (dict(batch_size=0), "batch_size"),
         (dict(n_init=1), "n_init"),
+        (dict(model="single"), "MOBOConfig.model: expected 'per_objective', 'scalarized' or 'hybrid', got 'single'"),
+        (dict(ei="ucb"), "MOBOConfig.ei"),
+        (dict(tau=0.0), "MOBOConfig.tau"),
     ],
 )
 def test_bad_config_raises_clear_errors(kwargs, message):

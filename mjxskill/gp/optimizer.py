@@ -56,6 +56,10 @@ class MOBOConfig:
     fit_steps: int = 50
     per_element_fit_max_rows: int = 128  # own GP fit per batch element up to this padded size
     fit_max_rows: int = 128  # hyperparameters fitted on a random subset of this many rows
+    model: str = "hybrid"  # "scalarized", "per_objective" or "hybrid" (see proposal.py)
+    n_draws: int = 128  # quasi-random posterior draws per point (per-objective model)
+    ei: str = "draws"  # per-objective acquisition: "draws" (quasi-MC log-EI) or "moments"
+    tau: float = 1e-3  # softplus width of the "draws" log-EI, normalized objective units
 
     def __post_init__(self):
         b = np.asarray(self.bounds, dtype=np.float64)
@@ -70,7 +74,7 @@ class MOBOConfig:
                 f"MOBOConfig.bounds: lower >= upper in dimension {i} ({b[0, i]} >= {b[1, i]})"
             )
         object.__setattr__(self, "bounds", tuple(tuple(float(v) for v in row) for row in b))
-        for name in ("n_objectives", "batch_size", "bucket", "n_raw", "n_restarts", "fit_starts", "fit_max_rows"):
+        for name in ("n_objectives", "batch_size", "bucket", "n_raw", "n_restarts", "fit_starts", "fit_max_rows", "n_draws"):
             v = getattr(self, name)
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
                 raise ValueError(f"MOBOConfig.{name}: expected a positive integer, got {v!r}")
@@ -78,6 +82,14 @@ class MOBOConfig:
             raise ValueError(f"MOBOConfig.n_init: need at least 2 warm-up points, got {self.n_init!r}")
         if not 0.0 <= float(self.alpha):
             raise ValueError(f"MOBOConfig.alpha: must be >= 0, got {self.alpha!r}")
+        if self.model not in ("per_objective", "scalarized", "hybrid"):
+            raise ValueError(
+                f"MOBOConfig.model: expected 'per_objective', 'scalarized' or 'hybrid', got {self.model!r}"
+            )
+        if self.ei not in ("draws", "moments"):
+            raise ValueError(f"MOBOConfig.ei: expected 'draws' or 'moments', got {self.ei!r}")
+        if not float(self.tau) > 0.0:
+            raise ValueError(f"MOBOConfig.tau: must be > 0, got {self.tau!r}")
         if self.n_restarts > self.n_raw:
             raise ValueError(f"MOBOConfig.n_restarts ({self.n_restarts}) exceeds n_raw ({self.n_raw})")
 
@@ -95,6 +107,10 @@ class MOBOConfig:
             fit_steps=int(self.fit_steps),
             per_element_fit_max_rows=int(self.per_element_fit_max_rows),
             fit_max_rows=int(self.fit_max_rows),
+            model=str(self.model),
+            n_draws=int(self.n_draws),
+            ei=str(self.ei),
+            tau=float(self.tau),
         )
 
 
