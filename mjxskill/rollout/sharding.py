@@ -60,7 +60,10 @@ def shard_batch(fn: Callable, devices: Sequence[jax.Device] | None = None) -> Ca
         padded = -(-size // n_devices) * n_devices
         args = jax.tree.map(lambda x: _pad(x, padded), args)
         spec = PartitionSpec(BATCH_AXIS)
-        out = jax.shard_map(fn, mesh=mesh, in_specs=(spec,) * len(args), out_specs=spec)(*args)
+        # check_vma=False: MJX's solver has lax.cond branches that mix per-device and
+        # replicated values, which shard_map's varying-axes type check rejects; every value
+        # here is per-device anyway (nothing is reduced across the mesh).
+        out = jax.shard_map(fn, mesh=mesh, in_specs=(spec,) * len(args), out_specs=spec, check_vma=False)(*args)
         return jax.tree.map(lambda x: x[:size], out)
 
     return sharded
