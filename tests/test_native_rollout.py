@@ -23,7 +23,9 @@ from hypothesis import strategies as st
 
 from mjxskill import compile_rollout, load_scenario
 from mjxskill.native import NativeRollout
+from mjxskill.native.leaves import tool_down_aligned
 from mjxskill.native.motion import LinearMotion, plane_basis, spiral_step
+from mjxskill.rollout.leaves import tool_down_aligned as jax_tool_down_aligned
 from mjxskill.sim import motion as jax_motion
 
 HORIZON_S = 2.0
@@ -107,3 +109,12 @@ def test_worlds_of_the_wrong_batch_are_rejected(rollouts):
     worlds = rollout.sample_worlds(jax.random.key(0), 3)
     with pytest.raises(ValueError, match=r"leading shape \(W,\) or \(2, W\)"):
         NativeRollout(rollout).run_worlds(np.zeros((2, 4)), worlds)
+
+
+@settings(max_examples=25, deadline=None)
+@given(quats, st.floats(-math.pi, math.pi))
+def test_native_tool_orientation_matches_the_leaf_program(current, object_yaw):
+    native = tool_down_aligned(current, object_yaw)
+    compiled = np.asarray(jax_tool_down_aligned(jnp.asarray(current, jnp.float32), object_yaw))
+    sign = 1.0 if np.dot(native, compiled) >= 0 else -1.0
+    np.testing.assert_allclose(native, sign * compiled, atol=1e-5)

@@ -12,10 +12,11 @@ from typing import Callable
 import numpy as np
 
 from mjxskill.ebt.nodes import Node, Status
-from mjxskill.native.motion import LinearMotion, plane_basis, spiral_step
+from mjxskill.native.motion import LinearMotion, plane_basis, quat_mul, spiral_step
 from mjxskill.rollout.leaves import SPIRAL_NORMAL
 
 _E1, _E2 = plane_basis(SPIRAL_NORMAL)
+TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # rotation by pi about y: the tool's z along world -z
 
 
 class NativeBlackboard:
@@ -86,15 +87,27 @@ def _keep(bb, fresh, params):
     return None
 
 
+def tool_down_aligned(current_quat, object_yaw: float) -> np.ndarray:
+    """(4,) tool pointing down (rotation by pi about y, then ``yaw`` about world z), with the
+    yaw among the square tool's quarter-turn symmetric ones that aligns its faces with
+    ``object_yaw`` (rad) nearest the current orientation (4,)."""
+    w, x, y, z = current_quat
+    yaw = math.atan2(-2.0 * (x * y + w * z), -(1.0 - 2.0 * (y * y + z * z)))
+    quarter = math.pi / 2
+    target = yaw + (object_yaw - yaw + quarter / 2) % quarter - quarter / 2
+    return quat_mul([math.cos(target / 2), 0.0, 0.0, math.sin(target / 2)], TOOL_DOWN)
+
+
 def build_native_leaves(leaves: list[Node], parameter_names, slot_of: dict, nominal_pos: np.ndarray,
-                        tick_seconds: float) -> list[tuple[StatusFn, EffectFn]]:
-    """(status, effect) per leaf, in pre-order. nominal_pos (K, 3): the world model's object
-    positions (the skills see the YAML, not the randomized world)."""
+                        nominal_quat: np.ndarray, tick_seconds: float) -> list[tuple[StatusFn, EffectFn]]:
+    """(status, effect) per leaf, in pre-order. nominal_pos (K, 3), nominal_quat (K, 4): the
+    world model's object poses (the skills see the YAML, not the randomized world)."""
     index = {name: i for i, name in enumerate(parameter_names)}
-    return [_program(i, leaf, index, slot_of, nominal_pos, tick_seconds) for i, leaf in enumerate(leaves)]
+    return [_program(i, leaf, index, slot_of, nominal_pos, nominal_quat, tick_seconds) for i, leaf in enumerate(leaves)]
 
 
-def _program(i: int, leaf: Node, index: dict, slot_of: dict, nominal_pos: np.ndarray, tick_seconds: float):
+def _program(i: int, leaf: Node, index: dict, slot_of: dict, nominal_pos: np.ndarray, nominal_quat: np.ndarray,
+             tick_seconds: float):
     """(status, effect) of leaf number ``i``."""
     primitive = leaf.primitive
     if primitive == "set_goal_from_object":
@@ -103,10 +116,12 @@ def _program(i: int, leaf: Node, index: dict, slot_of: dict, nominal_pos: np.nda
             raise ValueError(f"leaf {leaf.name!r}: object {obj!r} is not bound to the scene")
         base = np.asarray(nominal_pos[slot_of[obj]], float) + np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), float)
         dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
+        w, x, y, z = nominal_quat[slot_of[obj]]
+        object_yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
         def set_goal(bb, fresh, params):
             bb.goal_pos = base + np.array([dx(params), dy(params), 0.0])
-            bb.goal_quat = bb.reference()[1]  # "tool_down": keep the reference orientation
+            bb.goal_quat = tool_down_aligned(bb.reference()[1], object_yaw)
 
         return (lambda bb, tool_pos, live: Status.SUCCESS), set_goal
     if primitive == "goal_pose":

@@ -61,9 +61,9 @@ class NativeRollout:
         self.interp = Interpreter(self.tree)
         self.leaf_ids = [i for i, n in enumerate(self.interp.nodes) if n.is_leaf]
         self.leaf_position = {nid: k for k, nid in enumerate(self.leaf_ids)}
-        nominal_pos, _ = nominal_poses(spec.bindings)
+        nominal_pos, nominal_quat = nominal_poses(spec.bindings)
         self.programs = build_native_leaves(
-            self.tree.leaves(), scn.parameter_names, spec.bindings.slot_of, nominal_pos, 1.0 / scn.bt_hz
+            self.tree.leaves(), scn.parameter_names, spec.bindings.slot_of, nominal_pos, nominal_quat, 1.0 / scn.bt_hz
         )
         self.terms = build_native_terms(scn, spec.bindings.slot_of)
         self.objective_matrix = np.zeros((len(self.terms), len(scn.objective_names)))
