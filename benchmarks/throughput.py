@@ -353,6 +353,8 @@ def main(argv=None) -> dict | None:
     mjx_outcomes = [(s, st) for s_row, st_row in zip(first["success"], first["bt_status"]) for s, st in zip(s_row, st_row)]
     native_outcomes = [tuple(o) for o in natives[0]["outcomes"]]
     agree = sum(a == b for a, b in zip(native_outcomes, mjx_outcomes))
+    agree_success = sum(a[0] == b[0] for a, b in zip(native_outcomes, mjx_outcomes))
+    agree_status = sum(a[1] == b[1] for a, b in zip(native_outcomes, mjx_outcomes))
     for r in sweep:
         base = next(x for x in sweep if x["batch"] == r["batch"] and x["devices"] == min(devices))
         r["max_objective_diff_vs_1_device"] = _same_outputs(r, base)
@@ -382,8 +384,9 @@ def main(argv=None) -> dict | None:
         print(f"{'native':<10}{1:>8}{1:>7}{n['steps_per_s']:>11.0f}{n['steps_per_s'] / native_rate:>10.2f}"
               f"{'-':>11}{'-':>13}{'-':>8}{n['load_avg']:>6.1f}  (run {i + 1} of {len(natives)}, {n['episodes']} episodes)")
     print(f"{'bare':<10}{1:>8}{1:>7}{bare['steps_per_s']:>11.0f}{bare['steps_per_s'] / native_rate:>10.2f}")
-    print(f"\nnative vs MJX outcomes (success, BT status) on the first {len(native_outcomes)} episodes: "
-          f"{agree}/{len(native_outcomes)} equal")
+    n = len(native_outcomes)
+    print(f"\nnative vs MJX on the first {n} episodes: success equal in {agree_success}/{n}, "
+          f"BT status equal in {agree_status}/{n}, both in {agree}/{n}")
 
     best = max(sweep, key=lambda r: r["steps_per_s"])
     result = dict(
@@ -399,7 +402,7 @@ def main(argv=None) -> dict | None:
         model_options=options,
         cpu_count=os.cpu_count(),
         load_avg_start_end=[natives[0]["load_avg"], natives[-1]["load_avg"]],
-        outcome_agreement=[agree, len(native_outcomes)],
+        outcome_agreement=dict(success=agree_success, bt_status=agree_status, both=agree, episodes=len(native_outcomes)),
         sweep=sweep,
         native_runs=natives,
         native_bare=bare,

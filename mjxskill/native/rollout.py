@@ -30,7 +30,7 @@ from mjxskill.native.motion import quat_angle
 from mjxskill.native.rewards import NativeObservation, build_native_terms
 from mjxskill.rollout.bindings import FREE, MOCAP, nominal_poses
 from mjxskill.rollout.compiled import Rollout, RolloutOutput, load_model
-from mjxskill.rollout.episode import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult
+from mjxskill.rollout.episode import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, TickRecord
 from mjxskill.rollout.worlds import Worlds
 from mjxskill.sim.controller import N_ARM
 from mjxskill.sim.native_controller import NativeControllerState, native_impedance_control
@@ -114,9 +114,11 @@ class NativeRollout:
             return False
         return all(data.qpos[s.qpos_adr + 2] > MIN_OBJECT_Z for s in self.spec.bindings.slots if s.how == FREE)
 
-    def run_episode(self, params, world: Worlds) -> EpisodeResult:
+    def run_episode(self, params, world: Worlds, record: bool = False):
         """Rolls out ``params`` (P,) in ``world`` (unbatched numpy fields); the result's fields
-        are numpy scalars / (R,) as in ``rollout.episode.EpisodeResult``."""
+        are numpy scalars / (R,) as in ``rollout.episode.EpisodeResult``. With ``record``,
+        returns (result, TickRecord of numpy arrays with a leading (T,) axis) like the compiled
+        rollout's ``trace`` (T: ticks run; fewer if the world diverged)."""
         spec, model, cfg = self.spec, self.model, self.spec.ctrl
         params = np.asarray(params, float)
         data = self._initial_data(world)
@@ -133,6 +135,7 @@ class NativeRollout:
         totals = np.zeros(len(self.terms))
         max_force = 0.0
         default_stiffness = np.asarray(spec.default_stiffness, float)
+        records = []
 
         for t in range(spec.ticks):
             tool_pos, _ = self._tool_pose(data)
@@ -177,13 +180,16 @@ class NativeRollout:
             slot_pos, slot_quat = self._slot_poses(data, world)
             obs = NativeObservation(tool_pos, tool_quat, bb.reference()[0], slot_pos, slot_quat,
                                     cstate.wrench, root == Status.SUCCESS)
-            totals += [term.raw(obs) for term in self.terms]
+            raw = [term.raw(obs) for term in self.terms]
+            totals += raw
+            if record:
+                records.append(TickRecord(data.qpos.copy(), tool_pos, obs.ref_pos, int(root), np.array(active), np.array(raw)))
             max_force = max(max_force, float(np.linalg.norm(cstate.wrench[:3])))
 
         if diverged:
             totals = np.array([term.worst_raw * spec.ticks for term in self.terms])
         success, pos_err, rot_err, depth = self._success(data, world)
-        return EpisodeResult(
+        result = EpisodeResult(
             reward_totals=totals,
             success=bool(success and not diverged),
             diverged=diverged,
@@ -194,6 +200,9 @@ class NativeRollout:
             insertion_depth=depth,
             max_force=max_force,
         )
+        if record:
+            return result, TickRecord(*(np.array(f) for f in zip(*records))) if records else None
+        return result
 
     def _success(self, data, world):
         spec = self.spec
