@@ -2,14 +2,17 @@
 
 The two are independent implementations of the same episode (numpy + reference BT interpreter +
 C MuJoCo in float64, versus JAX + compiled BT + MJX in float32), so agreement on the same worlds
-checks both. Horizon 2 s: the tool reaches the object's side and starts pushing it (contacts
-between pusher, object and table), which the first second alone would not cover.
+checks both. Horizon 6 s: the tool reaches the object's side and pushes it for about 1.5 s
+(contacts between pusher, object and table, the -7 N press on), which shorter horizons would not
+cover (the push starts after about 4.2 s).
 
 Tolerances: the BT's discrete outcomes (status, finishing tick, success, divergence) must be
-equal. Continuous results differ by float32 rounding and by MJX's versus MuJoCo's contact solver
-(the same Newton solver and iteration counts, but different collision code and arithmetic): over
-2 s these measured 3e-4 m in positions, 0.2 deg in the pushed object's yaw and 1.3e-3 relative in
-reward totals (benchmarks/NOTES.md). The bounds below leave a factor of 5-10 for other worlds.
+equal. Continuous results differ by float32 rounding and by MJX's versus MuJoCo's collision and
+contact code (same Newton solver settings): the tool's path barely (rewards that read the tool:
+2e-4 relative measured over 6 s), the pushed object more, because pushing a prism with a flat
+tool is sensitive to where and how long each corner touches: after 1.5 s of pushing its yaw
+differed by up to 4.2 deg and its position by 2.4 cm in one of four worlds (object rewards 5.5 %
+relative, objectives 0.4 %). The bounds below sit 3-5x above those measurements.
 """
 
 import math
@@ -18,7 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from mjxskill import compile_rollout, load_scenario
@@ -28,7 +31,7 @@ from mjxskill.native.motion import LinearMotion, plane_basis, spiral_step
 from mjxskill.rollout.leaves import tool_down_aligned as jax_tool_down_aligned
 from mjxskill.sim import motion as jax_motion
 
-HORIZON_S = 2.0
+HORIZON_S = 6.0
 
 
 @pytest.fixture(scope="module")
@@ -53,18 +56,19 @@ def test_same_discrete_outcomes(rollouts):
 def test_the_episodes_reach_the_push(rollouts):
     # Guards the horizon: the comparison must include contact (the object moved and turned).
     compiled, _ = rollouts
-    assert np.all(compiled.metrics["orientation_error_deg"][0] < 25.0)
-    assert np.all(compiled.metrics["max_force"][0] > 1.0)
+    assert np.all(compiled.metrics["max_force"] > 1.0)  # ApplyForce was active
+    assert np.all(compiled.metrics["orientation_error_deg"] < 25.0)  # the object turned (from 26 deg)
 
 
 def test_rewards_and_final_poses_agree(rollouts):
     compiled, native = rollouts
-    for name in compiled.metrics:
-        if name.startswith("reward_"):
-            np.testing.assert_allclose(native.metrics[name], compiled.metrics[name], rtol=1e-2, err_msg=name)
-    np.testing.assert_allclose(native.objectives, compiled.objectives, rtol=1e-2)
-    np.testing.assert_allclose(native.metrics["position_error"], compiled.metrics["position_error"], atol=2e-3)
-    np.testing.assert_allclose(native.metrics["orientation_error_deg"], compiled.metrics["orientation_error_deg"], atol=1.0)
+    for name in ("reward_ee_to_goal", "reward_reference_tracking"):  # the tool's path
+        np.testing.assert_allclose(native.metrics[name], compiled.metrics[name], rtol=1e-3, err_msg=name)
+    for name in ("reward_object_position", "reward_object_orientation"):  # the pushed object
+        np.testing.assert_allclose(native.metrics[name], compiled.metrics[name], rtol=0.2, err_msg=name)
+    np.testing.assert_allclose(native.objectives, compiled.objectives, rtol=2e-2)
+    np.testing.assert_allclose(native.metrics["position_error"], compiled.metrics["position_error"], atol=0.08)
+    np.testing.assert_allclose(native.metrics["orientation_error_deg"], compiled.metrics["orientation_error_deg"], atol=15.0)
     np.testing.assert_allclose(native.metrics["max_force"], compiled.metrics["max_force"], atol=1e-3)
 
 
@@ -80,6 +84,8 @@ quats = st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.l
 @settings(max_examples=25, deadline=None)
 @given(vectors, quats, vectors, quats, st.floats(0.0, 6.0))
 def test_native_linear_motion_matches_the_jax_motion_generator(p0, q0, p1, q1, t):
+    # A rotation by (nearly) pi has two shortest directions; float32 and float64 may pick either.
+    assume(abs(np.dot(q0, q1)) > 1e-3)
     native_pos, native_quat = LinearMotion(p0, q0, p1, q1).at(t)
     start = jax_motion.Pose(jnp.asarray(p0, jnp.float32), jnp.asarray(q0, jnp.float32))
     goal = jax_motion.Pose(jnp.asarray(p1, jnp.float32), jnp.asarray(q1, jnp.float32))
@@ -114,6 +120,8 @@ def test_worlds_of_the_wrong_batch_are_rejected(rollouts):
 @settings(max_examples=25, deadline=None)
 @given(quats, st.floats(-math.pi, math.pi))
 def test_native_tool_orientation_matches_the_leaf_program(current, object_yaw):
+    # Halfway between two of the square tool's symmetric yaws both are nearest; skip such ties.
+    assume(np.allclose(tool_down_aligned(current, object_yaw - 1e-4), tool_down_aligned(current, object_yaw + 1e-4), atol=1e-3))
     native = tool_down_aligned(current, object_yaw)
     compiled = np.asarray(jax_tool_down_aligned(jnp.asarray(current, jnp.float32), object_yaw))
     sign = 1.0 if np.dot(native, compiled) >= 0 else -1.0
