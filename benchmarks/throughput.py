@@ -13,6 +13,10 @@ Measures, and prints as a table:
   the same success / BT outcome as the compiled rollout there;
 * bare ``mj_step`` in a Python loop with a constant control (the native physics ceiling).
 
+Episodes last 2 s by default (approach and the first second of pushing) so that a sweep fits in
+half an hour on two cores; ``--seconds 12`` runs the scenario's full episodes, where MJX's
+per-step cost is about twice as high in the contact-rich push phase (benchmarks/NOTES.md).
+
 Every device count runs in a fresh subprocess (the host device count is fixed when jax starts);
 the native baseline is measured before and after each of them (load on a shared machine drifts),
 and ratios use the mean. ``--json`` writes the best configuration (``mjx_steps_per_s``,
