@@ -31,6 +31,7 @@ from mjxskill.rollout.bindings import SceneBindings, bind_scene, referenced_obje
 from mjxskill.rollout.episode import EpisodeResult, EpisodeSpec, run_episode
 from mjxskill.rollout.leaves import build_leaf_programs
 from mjxskill.rollout.rewards import build_terms, objective_matrix
+from mjxskill.rollout.sharding import shard_batch
 from mjxskill.rollout.worlds import Worlds, WorldSampler, make_sampler, sample_worlds, worlds_per_config
 from mjxskill.scenario_schema import Scenario
 from mjxskill.sim.batching import STRATEGIES, default_strategy, over_worlds
@@ -219,7 +220,8 @@ def _batched_episodes(r: Rollout, params: jax.Array, worlds: Worlds) -> RolloutO
     flat_params = jnp.repeat(params, w, axis=0)
     flat_worlds = jax.tree.map(lambda x: x.reshape((b * w,) + x.shape[2:]), worlds)
     episode = lambda p, wd: run_episode(r.spec, r.model, r.template, p, wd)  # noqa: E731
-    res: EpisodeResult = over_worlds(episode, r.strategy, r.chunk)(flat_params, flat_worlds)
+    # The flat B x W batch is split over all local devices (one device: unchanged).
+    res: EpisodeResult = shard_batch(over_worlds(episode, r.strategy, r.chunk))(flat_params, flat_worlds)
     res = jax.tree.map(lambda x: x.reshape((b, w) + x.shape[1:]), res)
     objectives = jnp.mean(res.reward_totals @ jnp.asarray(r._objective_matrix), axis=1)
     metrics = {f"reward_{name}": res.reward_totals[..., i] for i, name in enumerate(r.reward_names)}

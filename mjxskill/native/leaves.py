@@ -1,0 +1,180 @@
+"""The leaf programs of ``mjxskill.rollout.leaves`` in plain Python over a mutable blackboard, for
+the native-MuJoCo baseline (same two phases per BT tick: every leaf's status from the state
+before the tick, then the effects of the leaves the tick activated, in tick order).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Callable
+
+import numpy as np
+
+from mjxskill.ebt.nodes import Node, Status
+from mjxskill.native.motion import LinearMotion, plane_basis, quat_mul, spiral_step
+from mjxskill.rollout.leaves import SPIRAL_NORMAL
+
+_E1, _E2 = plane_basis(SPIRAL_NORMAL)
+TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # rotation by pi about y: the tool's z along world -z
+
+
+class NativeBlackboard:
+    """Per-episode state the leaf programs share (fields as ``rollout.leaves.Blackboard``).
+
+    goal_pos (3,), goal_quat (4,); motion: the current LinearMotion; mg_time s; stiffness (6,),
+    wrench (6,); spiral_theta, spiral_radius, spiral_on, spiral_params (radius cap, velocity,
+    pitch); leaf_ticks: list of L ints.
+    """
+
+    def __init__(self, tool_pos, tool_quat, default_stiffness, n_leaves: int):
+        self.goal_pos = np.array(tool_pos, float)
+        self.goal_quat = np.array(tool_quat, float)
+        self.motion = LinearMotion(tool_pos, tool_quat, tool_pos, tool_quat)
+        self.mg_time = 0.0
+        self.stiffness = np.array(default_stiffness, float)
+        self.wrench = np.zeros(6)
+        self.spiral_theta = 0.0
+        self.spiral_radius = 0.0
+        self.spiral_on = False
+        self.spiral_params = (0.0, 0.0, 0.0)
+        self.leaf_ticks = [0] * n_leaves
+
+    def copy(self) -> "NativeBlackboard":
+        # Fields are rebound, never mutated in place, so a shallow copy is a snapshot.
+        new = copy.copy(self)
+        new.leaf_ticks = list(self.leaf_ticks)
+        return new
+
+    def reference(self) -> tuple[np.ndarray, np.ndarray]:
+        """Controller reference position (3,) and quaternion (4,)."""
+        pos, quat = self.motion.at(self.mg_time)
+        if self.spiral_on:
+            r, th = self.spiral_radius, self.spiral_theta
+            pos = pos + r * (math.cos(th) * _E1 + math.sin(th) * _E2)
+        return pos, quat
+
+    def advance(self, dt: float) -> None:
+        """One control period of the motion generator and the spiral."""
+        self.mg_time += dt
+        if self.spiral_on:
+            radius_max, velocity, pitch = self.spiral_params
+            self.spiral_theta, self.spiral_radius = spiral_step(
+                self.spiral_theta, self.spiral_radius, radius_max, velocity, pitch, dt
+            )
+
+
+# status(bb, tool_pos, live) -> Status; effect(bb, fresh, params) -> None (writes bb).
+StatusFn = Callable[[NativeBlackboard, np.ndarray, bool], Status]
+EffectFn = Callable[[NativeBlackboard, bool, np.ndarray], None]
+
+
+def _input(leaf: Node, name: str, index: dict) -> Callable[[np.ndarray], float]:
+    if name in leaf.params:
+        i = index.get(leaf.params[name])
+        if i is None:
+            raise ValueError(f"leaf {leaf.name!r}: input {name!r} names parameter {leaf.params[name]!r}, which is not learnable here")
+        return lambda params: float(params[i])
+    value = float(leaf.args.get(name, 0.0))
+    return lambda params: value
+
+
+def _running(bb, tool_pos, live):
+    return Status.RUNNING
+
+
+def _keep(bb, fresh, params):
+    return None
+
+
+def tool_down_aligned(current_quat, object_yaw: float) -> np.ndarray:
+    """(4,) tool pointing down (rotation by pi about y, then ``yaw`` about world z), with the
+    yaw among the square tool's quarter-turn symmetric ones that aligns its faces with
+    ``object_yaw`` (rad) nearest the current orientation (4,)."""
+    w, x, y, z = current_quat
+    yaw = math.atan2(-2.0 * (x * y + w * z), -(1.0 - 2.0 * (y * y + z * z)))
+    quarter = math.pi / 2
+    target = yaw + (object_yaw - yaw + quarter / 2) % quarter - quarter / 2
+    return quat_mul([math.cos(target / 2), 0.0, 0.0, math.sin(target / 2)], TOOL_DOWN)
+
+
+def build_native_leaves(leaves: list[Node], parameter_names, slot_of: dict, nominal_pos: np.ndarray,
+                        nominal_quat: np.ndarray, tick_seconds: float) -> list[tuple[StatusFn, EffectFn]]:
+    """(status, effect) per leaf, in pre-order. nominal_pos (K, 3), nominal_quat (K, 4): the
+    world model's object poses (the skills see the YAML, not the randomized world)."""
+    index = {name: i for i, name in enumerate(parameter_names)}
+    return [_program(i, leaf, index, slot_of, nominal_pos, nominal_quat, tick_seconds) for i, leaf in enumerate(leaves)]
+
+
+def _program(i: int, leaf: Node, index: dict, slot_of: dict, nominal_pos: np.ndarray, nominal_quat: np.ndarray,
+             tick_seconds: float):
+    """(status, effect) of leaf number ``i``."""
+    primitive = leaf.primitive
+    if primitive == "set_goal_from_object":
+        obj = leaf.args.get("object")
+        if obj not in slot_of:
+            raise ValueError(f"leaf {leaf.name!r}: object {obj!r} is not bound to the scene")
+        base = np.asarray(nominal_pos[slot_of[obj]], float) + np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), float)
+        dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
+        w, x, y, z = nominal_quat[slot_of[obj]]
+        object_yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+        def set_goal(bb, fresh, params):
+            bb.goal_pos = base + np.array([dx(params), dy(params), 0.0])
+            bb.goal_quat = tool_down_aligned(bb.reference()[1], object_yaw)
+
+        return (lambda bb, tool_pos, live: Status.SUCCESS), set_goal
+    if primitive == "goal_pose":
+
+        def start_motion(bb, fresh, params):
+            if fresh:
+                pos, quat = bb.reference()
+                bb.motion = LinearMotion(pos, quat, bb.goal_pos, bb.goal_quat)
+                bb.mg_time = 0.0
+
+        return _running, start_motion
+    if primitive == "change_stiffness":
+        stiffness = np.asarray(leaf.args["stiffness"], float)
+
+        def set_stiffness(bb, fresh, params):
+            bb.stiffness = stiffness
+
+        return _running, set_stiffness
+    if primitive == "apply_force":
+        base = np.asarray(leaf.args.get("wrench", (0.0,) * 6), float)
+        overrides = [(axis, _input(leaf, f"force_{c}", index)) for axis, c in enumerate("xyz")
+                     if f"force_{c}" in leaf.params or f"force_{c}" in leaf.args]
+
+        def apply_force(bb, fresh, params):
+            wrench = base.copy()
+            for axis, value in overrides:
+                wrench[axis] = value(params)
+            bb.wrench = wrench
+
+        return _running, apply_force
+    if primitive == "overlay_spiral":
+        radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
+
+        def overlay(bb, fresh, params):
+            if fresh:
+                bb.spiral_theta, bb.spiral_radius = 0.0, 0.0
+            bb.spiral_on = True
+            bb.spiral_params = (radius(params), velocity(params), pitch(params))
+
+        return _running, overlay
+    if primitive == "ee_pose_distance":
+        threshold = float(leaf.args["threshold"])
+
+        def reached(bb, tool_pos, live):
+            close = np.linalg.norm(tool_pos - bb.motion.goal_pos) < threshold
+            return Status.SUCCESS if live and close else Status.RUNNING
+
+        return reached, _keep
+    if primitive == "wait":
+        ticks = int(np.ceil(float(leaf.args["seconds"]) / tick_seconds - 1e-9))
+
+        def waited(bb, tool_pos, live):
+            return Status.SUCCESS if live and bb.leaf_ticks[i] >= ticks else Status.RUNNING
+
+        return waited, _keep
+    raise ValueError(f"leaf {leaf.name!r}: no leaf program for primitive {primitive!r}")
