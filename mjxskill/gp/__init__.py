@@ -1,0 +1,37 @@
+"""Multi-objective Bayesian optimization in JAX: a float64 Matern 5/2 GP, log-EI on random
+augmented Chebyshev scalarizations, sequential greedy batches (Kriging believer).
+
+``minimize(f, bounds, budget, ...)`` for a whole run; ``init``/``ask``/``tell`` and
+``save_state``/``load_state`` for a run that stops and resumes; ``pareto_mask`` and
+``hypervolume`` to read the result. Objectives are minimized.
+
+The GP computes in float64 inside local ``jax.enable_x64(True)`` scopes; importing this
+package does not change ``jax_enable_x64`` for the rest of the process.
+"""
+
+from mjxskill.gp.optimizer import (
+    MOBOConfig,
+    MOBOResult,
+    MOBOState,
+    ask,
+    init,
+    load_state,
+    minimize,
+    save_state,
+    tell,
+)
+from mjxskill.gp.pareto import hypervolume, pareto_mask
+
+__all__ = [
+    "MOBOConfig",
+    "MOBOResult",
+    "MOBOState",
+    "ask",
+    "hypervolume",
+    "init",
+    "load_state",
+    "minimize",
+    "pareto_mask",
+    "save_state",
+    "tell",
+]

@@ -1,0 +1,289 @@
+"""Ask/tell multi-objective Bayesian optimizer (optax-style ``init``/``ask``/``tell``).
+
+``state = init(config)``; ``X = ask(state)`` returns the next batch (uniform random warm-up
+until ``n_init`` points are observed, then model-based); ``state = tell(state, X, Y)``
+records results; ``save_state``/``load_state`` write and read NPZ with the config as JSON
+(no pickle). Objectives are minimized.
+
+Determinism: the randomness of a proposal derives from ``(seed, number of observations)``
+only, so a run restored from disk proposes exactly what the uninterrupted run would.
+
+Static shapes: the model sees the training set padded to the next multiple of
+``config.bucket`` rows, so the proposal compiles once per bucket, not once per batch.
+
+Non-finite objective values (a crashed rollout) are kept in the state and on disk; the
+model sees them as the worst value observed for that objective (1 after normalization),
+which steers proposals away from them without breaking the GP.
+
+Precision: the GP runs in float64 under a local ``jax.enable_x64(True)`` scope; importing or
+using this module does not change ``jax_enable_x64`` for the rest of the process.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from typing import Callable, NamedTuple
+
+import jax
+import numpy as np
+
+from mjxskill.gp.pareto import pareto_mask
+from mjxskill.gp.proposal import ProposalSettings, propose_batch
+
+_STATE_FORMAT = "mjxskill.gp.MOBOState/1"
+
+
+@dataclasses.dataclass(frozen=True)
+class MOBOConfig:
+    """Problem and optimizer settings (immutable, JSON-serializable).
+
+    bounds: (2, d) lower and upper bounds (any nested sequence; stored as tuples).
+    """
+
+    bounds: tuple
+    n_objectives: int
+    batch_size: int = 8
+    n_init: int = 40
+    seed: int = 0
+    alpha: float = 0.05
+    bucket: int = 64  # training sets are padded to a multiple of this many rows
+    n_raw: int = 512
+    n_restarts: int = 10
+    n_opt_steps: int = 60
+    fit_starts: int = 2
+    fit_steps: int = 30
+
+    def __post_init__(self):
+        b = np.asarray(self.bounds, dtype=np.float64)
+        if b.ndim != 2 or b.shape[0] != 2 or b.shape[1] < 1:
+            raise ValueError(f"MOBOConfig.bounds: expected shape (2, d), got {b.shape}")
+        if not np.all(np.isfinite(b)):
+            raise ValueError(f"MOBOConfig.bounds: must be finite, got {b.tolist()}")
+        bad = np.flatnonzero(b[0] >= b[1])
+        if bad.size:
+            i = int(bad[0])
+            raise ValueError(
+                f"MOBOConfig.bounds: lower >= upper in dimension {i} ({b[0, i]} >= {b[1, i]})"
+            )
+        object.__setattr__(self, "bounds", tuple(tuple(float(v) for v in row) for row in b))
+        for name in ("n_objectives", "batch_size", "bucket", "n_raw", "n_restarts", "fit_starts"):
+            v = getattr(self, name)
+            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
+                raise ValueError(f"MOBOConfig.{name}: expected a positive integer, got {v!r}")
+        if not isinstance(self.n_init, (int, np.integer)) or self.n_init < 2:
+            raise ValueError(f"MOBOConfig.n_init: need at least 2 warm-up points, got {self.n_init!r}")
+        if not 0.0 <= float(self.alpha):
+            raise ValueError(f"MOBOConfig.alpha: must be >= 0, got {self.alpha!r}")
+        if self.n_restarts > self.n_raw:
+            raise ValueError(f"MOBOConfig.n_restarts ({self.n_restarts}) exceeds n_raw ({self.n_raw})")
+
+    @property
+    def dim(self) -> int:
+        return len(self.bounds[0])
+
+    def settings(self) -> ProposalSettings:
+        return ProposalSettings(
+            alpha=float(self.alpha),
+            n_raw=int(self.n_raw),
+            n_restarts=int(self.n_restarts),
+            n_opt_steps=int(self.n_opt_steps),
+            fit_starts=int(self.fit_starts),
+            fit_steps=int(self.fit_steps),
+        )
+
+
+class MOBOState(NamedTuple):
+    """Everything a run needs to continue; observations live on the host."""
+
+    config: MOBOConfig
+    x: np.ndarray  # (n, d) float64, in the config's bounds
+    y: np.ndarray  # (n, m) float64, may hold NaN/inf (kept, penalized in the model)
+
+
+class MOBOResult(NamedTuple):
+    x: np.ndarray  # (n, d) all evaluated points
+    y: np.ndarray  # (n, m) their objective values
+    pareto_x: np.ndarray  # (p, d) non-dominated points
+    pareto_y: np.ndarray  # (p, m)
+    state: MOBOState
+
+    # Upper-case aliases used in the issue's examples (res.X, res.pareto_Y).
+    @property
+    def X(self):
+        return self.x
+
+    @property
+    def Y(self):
+        return self.y
+
+    @property
+    def pareto_X(self):
+        return self.pareto_x
+
+    @property
+    def pareto_Y(self):
+        return self.pareto_y
+
+
+def init(config: MOBOConfig) -> MOBOState:
+    return MOBOState(
+        config,
+        np.zeros((0, config.dim), np.float64),
+        np.zeros((0, config.n_objectives), np.float64),
+    )
+
+
+def _normalized_objectives(y: np.ndarray) -> np.ndarray:
+    """(n, m) objectives scaled to [0, 1] by the observed finite min/max; non-finite -> 1."""
+    finite = np.isfinite(y)
+    out = np.ones_like(y)
+    for i in range(y.shape[1]):
+        col = y[finite[:, i], i]
+        if col.size == 0:
+            continue
+        lo, hi = col.min(), col.max()
+        span = hi - lo if hi > lo else 1.0
+        out[finite[:, i], i] = (col - lo) / span
+    return out
+
+
+def _padded_training_set(state: MOBOState):
+    cfg = state.config
+    lo, hi = np.asarray(cfg.bounds)
+    n = len(state.x)
+    size = cfg.bucket * -(-n // cfg.bucket)
+    x = np.full((size, cfg.dim), 0.5)
+    y = np.zeros((size, cfg.n_objectives))
+    mask = np.zeros((size,), bool)
+    x[:n] = (state.x - lo) / (hi - lo)
+    y[:n] = _normalized_objectives(state.y)
+    mask[:n] = True
+    return x, y, mask
+
+
+def proposal_key(seed: int, n_observations: int):
+    """The PRNG key of the proposal made after n_observations (a raw uint32 key)."""
+    return jax.random.fold_in(jax.random.PRNGKey(seed), n_observations)
+
+
+def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
+    """The next batch to evaluate, (q, d) float64 inside the bounds.
+
+    q is ``num`` or ``config.batch_size``, except during warm-up, where it is cut so that
+    exactly ``n_init`` random points are drawn before the model takes over. Pure: asking
+    twice without telling returns the same batch.
+    """
+    cfg = state.config
+    q = cfg.batch_size if num is None else int(num)
+    if q < 1:
+        raise ValueError(f"ask: batch size must be positive, got {num!r}")
+    lo, hi = np.asarray(cfg.bounds)
+    n = len(state.x)
+    if n < cfg.n_init:
+        q = min(q, cfg.n_init - n)
+        u = np.random.default_rng([cfg.seed, n]).random((q, cfg.dim))
+        return lo + u * (hi - lo)
+    x, y, mask = _padded_training_set(state)
+    with jax.enable_x64(True):
+        points, _, _ = propose_batch(x, y, mask, proposal_key(cfg.seed, n), q=q, settings=cfg.settings())
+        u = np.asarray(points, np.float64)
+    return np.clip(lo + u * (hi - lo), lo, hi)
+
+
+def tell(state: MOBOState, x, y) -> MOBOState:
+    """A new state with the evaluated batch appended. x (q, d) inside bounds, y (q, m)."""
+    cfg = state.config
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] != cfg.dim:
+        raise ValueError(f"tell: x must have shape (q, {cfg.dim}), got {x.shape}")
+    if y.shape != (x.shape[0], cfg.n_objectives):
+        raise ValueError(
+            f"tell: y must have shape ({x.shape[0]}, {cfg.n_objectives}) to match x, got {y.shape}"
+        )
+    if not np.all(np.isfinite(x)):
+        row = int(np.flatnonzero(~np.all(np.isfinite(x), axis=1))[0])
+        raise ValueError(f"tell: x row {row} is not finite: {x[row].tolist()}")
+    lo, hi = np.asarray(cfg.bounds)
+    tol = 1e-9 * (hi - lo)
+    outside = np.any((x < lo - tol) | (x > hi + tol), axis=1)
+    if outside.any():
+        row = int(np.flatnonzero(outside)[0])
+        raise ValueError(f"tell: x row {row} = {x[row].tolist()} lies outside the bounds {cfg.bounds}")
+    return state._replace(x=np.concatenate([state.x, x]), y=np.concatenate([state.y, y]))
+
+
+def save_state(state: MOBOState, path) -> None:
+    """Writes the state as NPZ (arrays + the config as JSON); no pickle."""
+    config_json = json.dumps({"format": _STATE_FORMAT, "config": dataclasses.asdict(state.config)})
+    with open(path, "wb") as fh:
+        np.savez(fh, x=state.x, y=state.y, config_json=np.array(config_json))
+
+
+def load_state(path) -> MOBOState:
+    """Reads a state written by :func:`save_state`, validating it."""
+    path = Path(path)
+    with np.load(path, allow_pickle=False) as data:
+        missing = {"x", "y", "config_json"} - set(data.files)
+        if missing:
+            raise ValueError(f"load_state: {path} lacks {sorted(missing)}")
+        meta = json.loads(str(data["config_json"]))
+        x, y = data["x"].astype(np.float64), data["y"].astype(np.float64)
+    if not isinstance(meta, dict) or meta.get("format") != _STATE_FORMAT:
+        raise ValueError(f"load_state: {path} is not an mjxskill optimizer state")
+    known = {f.name for f in dataclasses.fields(MOBOConfig)}
+    raw = meta["config"]
+    unknown = set(raw) - known
+    if unknown:
+        raise ValueError(f"load_state: {path} has unknown config fields {sorted(unknown)}")
+    cfg = MOBOConfig(**raw)
+    state = init(cfg)
+    if x.shape[0] == 0:
+        return state
+    return tell(state, x, y)
+
+
+def minimize(
+    f: Callable[[np.ndarray], np.ndarray],
+    bounds,
+    budget: int,
+    batch_size: int = 8,
+    n_init: int = 40,
+    seed: int = 0,
+    callback: Callable[[MOBOState], None] | None = None,
+    **options,
+) -> MOBOResult:
+    """Minimizes the vector objective f over a box with ``budget`` evaluations.
+
+    Args:
+      f: maps (q, d) points to (q, m) objective values; called once per batch.
+      bounds: (2, d) lower and upper bounds.
+      budget: total number of evaluations (the last batch is cut to fit).
+      options: further MOBOConfig fields.
+    """
+    if budget < n_init:
+        raise ValueError(f"minimize: budget ({budget}) is smaller than n_init ({n_init})")
+
+    def evaluate(x):
+        y = np.asarray(f(x), dtype=np.float64)
+        if y.ndim != 2 or y.shape[0] != x.shape[0]:
+            raise ValueError(f"minimize: f returned shape {y.shape} for {x.shape[0]} points; expected (q, m)")
+        return y
+
+    # The number of objectives is learned from the first warm-up batch.
+    probe = MOBOConfig(bounds=bounds, n_objectives=1, batch_size=batch_size, n_init=n_init, seed=seed, **options)
+    x0 = ask(init(probe))
+    y0 = evaluate(x0)
+    cfg = dataclasses.replace(probe, n_objectives=y0.shape[1])
+    state = tell(init(cfg), x0, y0)
+    if callback:
+        callback(state)
+    while len(state.x) < budget:
+        x = ask(state, num=min(batch_size, budget - len(state.x)))
+        state = tell(state, x, evaluate(x))
+        if callback:
+            callback(state)
+    front = pareto_mask(state.y)
+    return MOBOResult(state.x, state.y, state.x[front], state.y[front], state)
