@@ -186,7 +186,7 @@ def load_run_scenario(run, config):
     """The scenario a run was trained on, with its goal; checks it still matches the run."""
     from mjxskill.train import _check_same_task, scenario_for
 
-    scn = scenario_for(config.scenario, config.goal)
+    scn = scenario_for(config.scenario, config.goal, expect_task=config.task, where=run.path)
     _check_same_task(scn, config, run.path)
     return scn
 

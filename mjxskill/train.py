@@ -226,7 +226,8 @@ def resolve_config(args: argparse.Namespace, scn) -> RunConfig:
     opt = scn.optimizer
     config = RunConfig(
         task=scn.name,
-        scenario=args.task,
+        # a scenario name stays a name; a YAML path is made absolute for evaluate/select
+        scenario=args.task if Path(args.task).name == args.task and not args.task.endswith((".yaml", ".yml")) else str(Path(args.task).resolve()),
         goal=scn.task.goal,
         parameter_names=tuple(scn.parameter_names),
         parameter_units=tuple(scn.parameter_units),
@@ -247,14 +248,17 @@ def resolve_config(args: argparse.Namespace, scn) -> RunConfig:
     return config
 
 
-def scenario_for(task: str, goal: str | None):
-    """Loads the scenario and, for a user goal, plans it (the rollout runs ``scn.task``)."""
+def scenario_for(task: str, goal: str | None, expect_task: str | None = None, where: Path | None = None):
+    """Loads the scenario and, for a user goal, plans it (the rollout runs ``scn.task``).
+    expect_task: the task name a run directory ``where`` was trained on (checked first)."""
     import dataclasses
 
     from mjxskill.plan import plan_task
     from mjxskill.scenario import load_scenario
 
     scn = load_scenario(task)
+    if expect_task is not None and scn.name != expect_task:
+        raise cli.CommandError(f"{where} is a run of task {expect_task!r}, not {scn.name!r}")
     if goal is not None and goal != scn.task.goal:
         scn = dataclasses.replace(scn, task=plan_task(scn, goal))
     return scn
@@ -282,7 +286,7 @@ def _check_same_task(scn, config: RunConfig, where: Path) -> None:
     elif tuple(scn.objective_names) != config.objective_names:
         mismatch.append(f"objectives {list(config.objective_names)}, not {list(scn.objective_names)}")
     if mismatch:
-        raise cli.CommandError(f"{where} is a run of {mismatch[0]}: resume it with its own task")
+        raise cli.CommandError(f"{where} is a run of {mismatch[0]}: use it with its own task")
 
 
 def _main(args: argparse.Namespace) -> int:
@@ -290,7 +294,7 @@ def _main(args: argparse.Namespace) -> int:
 
     if args.resume is not None:
         config = _resumed_config(args)
-        scn = scenario_for(args.task, config.goal)
+        scn = scenario_for(args.task, config.goal, expect_task=config.task, where=args.resume)
         _check_same_task(scn, config, args.resume)
         run = Run(args.resume)
     else:
