@@ -111,30 +111,52 @@ def bad_scenario(tmp_path) -> Path:
     return path
 
 
-@pytest.mark.parametrize(
-    "case, message",
-    [
-        (["train", "nosuchtask"], "unknown task 'nosuchtask'"),
-        (["train", "push", "--budget", "0"], "argument --budget: must be at least 1, got 0"),
-        (["train", "push", "--worlds", "many"], "argument --worlds: expected an integer, got 'many'"),
-        (["train", "push", "--episode-seconds", "nan"], "argument --episode-seconds: must be a positive finite number"),
-        (["train", "push", "--budget", "6", "--init", "10"], "--init 10 exceeds the budget of 6 evaluations"),
-        (["train", "push", "--resume", "{tmp}"], "is not a run directory"),
-        (["train", "peg", "--resume", "{run}"], "is a run of task 'push', not 'peg'"),
-        (["train", "push", "--resume", "{run}", "--budget", "9"], "drop --budget 9 (the run has 6)"),
-        (["train", "{broken}"], "bt_hz"),
-        (["evaluate", "{tmp}"], "is not a run directory"),
-        (["evaluate", "{run}", "--per-config", "0"], "argument --per-config: must be at least 1"),
-        (["select", "{run}", "--pick", "99"], "--pick 99: the front has rows"),
-        (["select", "{run}", "--max-force", "-1"], "argument --max-force: must be a finite number >= 0"),
-        (["select", "{run}", "--min-success", "2"], "--min-success is a rate between 0 and 1"),
-    ],
+BAD_INPUT = (
+    (["train", "nosuchtask"], "unknown task 'nosuchtask'"),
+    (["train", "push", "--budget", "0"], "argument --budget: must be at least 1, got 0"),
+    (["train", "push", "--worlds", "many"], "argument --worlds: expected an integer, got 'many'"),
+    (["train", "push", "--episode-seconds", "nan"], "argument --episode-seconds: must be a positive finite number"),
+    (["train", "push", "--budget", "6", "--init", "10"], "--init 10 exceeds the budget of 6 evaluations"),
+    (["train", "push", "--resume", "{tmp}"], "is not a run directory"),
+    (["train", "peg", "--resume", "{run}"], "is a run of task 'push', not 'peg'"),
+    (["train", "push", "--resume", "{run}", "--budget", "9"], "drop --budget 9 (the run has 6)"),
+    (["train", "{broken}"], "bt_hz"),
+    (["evaluate", "{tmp}"], "is not a run directory"),
+    (["evaluate", "{run}", "--per-config", "0"], "argument --per-config: must be at least 1"),
+    (["select", "{run}", "--pick", "99"], "--pick 99: the front has rows"),
+    (["select", "{run}", "--max-force", "-1"], "argument --max-force: must be a finite number >= 0"),
+    (["select", "{run}", "--min-success", "2"], "--min-success is a rate between 0 and 1"),
 )
-def test_bad_input_is_one_message_and_exit_code_2(repeated_run, tmp_path, case, message):
+
+
+def invoke(capsys, module, *args):
+    """The command's entry point in this process (what ``python -m`` runs): (exit code, stderr)."""
+    import importlib
+
+    main = importlib.import_module(f"mjxskill.{module}").main
+    try:
+        code = main(list(args))
+    except SystemExit as exit_:  # argparse's own errors
+        code = exit_.code
+    return code, capsys.readouterr().err
+
+
+# A few cases go through a real subprocess; the rest call the same entry point in-process
+# (a subprocess costs seconds of imports on a loaded 2-core machine).
+SUBPROCESS_CASES = {0, 1, 6}
+
+
+@pytest.mark.parametrize("index, case, message", [(i, c, m) for i, (c, m) in enumerate(BAD_INPUT)])
+def test_bad_input_is_one_message_and_exit_code_2(repeated_run, tmp_path, capsys, case, message, index):
     out, _ = repeated_run
     fill = {"tmp": tmp_path, "run": out / "seed-1", "broken": bad_scenario(tmp_path) if "{broken}" in case else ""}
-    done = run_cli(*(arg.format(**fill) for arg in case), timeout=120)
-    assert done.returncode == 2, (done.stdout, done.stderr)
-    assert "Traceback" not in done.stderr
-    assert message in done.stderr
-    assert f"mjxskill.{case[0]}: error:" in done.stderr
+    args = [arg.format(**fill) for arg in case]
+    if index in SUBPROCESS_CASES:
+        done = run_cli(*args, timeout=120)
+        code, stderr = done.returncode, done.stderr
+    else:
+        code, stderr = invoke(capsys, *args)
+    assert code == 2, stderr
+    assert "Traceback" not in stderr
+    assert message in stderr
+    assert f"mjxskill.{case[0]}: error:" in stderr
