@@ -133,8 +133,8 @@ class Evaluations(NamedTuple):
     """The rows of evaluations.csv. n rows, P parameters, O objectives.
 
     iteration (n,) int: batch index. params (n, P) float64. objectives (n, O) float64, larger
-    is better. success_rate (n,) float64 in [0, 1]. max_force (n,) float64, N (mean over the
-    worlds of the episode's peak contact force on the tool).
+    is better. success_rate (n,) float64 in [0, 1]. max_force (n,) float64, N (the largest
+    feed-forward force the skills commanded in an episode, mean over the worlds).
     """
 
     iteration: np.ndarray

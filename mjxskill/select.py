@@ -6,7 +6,7 @@
     python -m mjxskill.select runs/push-0 --pick 2 --format mp4 --config-index 1
 
 A pick by constraint keeps the Pareto solutions within every given limit (``--max-force``: the
-mean over worlds of the episode's peak tool contact force, N; ``--min-success``) and takes the
+largest feed-forward force the skills commanded in an episode, N, mean over the worlds; ``--min-success``) and takes the
 one with the highest success rate, ties broken by the first objective. The choice is written to
 ``RUN_DIR/selected-<k>/parameters.yaml`` and ``parameters.json`` (parameter name -> value and
 unit, ready for a controller) and rendered there (PNG frames, or an MP4 with ffmpeg).
@@ -79,7 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("run", type=Path, help="run directory written by mjxskill.train")
     pick = parser.add_argument_group("choice (none: list the front)")
     pick.add_argument("--pick", type=cli.int_at_least(0), metavar="K", help="row K of pareto.csv")
-    pick.add_argument("--max-force", type=cli.nonnegative_float, metavar="N", help="peak tool contact force at most N newtons")
+    pick.add_argument("--max-force", type=cli.nonnegative_float, metavar="N", help="largest commanded force (mean over worlds) at most N newtons")
     pick.add_argument("--min-success", type=cli.nonnegative_float, metavar="RATE", help="success rate at least RATE (0-1)")
     parser.add_argument("--out", type=Path, help="export folder (default RUN_DIR/selected-<K>)")
     parser.add_argument("--no-render", action="store_true", help="export the parameters only")
