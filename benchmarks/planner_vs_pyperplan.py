@@ -1,11 +1,11 @@
-"""Benchmark: mjxskill.planner against pyperplan (A* + h_max for both), end to end.
+"""Benchmark: mjxskill.planner against pyperplan (A* with the same heuristic), end to end.
 
 Times are wall-clock medians over repeats in this process, from PDDL text to plan (pyperplan
 reads the same text from files: its parser only takes paths). Domains with negative
 preconditions or equality are outside pyperplan's language; for those the table shows Fast
 Downward (seq-opt-lmcut, a separate process, so it includes interpreter start-up) instead.
 
-    python benchmarks/planner_vs_pyperplan.py [--repeats 3]
+    python benchmarks/planner_vs_pyperplan.py [--repeats 3] [--heuristic hmax|lmcut|blind]
 """
 
 from __future__ import annotations
@@ -68,19 +68,22 @@ def timed(fn, repeats):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--heuristic", choices=["hmax", "lmcut", "blind"], default="hmax")
     args = parser.parse_args()
     logging.disable(logging.INFO)  # pyperplan logs every stage
     planner.solve(*next(benchmarks())[1:3])  # build pddl's lark parsers once (~0.2 s)
 
     header = (f"{'domain':16s} {'ours [s]':>9s} {'len':>4s} | {'reference':10s} {'time [s]':>9s}"
               f" {'len':>4s} | {'speed-up':>8s}")
+    print(f"A* + {args.heuristic}, median of {args.repeats} runs")
     print(header)
     print("-" * len(header))
     for name, domain, problem, reference, reference_domain in benchmarks():
-        ours_s, plan = timed(lambda: planner.solve(domain, problem), args.repeats)
+        ours_s, plan = timed(lambda: planner.solve(domain, problem, args.heuristic),
+                             args.repeats)
         if reference == "pyperplan":
-            ref_s, ref_plan = timed(lambda: pyperplan_plan(reference_domain, problem),
-                                    args.repeats)
+            ref_s, ref_plan = timed(
+                lambda: pyperplan_plan(reference_domain, problem, args.heuristic), args.repeats)
             label = "pyperplan"
         else:
             ref_s, ref_plan = timed(lambda: fast_downward_plan(reference_domain, problem), 1)

@@ -14,6 +14,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from mjxskill.ebt.from_plan import EXPANSIONS, PlanError
 from mjxskill.pddl_gen import GoalError, check_atom, parse_literal
 from mjxskill.scenario_schema import (
     REWARD_KINDS,
@@ -121,7 +122,7 @@ def load_scenario(name_or_path: str | Path, *, solve: Callable[[str, str], Seque
 
     try:
         task = plan_task(scn, solve=solve)
-    except GoalError as err:
+    except (GoalError, PlanError) as err:  # e.g. no plan: the goal is what cannot be reached
         top["goal"].fail(str(err))
     manual = _manual_parameters(top.get("manual_parameters"), task)
     return dataclasses.replace(scn, task=task, manual_parameters=manual)
@@ -300,8 +301,6 @@ def _object(name: str, field: Field, types, predicates, names) -> WorldObject:
 
 
 def _skill(name: str, field: Field, types, predicates) -> Skill:
-    from mjxskill.ebt.from_plan import EXPANSIONS
-
     if name not in EXPANSIONS:
         field.fail(f"unknown skill {name!r}: no expansion into a behavior tree (known: {', '.join(EXPANSIONS)})")
     f = field.mapping(required=("parameters", "preconditions", "postconditions"), optional=("holdconditions",))

@@ -14,6 +14,8 @@ Conventions (the same in the YAML files under ``assets/scenarios/``):
 * Names of objects, poses and the robot are PDDL objects; PDDL is case-insensitive, so the
   generated PDDL uses ``pddl_name`` = the name in lower case, and names must differ in more than
   case.
+* Classes holding arrays compare and hash by identity (``eq=False``), so a Scenario can be a
+  static argument of ``jax.jit``.
 * Objectives are maximized: every reward is a "more is better" term times its weight, so
   penalties (applied wrench) carry negative weights.
 """
@@ -41,7 +43,7 @@ def frozen_mapping(items) -> Mapping:
     return MappingProxyType(dict(items))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Pose:
     """position: (3,) m in the world frame. rpy_deg: (3,) deg, extrinsic x-y-z (see module doc)."""
 
@@ -62,7 +64,7 @@ class Pose:
         return float(np.deg2rad(self.rpy_deg[2]))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class WorldObject:
     """An object or a named pose of the world model.
 
@@ -93,7 +95,7 @@ class WorldObject:
         return self.name.lower()
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Robot:
     """The arm.
 
@@ -185,7 +187,7 @@ REWARD_KINDS = {
 }
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Reward:
     """One reward term.
 
@@ -252,7 +254,7 @@ class Optimizer:
     repetitions: int  # independent runs in the paper's experiments
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Scenario:
     """A validated scenario. See the module docstring for units and frames.
 

@@ -41,16 +41,17 @@ def compose_file(path: Path) -> "Field":
 class Field:
     """One YAML node with its key path (e.g. ``robot.start_configs[2]``) and source file."""
 
-    def __init__(self, node: yaml.Node, path: str, source: str):
+    def __init__(self, node: yaml.Node, path: str, source: str, key_node: yaml.Node | None = None):
         self.node = node
         self.path = path
         self.source = source
+        self.key_node = key_node  # for a mapping entry: errors point at its key's line
 
-    # -- errors -------------------------------------------------------------------------------
     @property
     def line(self) -> int:
-        return self.node.start_mark.line + 1
+        return (self.key_node or self.node).start_mark.line + 1
 
+    # -- errors -------------------------------------------------------------------------------
     def where(self) -> str:
         return f"{self.source}: {self.path or '<top level>'} (line {self.line})"
 
@@ -78,7 +79,7 @@ class Field:
                     f"duplicate key {key!r} (first on line {seen[key]})"
                 )
             seen[key] = key_node.start_mark.line + 1
-            pairs.append((key, Field(value_node, self._child_path(key), self.source)))
+            pairs.append((key, Field(value_node, self._child_path(key), self.source, key_node)))
         return pairs
 
     def mapping(self, required: tuple[str, ...] = (), optional: tuple[str, ...] = ()) -> dict[str, "Field"]:

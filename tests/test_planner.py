@@ -188,6 +188,18 @@ def test_lmcut_is_admissible_and_dominates_hmax(name):
     assert h_lmcut(task.init) > h_max(task.init) or name != "gripper"  # strictly better here
 
 
+def test_delete_then_add():
+    # a fact both deleted and added by one action stays true (STRIPS semantics, also FD's)
+    domain = """(define (domain relabel) (:requirements :strips)
+      (:predicates (ready) (done))
+      (:action redo :parameters () :precondition (ready)
+        :effect (and (not (ready)) (ready) (done))))"""
+    problem = """(define (problem p) (:domain relabel) (:init (ready))
+      (:goal (and (ready) (done))))"""
+    assert solve(domain, problem) == ["(redo)"] == fast_downward_plan(domain, problem)
+    assert lifted_run(domain, problem, ["(redo)"])
+
+
 def test_goal_true_initially_gives_the_empty_plan():
     problem = blocks_problem([["a", "b"]], [["a", "b"]])
     assert solve(BLOCKS_DOMAIN, problem) == []
@@ -360,6 +372,36 @@ def test_domain_name_mismatch():
     expect_error(GRIPPER_DOMAIN, problem, "problem", "(:domain gripper)", "'gripper'")
 
 
+@st.composite
+def mutated_cases(draw):
+    """A case whose domain or problem text had one token deleted, duplicated or replaced."""
+    case = CASES[draw(st.sampled_from(sorted(CASES)))]
+    in_domain = draw(st.booleans())
+    tokens = (case.domain if in_domain else case.problem).split(" ")
+    i = draw(st.integers(0, len(tokens) - 1))
+    edit = draw(st.sampled_from(["delete", "duplicate", "replace"]))
+    if edit == "delete":
+        del tokens[i]
+    elif edit == "duplicate":
+        tokens.insert(i, tokens[draw(st.integers(0, len(tokens) - 1))])
+    else:
+        tokens[i] = draw(st.sampled_from(["(", ")", "(and)", "?zz", "foo", "-", "(not", "()",
+                                          "(= ?a ?b)", ":typing", "(either"]))
+    text = " ".join(tokens)
+    return (text, case.problem) if in_domain else (case.domain, text)
+
+
+@settings(max_examples=40, deadline=None)
+@given(mutated_cases())
+def test_mangled_pddl_raises_only_pddl_errors(texts):
+    # any edit either still makes sense (a plan or Unsolvable) or is reported as PDDLError;
+    # never a stray exception from the parser library
+    try:
+        solve(*texts, max_expansions=20_000)
+    except (PDDLError, Unsolvable):
+        pass
+
+
 # ---- determinism -------------------------------------------------------------------------
 
 
@@ -408,3 +450,36 @@ def test_random_blocksworld_matches_pyperplan(instance):
     plan = solve(BLOCKS_DOMAIN, problem)
     assert len(plan) == len(pyperplan_plan(BLOCKS_DOMAIN, problem))
     assert lifted_run(BLOCKS_DOMAIN, problem, plan)
+
+
+# ---- random visit-once graphs: negative preconditions and equality vs Fast Downward -------
+
+
+@st.composite
+def visit_instances(draw):
+    n = draw(st.integers(3, 6))
+    cells = [f"r{i}" if draw(st.booleans()) else f"h{i}" for i in range(n)]
+    pairs = [(a, b) for i, a in enumerate(cells) for b in cells[i + 1:]]
+    doors = draw(st.lists(st.sampled_from(pairs), min_size=1, max_size=2 * n, unique=True))
+    return visit_problem(cells, doors, cells[0])
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(visit_instances())
+def test_random_visit_once_matches_fast_downward(problem):
+    reference = fast_downward_plan(VISIT_DOMAIN_WITHOUT_EITHER, problem)
+    if reference is None:
+        with pytest.raises(Unsolvable):
+            solve(VISIT_DOMAIN, problem)
+    else:
+        plan = solve(VISIT_DOMAIN, problem)
+        assert len(plan) == len(reference)
+        assert lifted_run(VISIT_DOMAIN, problem, plan)
+
+
+def test_expansion_limit():
+    case = CASES["gripper"]
+    with pytest.raises(RuntimeError, match="expansions"):
+        solve(case.domain, case.problem, max_expansions=3)
+    with pytest.raises(ValueError, match="heuristic"):
+        solve(case.domain, case.problem, heuristic="hff")

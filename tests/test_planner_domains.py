@@ -1,8 +1,9 @@
 """Classic PDDL domains and problems used by the planner tests and benchmark.
 
 Each entry of `CASES` names the independent planner that can read it: ``"pyperplan"`` (STRIPS +
-typing) or ``"fd"`` (Fast Downward: also negative preconditions and equality, but not `either`). The tests in this file only
-check that the texts are what the oracles accept, so a typo here cannot pass silently.
+typing) or ``"fd"`` (Fast Downward: also negative preconditions and equality, but not
+`either`). The test in this file checks that pyperplan's cases stay inside pyperplan's language,
+so a case it would misread cannot pass silently.
 """
 
 from __future__ import annotations
@@ -305,13 +306,16 @@ CASES = {
 
 
 def pyperplan_plan(domain: str, problem: str, heuristic: str = "hmax") -> list[str] | None:
-    """Optimal plan from pyperplan's A* (h_max or blind), as lower-case ground actions."""
+    """Optimal plan from pyperplan's A* (h_max, LM-cut or blind), as lower-case ground
+    actions."""
     from pyperplan.heuristics.blind import BlindHeuristic
+    from pyperplan.heuristics.lm_cut import LmCutHeuristic
     from pyperplan.heuristics.relaxation import hMaxHeuristic
     from pyperplan.planner import search_plan
     from pyperplan.search import astar_search
 
-    heuristic_class = {"hmax": hMaxHeuristic, "blind": BlindHeuristic}[heuristic]
+    heuristic_class = {"hmax": hMaxHeuristic, "blind": BlindHeuristic,
+                       "lmcut": LmCutHeuristic}[heuristic]
     with tempfile.TemporaryDirectory() as tmp:
         dfile, pfile = os.path.join(tmp, "domain.pddl"), os.path.join(tmp, "problem.pddl")
         with open(dfile, "w") as f:
@@ -356,7 +360,9 @@ def fast_downward_plan(domain: str, problem: str) -> list[str] | None:
             assert run.returncode in (11, 12), run.stdout[-2000:] + run.stderr[-2000:]
             return None
         with open(plan_file) as f:
-            return [line.strip().lower() for line in f if not line.startswith(";")]
+            # FD writes "(name a b)" but "(name )" for actions without parameters
+            return ["(" + " ".join(line.strip().strip("()").lower().split()) + ")"
+                    for line in f if not line.startswith(";")]
 
 
 def oracle_plan(domain: str, problem: str, oracle: str) -> list[str] | None:

@@ -8,7 +8,7 @@ Subtrees (after SkiREIL's skills; ``||FS`` = ParallelFs, ``->`` = Sequence):
 * Push(workpiece, goal) = ``->* [||FS [GoToLinearOffset(workpiece + start offsets), ChangeStiffness],
   ||FS [GoToLinearOffset(goal + goal offsets), ChangeStiffness, ApplyForce(wrench)]]`` where
   GoToLinearOffset = GoToLinear with a learnable x/y offset, at the push height.
-* PegInsertion(peg, box) = ``-> [ElementToBBPose(hole bottom), ||FS [MGSetGoalPose,
+* PegInsertion(peg, box) = ``-> [ElementToBBPose(box pose), ||FS [MGSetGoalPose,
   ChangeStiffness, ApplyForce(z = force), OverlayMotion(spiral), EEPoseDistance(threshold)]]``.
 
 Leaf vocabulary (``Node.primitive``; the compiled rollout implements one leaf program each).
@@ -220,15 +220,13 @@ def expand_push(ctx: _Context) -> Node:
 
 def expand_peg_insertion(ctx: _Context) -> Node:
     label, box = ctx.step.label, ctx.object("box")
-    missing = [k for k in ("hole_top", "hole_depth") if k not in box.extra]
-    if missing:
-        raise PlanError(f"{ctx.step}: object {box.name} needs extra.{missing[0]} for PegInsertion")
-    hole_bottom = (0.0, 0.0, box.extra["hole_top"] - box.extra["hole_depth"])
+    # SkiREIL's goal is the box's pose (its origin, under the hole): the reference keeps pulling
+    # the peg down, and the distance check succeeds once the tip is within the threshold of it.
     force_args, force_params = ctx.inputs(force_z="force")
     spiral_args, spiral_params = ctx.inputs(radius="radius", path_velocity="path_velocity", pitch="pitch")
     return sequence(
         label,
-        _set_goal(box, hole_bottom),
+        _set_goal(box, (0.0, 0.0, 0.0)),
         parallel_fs(
             f"{label}.insert",
             action("MGSetGoalPose", "goal_pose"),

@@ -49,11 +49,13 @@ class MOBOConfig:
     seed: int = 0
     alpha: float = 0.05
     bucket: int = 64  # training sets are padded to a multiple of this many rows
-    n_raw: int = 512
+    n_raw: int = 1024
     n_restarts: int = 10
-    n_opt_steps: int = 60
+    n_opt_steps: int = 100
     fit_starts: int = 2
-    fit_steps: int = 30
+    fit_steps: int = 50
+    per_element_fit_max_rows: int = 128  # own GP fit per batch element up to this padded size
+    fit_max_rows: int = 128  # hyperparameters fitted on a random subset of this many rows
 
     def __post_init__(self):
         b = np.asarray(self.bounds, dtype=np.float64)
@@ -68,7 +70,7 @@ class MOBOConfig:
                 f"MOBOConfig.bounds: lower >= upper in dimension {i} ({b[0, i]} >= {b[1, i]})"
             )
         object.__setattr__(self, "bounds", tuple(tuple(float(v) for v in row) for row in b))
-        for name in ("n_objectives", "batch_size", "bucket", "n_raw", "n_restarts", "fit_starts"):
+        for name in ("n_objectives", "batch_size", "bucket", "n_raw", "n_restarts", "fit_starts", "fit_max_rows"):
             v = getattr(self, name)
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
                 raise ValueError(f"MOBOConfig.{name}: expected a positive integer, got {v!r}")
@@ -91,6 +93,8 @@ class MOBOConfig:
             n_opt_steps=int(self.n_opt_steps),
             fit_starts=int(self.fit_starts),
             fit_steps=int(self.fit_steps),
+            per_element_fit_max_rows=int(self.per_element_fit_max_rows),
+            fit_max_rows=int(self.fit_max_rows),
         )
 
 

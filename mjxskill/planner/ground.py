@@ -113,10 +113,12 @@ def _bindings(schema: ActionSchema, objects: dict[str, frozenset[str]],
 
     # checks[i]: decidable once parameter i is bound; checks[-1]: variable-free ones
     checks: list[list] = [[] for _ in range(len(variables) + 1)]
-    for atom, positive in [(a, True) for a in schema.pre.pos] + [(a, False) for a in schema.pre.neg]:
+    literals = [(a, True) for a in schema.pre.pos] + [(a, False) for a in schema.pre.neg]
+    for atom, positive in literals:
         if atom.predicate not in fluent_predicates:
             checks[ready_at(atom.args)].append(("fact", atom, positive))
-    for pair, want in [(p, True) for p in schema.pre.equal] + [(p, False) for p in schema.pre.not_equal]:
+    pairs = [(p, True) for p in schema.pre.equal] + [(p, False) for p in schema.pre.not_equal]
+    for pair, want in pairs:
         checks[ready_at(pair)].append(("eq", pair, want))
 
     def holds(check, binding) -> bool:

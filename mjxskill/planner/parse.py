@@ -12,9 +12,10 @@ import threading
 from typing import NamedTuple
 
 import lark
+from pddl.exceptions import PDDLError as PDDLLibraryError
 from pddl.logic.base import And, Not, Or
 from pddl.logic.predicates import EqualTo, Predicate
-from pddl.logic.terms import Constant, Variable
+from pddl.logic.terms import Variable
 from pddl.parser.domain import DomainParser
 from pddl.parser.problem import ProblemParser
 
@@ -147,6 +148,10 @@ def _semantic_error(src: Source, error: Exception) -> PDDLError:
             what = f"uses {requirement}, which is not supported"
         keywords = _REQUIREMENT_KEYWORDS.get(str(requirement), ())
         return src.error(what, src.locate([([k], True) for k in keywords]))
+    if not isinstance(error, (lark.exceptions.LarkError, PDDLLibraryError)):
+        # a crash inside pddl's transformer (e.g. TypeError on some malformed actions)
+        return src.error(f"malformed PDDL: the pddl parser failed with "
+                         f"{type(error).__name__}: {message}", None)
     # pddl quotes the offending names, e.g. "Constant 'kitchen' not defined."
     names = [part for i, part in enumerate(message.split("'")) if i % 2 == 1]
     offset = src.locate([([n], False) for n in names])

@@ -50,7 +50,7 @@ class Source:
 
     def locate(self, candidates: Sequence[tuple[Sequence[str], bool]],
                span: tuple[int, int] | None = None) -> int | None:
-        """First hit among ``(tokens, parenthesized)`` candidates; falls back to ``span``'s start."""
+        """First hit among ``(tokens, parenthesized)`` candidates, else ``span``'s start."""
         for tokens, parenthesized in candidates:
             offset = self.find_tokens(tokens, span, parenthesized)
             if offset is not None:

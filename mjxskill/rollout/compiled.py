@@ -109,7 +109,8 @@ class Rollout:
     def __call__(self, params, key: jax.Array) -> RolloutOutput:
         """Rolls out (B, P) ``params`` in W worlds each, drawn from ``key``."""
         params = self.check_params(params)
-        return _run_sampled(self, jnp.asarray(params), key)
+        # Sampling is a separate small program, so a call and ``run_worlds`` share one compile.
+        return _run_worlds(self, jnp.asarray(params), self.sample_worlds(key, len(params)))
 
     def run_worlds(self, params, worlds: Worlds) -> RolloutOutput:
         """Rolls out (B, P) ``params`` in explicit ``worlds`` of leading shape (B, W') or (W',)
@@ -130,7 +131,7 @@ class Rollout:
 
     def sample_worlds(self, key: jax.Array, batch: int) -> Worlds:
         """The (batch, W) worlds ``rollout(params, key)`` uses for ``batch`` parameter sets."""
-        return sample_worlds(self.sampler, key, (batch, self.worlds))
+        return _sample(self, key, batch)
 
     def worlds_per_config(self, key: jax.Array, per_config: int, configs: np.ndarray | None = None) -> Worlds:
         """``per_config`` worlds from each start configuration (default: the training ones;
@@ -238,9 +239,9 @@ def _batched_episodes(r: Rollout, params: jax.Array, worlds: Worlds) -> RolloutO
 
 # The Rollout is static (hashed by identity): its model, tree and leaf programs are baked into
 # the trace; one compile per (rollout, batch size).
-@partial(jax.jit, static_argnums=0)
-def _run_sampled(r: Rollout, params: jax.Array, key: jax.Array) -> RolloutOutput:
-    return _batched_episodes(r, params, sample_worlds(r.sampler, key, (params.shape[0], r.worlds)))
+@partial(jax.jit, static_argnums=(0, 2))
+def _sample(r: Rollout, key: jax.Array, batch: int) -> Worlds:
+    return sample_worlds(r.sampler, key, (batch, r.worlds))
 
 
 @partial(jax.jit, static_argnums=0)

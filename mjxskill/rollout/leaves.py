@@ -34,6 +34,7 @@ from mjxskill.bt_compiled import CompiledTree
 from mjxskill.ebt.nodes import Status
 from mjxskill.rollout.bindings import SceneBindings
 from mjxskill.sim.motion import MotionLimits, Pose, SpiralState, init_spiral, linear_trajectory, spiral_offset, spiral_step
+from mjxskill.sim.rotations import quat_mul
 
 SPIRAL_NORMAL = np.array([0.0, 0.0, 1.0], np.float32)  # the search plane is horizontal
 
@@ -96,6 +97,37 @@ def advance(bb: Blackboard, dt: float) -> Blackboard:
         lambda new, old: jnp.where(bb.spiral_on, new, old), spiral_step(bb.spiral, radius, velocity, pitch, dt), bb.spiral
     )
     return bb._replace(mg_time=bb.mg_time + dt, spiral=spiral)
+
+
+# Tool pointing down: rotation by pi about y (the site's z axis along world -z); its x axis is
+# then world -x, so a tool turned by yaw about world z has its x axis at (-cos yaw, -sin yaw, 0).
+TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0], np.float32)
+TOOL_SYMMETRY = np.pi / 2  # both tools (pusher, peg) are square: a quarter turn maps them onto themselves
+
+
+def _yaw_of(object_quat) -> float:
+    """Yaw (rad) of an object's orientation (w, x, y, z), about world z."""
+    w, x, y, z = (float(v) for v in object_quat)
+    return float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+
+
+def tool_yaw(quat):
+    """Yaw (rad) of a tool-down orientation (w, x, y, z)."""
+    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
+    r00 = 1.0 - 2.0 * (y * y + z * z)
+    r10 = 2.0 * (x * y + w * z)
+    return jnp.arctan2(-r10, -r00)
+
+
+def tool_down_aligned(current_quat, object_yaw: float):
+    """ElementToBBPose's orientation: the tool pointing down with its faces aligned to the
+    object's yaw, choosing among the tool's symmetric yaws the one nearest the current one (a
+    square peg fits a square hole only within a few degrees of alignment)."""
+    yaw = tool_yaw(current_quat)
+    delta = jnp.mod(object_yaw - yaw + TOOL_SYMMETRY / 2, TOOL_SYMMETRY) - TOOL_SYMMETRY / 2
+    target = yaw + delta
+    turn = jnp.stack([jnp.cos(target / 2), jnp.zeros_like(target), jnp.zeros_like(target), jnp.sin(target / 2)])
+    return quat_mul(turn, jnp.asarray(TOOL_DOWN))
 
 
 class LeafWorld(NamedTuple):
@@ -173,11 +205,12 @@ def _program(i: int, leaf, index: dict, bindings: SceneBindings, tick_seconds: f
         fixed = np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), np.float32)
         dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
 
+        object_yaw = _yaw_of(bindings.slots[slot].quat)
+
         def set_goal(bb, world, params, fresh):
             offset = jnp.asarray(fixed) + jnp.stack([dx(params), dy(params), jnp.float32(0.0)])
-            # Orientation "tool_down": keep the current reference orientation (the start
-            # configurations hold the tool pointing down).
-            return bb._replace(goal_pos=world.slot_pos[slot] + offset, goal_quat=reference_pose(bb).quat)
+            quat = tool_down_aligned(reference_pose(bb).quat, object_yaw)
+            return bb._replace(goal_pos=world.slot_pos[slot] + offset, goal_quat=quat)
 
         return (lambda bb, world, params, live: Status.SUCCESS), set_goal
     if primitive == "goal_pose":

@@ -83,9 +83,9 @@ def build_terms(scn: Scenario, bindings: SceneBindings) -> tuple[RewardTerm, ...
     """Reward terms of the scenario, in YAML order (host-side; the closures trace into jit)."""
     terms = []
     for reward in scn.rewards:
-        raw, best, worst = _raw_term(reward, bindings)
-        # The worst *weighted* value: a negative weight turns the best raw value into the worst.
-        worst_raw = worst if reward.weight >= 0 else best
+        raw, raw_min, raw_max = _raw_term(reward, bindings)
+        # The worst *weighted* value: a negative weight makes the largest raw value the worst.
+        worst_raw = raw_min if reward.weight >= 0 else raw_max
         terms.append(RewardTerm(reward.name, raw, float(reward.weight), scn.objective_names.index(reward.objective), worst_raw))
     return tuple(terms)
 
@@ -97,15 +97,16 @@ def _target(reward: Reward, bindings: SceneBindings):
 
 
 def _raw_term(reward: Reward, bindings: SceneBindings):
-    """(raw function, best raw value, worst raw value) of one reward."""
+    """(raw function, smallest raw value, largest raw value) of one reward."""
     kind = reward.kind
     if kind == "task_completion":
         value = _constant(reward, "value", 8.0)
-        return (lambda obs: jnp.where(obs.bt_succeeded, value, 0.0)), max(value, 0.0), min(value, 0.0)
+        return (lambda obs: jnp.where(obs.bt_succeeded, value, 0.0)), min(value, 0.0), max(value, 0.0)
     if kind == "ee_distance_to_box":
         w, d_o = _constant(reward, "w", 2.0), _constant(reward, "d_o", 0.006)
         target = _target(reward, bindings)
-        return (lambda obs: 1.0 / (w * (jnp.linalg.norm(obs.tool_pos - target(obs)) + d_o))), 1.0 / (w * d_o), 0.0
+        largest = 1.0 / (w * d_o) if d_o > 0 else float("inf")
+        return (lambda obs: 1.0 / (w * (jnp.linalg.norm(obs.tool_pos - target(obs)) + d_o))), 0.0, largest
     if kind == "applied_wrench":
         cap = _constant(reward, "cap", 100.0)
         return (lambda obs: jnp.minimum(jnp.sum(jnp.abs(obs.wrench[:3])), cap)), 0.0, cap
@@ -113,9 +114,9 @@ def _raw_term(reward: Reward, bindings: SceneBindings):
     best = float(np.exp(-d_o / (2.0 * sigma_w**2)))
     if kind == "exp_ee_to_goal":
         target = _target(reward, bindings)
-        return (lambda obs: exp_reward(jnp.linalg.norm(obs.tool_pos - target(obs)), sigma_w, d_o)), best, 0.0
+        return (lambda obs: exp_reward(jnp.linalg.norm(obs.tool_pos - target(obs)), sigma_w, d_o)), 0.0, best
     if kind == "exp_ee_to_reference":
-        return (lambda obs: exp_reward(jnp.linalg.norm(obs.tool_pos - obs.ref_pos), sigma_w, d_o)), best, 0.0
+        return (lambda obs: exp_reward(jnp.linalg.norm(obs.tool_pos - obs.ref_pos), sigma_w, d_o)), 0.0, best
     if kind == "object_pose_divergence":
         w_pos = _constant(reward, "position_weight", 1.0)
         w_rot = _constant(reward, "orientation_weight", 0.0)
@@ -126,7 +127,7 @@ def _raw_term(reward: Reward, bindings: SceneBindings):
             d_rot = quat_angle(obs.slot_quat[obj], obs.slot_quat[tgt])
             return w_pos * exp_reward(d_pos, sigma_w, d_o) + w_rot * exp_reward(d_rot, sigma_w, d_o)
 
-        return divergence, (w_pos + w_rot) * best, 0.0
+        return divergence, 0.0, (w_pos + w_rot) * best
     raise ValueError(f"reward {reward.name!r}: unknown kind {kind!r}; expected one of {KINDS}")
 
 

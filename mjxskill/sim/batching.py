@@ -24,10 +24,17 @@ from mjxskill.sim.controller import N_ARM, ControllerConfig, ControllerState, im
 STRATEGIES = ("vmap", "map", "chunked")
 
 
+_FASTEST = {"cpu": "vmap", "gpu": "vmap", "cuda": "vmap", "tpu": "vmap"}
+
+
 def default_strategy(backend: str | None = None) -> str:
-    """Fastest correct strategy per backend (benchmarks/batching.py): vmap on cpu and gpu."""
+    """Fastest correct strategy for ``backend`` (default: jax's current one).
+
+    CPU: measured by benchmarks/batching.py (vmap beats lax.map 3-5x at W = 8-64 with the
+    fusion-emitter flag off; see the sim branch report). GPU: vmap is what MJX is built for;
+    not measured here (no GPU in this session)."""
     backend = jax.default_backend() if backend is None else backend
-    return "vmap"
+    return _FASTEST.get(backend, "vmap")
 
 
 def over_worlds(fn: Callable, strategy: str = "vmap", chunk: int | None = None) -> Callable:
@@ -40,8 +47,26 @@ def over_worlds(fn: Callable, strategy: str = "vmap", chunk: int | None = None) 
     if strategy == "chunked":
         if not chunk or chunk < 1:
             raise ValueError(f"strategy 'chunked' needs chunk >= 1, got chunk={chunk!r}")
-        return lambda *args: jax.lax.map(lambda a: fn(*a), args, batch_size=chunk)
+        return _chunked(jax.vmap(fn), chunk)
     raise ValueError(f"unknown batching strategy {strategy!r}; expected one of {STRATEGIES}")
+
+
+def _chunked(batched_fn: Callable, chunk: int) -> Callable:
+    """lax.map over chunks of ``chunk`` worlds, ``batched_fn`` (a vmap) inside each chunk.
+
+    Hand-written instead of ``jax.lax.map(..., batch_size=chunk)``, which (jax 0.10.2) fails
+    with ZeroDivisionError on the zero-size leaves MJX data has (e.g. shape (W, 0))."""
+
+    def run(*args):
+        n_worlds = jax.tree.leaves(args)[0].shape[0]
+        size = min(chunk, n_worlds)
+        if n_worlds % size:
+            raise ValueError(f"strategy 'chunked': {n_worlds} worlds do not split into chunks of {size}")
+        split = lambda x: x.reshape((n_worlds // size, size) + x.shape[1:])  # noqa: E731
+        out = jax.lax.map(lambda a: batched_fn(*a), jax.tree.map(split, args))
+        return jax.tree.map(lambda x: x.reshape((n_worlds,) + x.shape[2:]), out)
+
+    return run
 
 
 def control_step(cfg: ControllerConfig, model: mjx.Model, data: mjx.Data, command, nullspace_target,

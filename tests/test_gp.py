@@ -1,0 +1,88 @@
+"""GP posterior against a dense float64 numpy closed form; hyperparameter recovery; x64 scoping."""
+
+import mjxskill  # noqa: F401  (XLA flags before jax runs)
+
+import jax
+import jax.flatten_util
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy.stats import multivariate_normal
+
+from mjxskill.gp import gp as gpm
+from mjxskill.gp.kernels import matern52
+
+
+def _matern52_numpy(a, b, ls, s):
+    r = np.sqrt(np.sum(((a[:, None, :] - b[None, :, :]) / ls) ** 2, axis=-1))
+    return s * (1 + np.sqrt(5) * r + 5 * r**2 / 3) * np.exp(-np.sqrt(5) * r)
+
+
+@pytest.fixture(scope="module")
+def data():
+    rng = np.random.default_rng(0)
+    x = rng.random((24, 3))
+    y = np.sin(4 * x[:, 0]) + x[:, 1] ** 2 - x[:, 2]
+    return x, (y - y.mean()) / y.std()
+
+
+def test_kernel_matches_numpy():
+    rng = np.random.default_rng(1)
+    a, b, ls = rng.random((5, 3)), rng.random((4, 3)), np.array([0.2, 0.5, 1.5])
+    with jax.enable_x64(True):
+        got = np.asarray(matern52(jnp.asarray(a), jnp.asarray(b), jnp.asarray(ls), 1.7))
+    np.testing.assert_allclose(got, _matern52_numpy(a, b, ls, 1.7), rtol=1e-12)
+
+
+def test_posterior_matches_closed_form_with_padding(data):
+    x, y = data
+    ls, s, nv, mean = np.array([0.3, 0.6, 0.9]), 1.3, 1e-3, 0.1
+    xs = np.random.default_rng(2).random((7, 3))
+    # Pad with 8 garbage rows: they must not change anything.
+    xp = np.concatenate([x, np.full((8, 3), 123.0)])
+    yp = np.concatenate([y, np.full(8, -1e3)])
+    mask = np.arange(len(xp)) < len(x)
+    with jax.enable_x64(True):
+        p = gpm.params_from_values(ls, s, nv, mean)
+        post = gpm.condition(p, jnp.asarray(xp), jnp.asarray(yp), jnp.asarray(mask))
+        mu, var = map(np.asarray, gpm.predict(post, jnp.asarray(xs)))
+        mll = float(gpm.log_marginal_likelihood(p, jnp.asarray(xp), jnp.asarray(yp), jnp.asarray(mask)))
+    k = _matern52_numpy(x, x, ls, s) + (nv + gpm.JITTER) * np.eye(len(x))
+    ks = _matern52_numpy(xs, x, ls, s)
+    np.testing.assert_allclose(mu, mean + ks @ np.linalg.solve(k, y - mean), rtol=1e-9, atol=1e-10)
+    np.testing.assert_allclose(var, s - np.sum(ks * np.linalg.solve(k, ks.T).T, axis=1), rtol=1e-7, atol=1e-10)
+    assert mll == pytest.approx(multivariate_normal(np.full(len(x), mean), k).logpdf(y), rel=1e-10)
+
+
+def test_likelihood_gradient_matches_finite_differences(data):
+    x, y = data
+    mask = np.ones(len(x), bool)
+    with jax.enable_x64(True):
+        p = gpm.params_from_values([0.3, 0.6, 0.9], 1.3, 1e-2, 0.1)
+        flat, unravel = jax.flatten_util.ravel_pytree(p)
+        f = jax.jit(lambda v: gpm.log_marginal_likelihood(unravel(v), x, y, mask))
+        grad = np.asarray(jax.grad(f)(flat))
+        eps = 1e-6
+        fd = np.array([(f(flat + eps * e) - f(flat - eps * e)) / (2 * eps) for e in np.eye(len(flat))])
+    np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-6)
+
+
+def test_fit_recovers_lengthscale_of_data_drawn_from_the_prior():
+    rng = np.random.default_rng(3)
+    true_ls, n = np.array([0.15, 0.6]), 160
+    x = rng.random((n, 2))
+    k = _matern52_numpy(x, x, true_ls, 1.0) + 1e-4 * np.eye(n)
+    y = np.linalg.cholesky(k) @ rng.standard_normal(n)
+    y = (y - y.mean()) / y.std()
+    with jax.enable_x64(True):
+        p = jax.jit(lambda k: gpm.fit(x, y, np.ones(n, bool), k, n_starts=1, n_steps=40))(jax.random.PRNGKey(0))
+        got = np.asarray(gpm.lengthscales(p))
+    np.testing.assert_allclose(got, true_ls, rtol=0.3)
+    assert got[0] < got[1]
+
+
+def test_importing_and_using_the_gp_leaves_float32_default():
+    from mjxskill.gp import optimizer  # noqa: F401
+
+    assert not jax.config.jax_enable_x64
+    assert jnp.zeros(2).dtype == jnp.float32

@@ -1,0 +1,297 @@
+"""Scenario files: the numbers of the paper/reference, immutability, and one clear error (file,
+key path, line) for every kind of invalid file."""
+
+import copy
+import dataclasses
+import functools
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mjxskill.scenario import SCENARIO_DIR, ScenarioError, load_scenario
+
+PUSH_YAML = SCENARIO_DIR / "push.yaml"
+
+
+@pytest.fixture(scope="module")
+def push():
+    return load_scenario("push")
+
+
+@pytest.fixture(scope="module")
+def peg():
+    return load_scenario("peg")
+
+
+def test_push_world_model_has_the_papers_numbers(push):
+    assert push.name == "push" and push.source == str(PUSH_YAML)
+    assert Path(push.scene) == (SCENARIO_DIR.parent / "push.xml").resolve()
+    assert (push.episode_seconds, push.bt_hz, push.control_hz) == (12.0, 10, 500)
+    assert push.episode_ticks == 120 and push.steps_per_tick == 50
+    obj, goal = push.objects["ObjectToBePushed-1"], push.objects["ObjectGoalPose-1"]
+    assert obj.mjcf_body == "object" and obj.mass == 2.5
+    np.testing.assert_allclose(obj.size, [0.15, 0.30, 0.07])
+    assert 0.2 <= obj.friction <= 0.25 and np.linalg.norm(obj.com_offset) > 0
+    distance = np.linalg.norm(goal.pose.position[:2] - obj.pose.position[:2])
+    assert distance == pytest.approx(0.43, abs=1e-3)
+    assert goal.pose.rpy_deg[2] - obj.pose.rpy_deg[2] == pytest.approx(26.0)
+    assert push.objects["Pusher-1"].size.tolist() == [0.07, 0.07, 0.05]
+    assert push.robot.start_configs.shape == (4, 7) and push.robot.eval_configs.shape == (2, 7)
+    assert push.robot.tool_site == "tool" and push.robot.nullspace_stiffness == 5.0
+    np.testing.assert_allclose(push.robot.default_stiffness, [400, 400, 400, 50, 50, 50])
+    np.testing.assert_allclose(push.robot.home, [0, 0.785, 0, -1.571, 0, 0, 0])
+    assert push.success.kind == "object_at_pose"
+    assert (push.success.position_tolerance, push.success.orientation_tolerance_deg) == (0.01, 5.0)
+    assert push.randomization.n_worlds == 7 and dict(push.randomization.xy_sigma) == {
+        "ObjectToBePushed-1": 0.007,
+        "ObjectGoalPose-1": 0.007,
+    }
+    assert push.optimizer.budget == 400 and push.optimizer.repetitions == 10
+    assert push.objective_names == ("success", "applied_force")
+    assert {r.objective for r in push.rewards} == set(push.objective_names)
+
+
+def test_peg_world_model_has_the_papers_numbers(peg):
+    assert (peg.episode_seconds, peg.gravity) == (18.0, False)
+    box = peg.objects["BoxWithHole-1"]
+    assert box.mjcf_body == "box" and peg.objects["Peg-1"].mjcf_body == "tool_tool"
+    assert box.extra["hole_clearance"] == 0.0015 and box.extra["hole_depth"] > 0.01
+    assert box.friction == 0.3
+    assert peg.robot.start_configs.shape == (5, 7) and peg.robot.eval_configs.shape == (10, 7)
+    assert peg.success.kind == "inserted" and peg.success.depth == 0.01
+    rewards = {r.name: r for r in peg.rewards}
+    assert rewards["bt_success"].constants["value"] == 8.0
+    assert dict(rewards["peg_to_box"].constants) == {"w": 2.0, "d_o": 0.006}
+    assert rewards["peg_to_box"].weight == 0.15
+    assert rewards["applied_wrench"].weight < 0  # a cost on a maximized objective
+
+
+def test_learnable_parameters_come_from_the_plan(push, peg):
+    assert push.parameter_names == (
+        "Push.offset_x_start", "Push.offset_y_start", "Push.offset_x_goal", "Push.offset_y_goal",
+    )
+    np.testing.assert_array_equal(push.bounds, [[-0.3] * 4, [0.3] * 4])
+    assert push.parameter_units == ("m",) * 4
+    np.testing.assert_array_equal(push.parameter_defaults, np.zeros(4))
+    assert peg.parameter_names == (
+        "PegInsertion.force", "PegInsertion.radius", "PegInsertion.path_velocity", "PegInsertion.pitch",
+    )
+    np.testing.assert_array_equal(peg.bounds, [[-10, 0, 0, 0], [0, 0.07, 0.3, 0.03]])
+    assert peg.parameter_units == ("N", "m", "m/s", "m")
+    assert peg.parameter_defaults[1:].tolist() == [0, 0, 0]  # no search motion
+    for scn in (push, peg):
+        assert len(scn.manual_parameters) >= 3
+        for values in scn.manual_parameters.values():
+            assert values.shape == (len(scn.parameter_names),)
+            assert np.all(scn.bounds[0] <= values) and np.all(values <= scn.bounds[1])
+
+
+def test_start_configurations_respect_the_iiwa_joint_limits(push, peg):
+    limits = np.deg2rad([170, 120, 170, 120, 170, 120, 175])
+    for scn in (push, peg):
+        configs = np.concatenate([scn.robot.start_configs, scn.robot.eval_configs])
+        assert np.all(np.abs(configs) < limits)
+        assert len(np.unique(configs.round(3), axis=0)) == len(configs)  # all different
+
+
+def test_pose_quaternion_matches_the_closed_form(push):
+    # yaw only: q = (cos(yaw/2), 0, 0, sin(yaw/2))
+    quat = push.objects["ObjectGoalPose-1"].pose.quat
+    half = math.radians(26) / 2
+    np.testing.assert_allclose(quat, [math.cos(half), 0, 0, math.sin(half)], atol=1e-12)
+    # roll 180 deg (tool pointing down): q = (0, 1, 0, 0)
+    np.testing.assert_allclose(push.objects["Home-1"].pose.quat, [0, 1, 0, 0], atol=1e-12)
+
+
+def test_scenario_is_immutable(push):
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        push.goal = "(at a b)"
+    with pytest.raises(TypeError):
+        push.objects["new"] = push.objects["Home-1"]
+    with pytest.raises(ValueError):
+        push.robot.start_configs[0, 0] = 1.0
+    with pytest.raises(ValueError):
+        push.bounds[0, 0] = 1.0
+    with pytest.raises(TypeError):
+        push.skills["Push"].parameters[0] = None
+
+
+def test_scenario_is_hashable_for_use_as_a_static_jit_argument(push):
+    assert hash(push) == hash(push) and push == push
+    assert {push: 1}[push] == 1
+
+
+def test_load_by_path_equals_load_by_name(push):
+    again = load_scenario(PUSH_YAML)
+    assert again.parameter_names == push.parameter_names and again.source == push.source
+
+
+def test_unknown_task_name_lists_the_available_ones():
+    with pytest.raises(ScenarioError, match=r"unknown task 'pusj'.*available: peg, push"):
+        load_scenario("pusj")
+
+
+# -- invalid files ------------------------------------------------------------------------------
+# (old text, new text, key path, message[, line anchor]) applied to push.yaml; the error must
+# name the file, the key path and the line of the last occurrence of the anchor (default: the
+# new text) in the edited file.
+MUTATIONS = {
+    "missing key": ("episode_seconds: 12.0\n", "", "<top level>", "missing key 'episode_seconds'"),
+    "unknown key": (
+        "    com_offset: [-0.02", "    bogus: 1\n    com_offset: [-0.02",
+        "objects.ObjectToBePushed-1.bogus", "unknown key 'bogus'", "bogus: 1",
+    ),
+    "wrong type": ("    mass: 2.5", "    mass: heavy", "objects.ObjectToBePushed-1.mass", "expected a number, got 'heavy'"),
+    "wrong type in a list": (
+        "- [-0.1200, 0.7679,", "- [-0.1200, x,", r"robot.start_configs\[0\]\[1\]", "expected a number, got 'x'",
+    ),
+    "wrong vector length": (
+        "default_stiffness: [400, 400, 400, 50, 50, 50]", "default_stiffness: [400, 400]",
+        "robot.default_stiffness", "expected a list of 6 numbers, got 2",
+    ),
+    "lower bound above upper": (
+        "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3]",
+        "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [0.4, 0.3]",
+        "skills.Push.parameters.offset_x_start.bounds", "lower bound 0.4 is above the upper bound 0.3",
+    ),
+    "default outside bounds": (
+        "force: {type: float, unit: N, default: -5.0,", "force: {type: float, unit: N, default: 5.0,",
+        "skills.PegInsertion.parameters.force.default", r"default 5.0 is outside the bounds \[-10.0, 0.0\]",
+    ),
+    "learnable without bounds": (
+        "offset_y_goal: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3], learnable: true}",
+        "offset_y_goal: {type: float, unit: m, default: 0.0, learnable: true}",
+        "skills.Push.parameters.offset_y_goal", "a learnable parameter needs bounds",
+    ),
+    "unknown skill": ("  PegInsertion:\n", "  PegInsert:\n", "skills.PegInsert", "unknown skill 'PegInsert'"),
+    "unknown object in randomization": (
+        "xy_sigma: {ObjectToBePushed-1: 0.007,", "xy_sigma: {ObjectToBePushed-2: 0.007,",
+        "randomization.xy_sigma.ObjectToBePushed-2", "unknown object 'ObjectToBePushed-2'",
+    ),
+    "unknown object in a relation": (
+        "    - (can-push iiwa-1)", "    - (can-push iiwa-2)", r"robot.relations\[1\]", "unknown object 'iiwa-2'.*did you mean iiwa-1",
+    ),
+    "unknown predicate in a condition": (
+        'holdconditions: ["(can-push ?robot)"]', 'holdconditions: ["(can-pusher ?robot)"]',
+        r"skills.Push.holdconditions\[0\]", "unknown predicate 'can-pusher'; did you mean can-push",
+    ),
+    "unknown variable in a condition": (
+        'postconditions: ["(at ?peg ?box)"]', 'postconditions: ["(at ?peg ?hole)"]',
+        r"skills.PegInsertion.postconditions\[0\]", r"unknown parameter '\?hole'",
+    ),
+    "wrong arity": (
+        "      - (pushable ObjectToBePushed-1)", "      - (pushable ObjectToBePushed-1 Home-1)",
+        r"objects.ObjectToBePushed-1.relations\[0\]", "takes 1 arguments",
+    ),
+    "wrong argument type": (
+        "      - (pushable ObjectToBePushed-1)", "      - (pushable Home-1)",
+        r"objects.ObjectToBePushed-1.relations\[0\]", "'home-1' is a pose",
+    ),
+    "unknown type": ("    type: item\n    mjcf_body: object", "    type: thing\n    mjcf_body: object",
+                     "objects.ObjectToBePushed-1.type", "unknown type 'thing'"),
+    "duplicate object name": ("  Home-1:\n", "  ObjectGoalPose-1:\n", "objects.ObjectGoalPose-1", "duplicate key 'ObjectGoalPose-1'",
+                              "ObjectGoalPose-1:\n    type: pose\n    shape: pose"),
+    "names differing only in case": ("  Home-1:\n", "  objectgoalpose-1:\n", "objects.objectgoalpose-1", "duplicate name 'objectgoalpose-1'"),
+    "duplicate reward name": ("  - {name: object_orientation,", "  - {name: object_position,", r"rewards\[1\].name", "duplicate reward name"),
+    "unknown objective": ("{name: ee_to_goal, kind: exp_ee_to_goal, objective: success,",
+                          "{name: ee_to_goal, kind: exp_ee_to_goal, objective: sucess,",
+                          r"rewards\[2\].objective", "unknown objective 'sucess'"),
+    "unknown reward kind": ("kind: exp_ee_to_reference", "kind: exp_ee_to_ref", r"rewards\[3\].kind", "'exp_ee_to_ref' is not one of"),
+    "joint angle outside its limit": ("- [-0.1200, 0.7679,", "- [-0.1200, 2.7679,", r"robot.start_configs\[0\]\[1\]", "outside the joint limit"),
+    "n_init above budget": ("  n_init: 48", "  n_init: 480", "optimizer.n_init", "exceeds the budget 400"),
+    "manual parameter not learnable": ("operator_a: {Push.offset_x_start: -0.02,", "operator_a: {Push.offset_z_start: -0.02,",
+                                       "manual_parameters.operator_a.Push.offset_z_start", "not a learnable parameter"),
+    "manual parameter outside bounds": ("operator_b: {Push.offset_x_start: 0.0,", "operator_b: {Push.offset_x_start: 0.5,",
+                                        "manual_parameters.operator_b.Push.offset_x_start", "outside the bounds"),
+    "goal with an unknown object": ("goal: (skiros:at skiros:ObjectToBePushed-1 skiros:ObjectGoalPose-1)",
+                                    "goal: (skiros:at skiros:ObjectToBePushed-1 skiros:ObjectGoalPose-2)",
+                                    "goal", "unknown object 'objectgoalpose-2'.*did you mean objectgoalpose-1"),
+    "goal no plan reaches": ("    - (can-push iiwa-1)\n", "", "goal", "no plan reaches the goal", "goal: (skiros:at"),
+    "goal not balanced": ("goal: (skiros:at skiros:ObjectToBePushed-1 skiros:ObjectGoalPose-1)",
+                          "goal: (skiros:at skiros:ObjectToBePushed-1 skiros:ObjectGoalPose-1",
+                          "goal", "unbalanced parentheses"),
+}
+
+
+@pytest.mark.parametrize("kind", list(MUTATIONS))
+def test_invalid_file_fails_naming_file_key_and_line(kind, tmp_path):
+    old, new, key_path, message, *anchor = MUTATIONS[kind]
+    text = PUSH_YAML.read_text()
+    assert text.count(old) == 1, f"mutation anchor for {kind!r} must occur once"
+    mutated = text.replace(old, new)
+    path = tmp_path / "push.yaml"
+    path.write_text(mutated)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    error = str(info.value)
+    assert error.startswith(f"{path}: "), error
+    assert re.search(rf": {key_path} \(line (\d+)\): ", error), error
+    assert re.search(message, error), error
+    line = int(re.search(r"\(line (\d+)\)", error).group(1))
+    anchor = anchor[0] if anchor else new.strip()
+    if anchor:
+        assert line == mutated[: mutated.rindex(anchor)].count("\n") + 1, error
+    else:  # a missing top-level key is reported at the document's start
+        assert line == 1 + next(i for i, l in enumerate(mutated.splitlines()) if l and not l.startswith("#")), error
+    assert "\n" not in error
+
+
+def test_not_yaml_at_all(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("name: push\nrobot: [1, 2\n")
+    with pytest.raises(ScenarioError, match=rf"^{re.escape(str(path))} \(line \d+, column \d+\): not valid YAML"):
+        load_scenario(path)
+
+
+def test_empty_and_missing_files(tmp_path):
+    (tmp_path / "empty.yaml").write_text("")
+    with pytest.raises(ScenarioError, match="the file is empty"):
+        load_scenario(tmp_path / "empty.yaml")
+    with pytest.raises(ScenarioError, match="cannot read the scenario file"):
+        load_scenario(tmp_path / "missing.yaml")
+
+
+def test_yaml_tags_are_not_executed(tmp_path):
+    path = tmp_path / "evil.yaml"
+    path.write_text(PUSH_YAML.read_text().replace("name: push", "name: !!python/object/apply:os.system ['echo hi']"))
+    with pytest.raises(ScenarioError, match="name"):
+        load_scenario(path)
+
+
+def _paths(tree, prefix=()):
+    """Every key path of a loaded YAML tree (mappings and lists)."""
+    items = tree.items() if isinstance(tree, dict) else enumerate(tree) if isinstance(tree, list) else ()
+    for key, value in items:
+        yield (*prefix, key)
+        yield from _paths(value, (*prefix, key))
+
+
+PUSH_TREE = yaml.safe_load(PUSH_YAML.read_text())
+PUSH_PATHS = list(_paths(PUSH_TREE))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    path=st.sampled_from(PUSH_PATHS),
+    edit=st.sampled_from(["delete", "text", "number", "list", "mapping", "null", "negative"]),
+)
+def test_any_edit_loads_or_fails_with_a_located_scenario_error(tmp_path, path, edit):
+    tree = copy.deepcopy(PUSH_TREE)
+    parent = functools.reduce(lambda node, key: node[key], path[:-1], tree)
+    replacement = {"text": "zzz", "number": 3, "list": [1, 2], "mapping": {"a": 1}, "null": None, "negative": -1.0}
+    if edit == "delete":
+        del parent[path[-1]]
+    else:
+        parent[path[-1]] = replacement[edit]
+    target = tmp_path / f"edited-{abs(hash((path, edit)))}.yaml"
+    target.write_text(yaml.safe_dump(tree, sort_keys=False))
+    try:
+        load_scenario(target)
+    except ScenarioError as err:  # the only exception a bad file may raise
+        assert str(err).startswith(f"{target}: ") and "(line " in str(err) and "\n" not in str(err), str(err)
