@@ -22,7 +22,7 @@ import csv
 import io
 import json
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Iterator, NamedTuple
 
@@ -45,7 +45,8 @@ class RunConfig:
     """What a run is: the task, its parameter space and objectives, and the training flags.
 
     task: scenario name ("push"); scenario: what ``load_scenario`` was given (a name or a path).
-    bounds: ((lower...), (upper...)) in parameter order. repeats > 1: this directory holds one
+    bounds: ((lower...), (upper...)) in parameter order. optimizer_options: settings of the GP
+    optimizer other than the defaults (``--optimizer-option``). repeats > 1: this directory holds one
     sub-run per seed (``seed-<s>/``) and no evaluations of its own.
     """
 
@@ -63,6 +64,7 @@ class RunConfig:
     seed: int
     episode_seconds: float
     repeats: int = 1
+    optimizer_options: dict = field(default_factory=dict)  # further mjxskill.gp.MOBOConfig fields
 
     def to_yaml(self) -> str:
         data = {"format": FORMAT, **asdict(self)}
@@ -70,6 +72,7 @@ class RunConfig:
         data["parameter_units"] = list(self.parameter_units)
         data["bounds"] = [list(self.bounds[0]), list(self.bounds[1])]
         data["objective_names"] = list(self.objective_names)
+        data["optimizer_options"] = dict(self.optimizer_options)
         return yaml.safe_dump(data, sort_keys=False)
 
     @classmethod
@@ -98,6 +101,7 @@ class RunConfig:
                 seed=int(data["seed"]),
                 episode_seconds=float(data["episode_seconds"]),
                 repeats=int(data.get("repeats", 1)),
+                optimizer_options=dict(data.get("optimizer_options") or {}),
             )
         except (KeyError, TypeError, ValueError, IndexError) as err:
             raise CommandError(f"{where} is missing or has a bad field: {err}") from None

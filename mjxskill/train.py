@@ -120,6 +120,7 @@ def optimizer_config(config: RunConfig):
         batch_size=config.batch_size,
         n_init=config.n_init,
         seed=config.seed,
+        **config.optimizer_options,
     )
 
 
@@ -214,7 +215,32 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, help="run directory (default runs/<task>-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue the run in RUN_DIR to its budget")
     parser.add_argument("--quiet", action="store_true", help="no progress bar: one log line per batch")
+    parser.add_argument("--optimizer-option", action="append", type=optimizer_option, metavar="KEY=VALUE", default=None,
+                        help="a further mjxskill.gp.MOBOConfig setting, e.g. n_raw=256 (repeatable; stored with the run)")
     return parser
+
+
+RUN_DEFINED = ("bounds", "n_objectives", "batch_size", "n_init", "seed")  # set by the run, not by options
+
+
+def optimizer_option(text: str) -> tuple[str, int | float]:
+    """``KEY=VALUE`` for a numeric MOBOConfig field (argparse type)."""
+    import dataclasses
+
+    from mjxskill.gp import MOBOConfig
+
+    key, sep, value = text.partition("=")
+    fields = [f.name for f in dataclasses.fields(MOBOConfig) if f.name not in RUN_DEFINED]
+    if not sep or key not in fields:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE with KEY one of {', '.join(fields)}; got {text!r}")
+    try:
+        number = int(value)
+    except ValueError:
+        try:
+            number = float(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{key}: expected a number, got {value!r}") from None
+    return key, number
 
 
 SETTING_FLAGS = {"budget": "budget", "batch_size": "batch_size", "init": "n_init", "worlds": "worlds",
@@ -240,7 +266,12 @@ def resolve_config(args: argparse.Namespace, scn) -> RunConfig:
         seed=args.seed if args.seed is not None else opt.seed,
         episode_seconds=float(args.episode_seconds if args.episode_seconds is not None else scn.episode_seconds),
         repeats=args.repeats or 1,
+        optimizer_options=dict(args.optimizer_option or []),
     )
+    try:
+        optimizer_config(config)
+    except ValueError as err:  # MOBOConfig names the bad setting
+        raise cli.CommandError(f"--optimizer-option: {err}") from None
     if config.n_init > config.budget:
         raise cli.CommandError(f"--init {config.n_init} exceeds the budget of {config.budget} evaluations")
     if not config.parameter_names:
@@ -267,6 +298,8 @@ def scenario_for(task: str, goal: str | None, expect_task: str | None = None, wh
 def _resumed_config(args: argparse.Namespace) -> RunConfig:
     run = Run(args.resume)
     config = run.config()
+    if args.optimizer_option and dict(args.optimizer_option) != config.optimizer_options:
+        raise cli.CommandError(f"--resume continues {args.resume} with its own optimizer options {config.optimizer_options}; drop --optimizer-option")
     given = {flag: getattr(args, flag) for flag in SETTING_FLAGS if getattr(args, flag) is not None}
     conflicts = [f"--{flag.replace('_', '-')} {value} (the run has {getattr(config, SETTING_FLAGS[flag])})"
                  for flag, value in given.items() if value != getattr(config, SETTING_FLAGS[flag])]

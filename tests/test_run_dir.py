@@ -118,7 +118,7 @@ def test_incomplete_batches_are_dropped_and_repair_rewrites_the_file(tmp_path):
 
 
 def test_config_round_trips_and_identifies_the_run(tmp_path):
-    cfg = make_config(repeats=3, seed=5)
+    cfg = make_config(repeats=3, seed=5, optimizer_options={"n_raw": 64})
     run = make_run(tmp_path, cfg)
     assert run.config() == cfg
     assert (run.path / "scenario.yaml").read_text() == "name: toy\n"

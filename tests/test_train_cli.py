@@ -15,7 +15,10 @@ import yaml
 
 from mjxskill.run_dir import EVALUATIONS, PARETO, Run, read_csv
 
-TINY = ["--budget", "6", "--batch-size", "3", "--init", "3", "--worlds", "1", "--episode-seconds", "0.2", "--quiet"]
+# Tiny episodes and a cheap acquisition search: the commands' behaviour, not the physics or the GP.
+QUICK_GP = ["n_raw=64", "n_restarts=2", "n_opt_steps=10", "fit_starts=1", "fit_steps=10"]
+TINY = ["--budget", "6", "--batch-size", "3", "--init", "3", "--worlds", "1", "--episode-seconds", "0.2", "--quiet",
+        *(arg for option in QUICK_GP for arg in ("--optimizer-option", option))]
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -117,6 +120,8 @@ BAD_INPUT = (
     (["train", "push", "--worlds", "many"], "argument --worlds: expected an integer, got 'many'"),
     (["train", "push", "--episode-seconds", "nan"], "argument --episode-seconds: must be a positive finite number"),
     (["train", "push", "--budget", "6", "--init", "10"], "--init 10 exceeds the budget of 6 evaluations"),
+    (["train", "push", "--optimizer-option", "n_rwa=3"], "argument --optimizer-option: expected KEY=VALUE with KEY one of"),
+    (["train", "push", "--optimizer-option", "n_raw=0"], "--optimizer-option: MOBOConfig.n_raw: expected a positive integer"),
     (["train", "push", "--resume", "{tmp}"], "is not a run directory"),
     (["train", "peg", "--resume", "{run}"], "is a run of task 'push', not 'peg'"),
     (["train", "push", "--resume", "{run}", "--budget", "9"], "drop --budget 9 (the run has 6)"),
@@ -143,7 +148,7 @@ def invoke(capsys, module, *args):
 
 # A few cases go through a real subprocess; the rest call the same entry point in-process
 # (a subprocess costs seconds of imports on a loaded 2-core machine).
-SUBPROCESS_CASES = {0, 1, 6}
+SUBPROCESS_CASES = {0, 1, 8}
 
 
 @pytest.mark.parametrize("index, case, message", [(i, c, m) for i, (c, m) in enumerate(BAD_INPUT)])

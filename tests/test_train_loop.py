@@ -15,7 +15,9 @@ from mjxskill.train import (
 )
 from test_run_dir import make_config
 
-CONFIG = make_config(budget=10, batch_size=4, n_init=6, seed=2)  # batches of 4, 2, 4
+# A cheap acquisition search: these tests pin the loop's bookkeeping, not the GP's quality.
+QUICK_GP = dict(n_raw=64, n_restarts=2, n_opt_steps=10, fit_starts=1, fit_steps=10)
+CONFIG = make_config(budget=10, batch_size=4, n_init=6, seed=2, optimizer_options=QUICK_GP)  # batches of 4, 2, 4
 
 
 def toy_objective(x: np.ndarray, iteration: int) -> BatchResult:
