@@ -41,9 +41,15 @@ def repeated_run(tmp_path_factory):
 
 def test_train_prints_the_pipeline_and_writes_the_run_directory(repeated_run):
     out, stdout = repeated_run
-    for text in ("goal: (skiros:at", "plan:", "behavior tree:", "Push.offset_x_start  [-0.2, 0.2] m",
+    for text in ("goal: (skiros:at", "plan:", "behavior tree:", "learnable parameters (4",
                  "objectives (larger is better): success, applied_force", "mean Pareto front size"):
         assert text in stdout
+    from mjxskill import load_scenario
+
+    scn = load_scenario("push")
+    for name, lo, hi, unit in zip(scn.parameter_names, *scn.bounds, scn.parameter_units):
+        line = next(line for line in stdout.splitlines() if line.strip().startswith(name + " "))
+        assert f"[{lo:g}, {hi:g}] {unit}" in line
     assert (out / "pareto_runs.png").is_file()
     sizes = yaml.safe_load((out / "repeats.yaml").read_text())
     for seed in (1, 2):
