@@ -318,6 +318,9 @@ def _check_same_task(scn, config: RunConfig, where: Path) -> None:
         mismatch.append(f"parameters {list(config.parameter_names)}, not {list(scn.parameter_names)}")
     elif tuple(scn.objective_names) != config.objective_names:
         mismatch.append(f"objectives {list(config.objective_names)}, not {list(scn.objective_names)}")
+    elif not np.array_equal(np.asarray(scn.bounds, np.float64), np.asarray(config.bounds, np.float64)):
+        mismatch.append(f"parameter bounds {[list(b) for b in config.bounds]}, not the scenario's current "
+                        f"{np.asarray(scn.bounds).tolist()} (the scenario file changed since)")
     if mismatch:
         raise cli.CommandError(f"{where} is a run of {mismatch[0]}: use it with its own task")
 
