@@ -132,6 +132,7 @@ BAD_INPUT = (
     (["train", "peg", "--resume", "{run}"], "is a run of task 'push', not 'peg'"),
     (["train", "push", "--resume", "{run}", "--budget", "9"], "drop --budget 9 (the run has 6)"),
     (["train", "{broken}"], "bt_hz"),
+    (["train", "push", "--goal", "(skiros:at skiros:Nothing-1 skiros:ObjectGoalPose-1)"], "unknown object 'nothing-1'"),
     (["evaluate", "{tmp}"], "is not a run directory"),
     (["evaluate", "{run}", "--per-config", "0"], "argument --per-config: must be at least 1"),
     (["select", "{run}", "--pick", "99"], "--pick 99: the front has rows"),
