@@ -29,6 +29,11 @@ def configure_xla_flags(environ: "os._Environ[str] | dict[str, str]" = os.enviro
     A user's own setting of the same flag (either value) wins; other flags are kept as they are.
     Returns the resulting ``XLA_FLAGS`` string.
     """
+    # Single-threaded BLAS for the GP's LAPACK calls: on small shared machines OpenBLAS's thread
+    # pool made a 448x448 Cholesky vary from 2 to 700 ms (measured by the GP benchmark); XLA
+    # has its own thread pool for the rollouts. A user's own setting wins.
+    if environ is os.environ:
+        environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     flags = environ.get("XLA_FLAGS", "")
     if CPU_FUSION_FLAG not in flags:
         flags = f"{flags} {CPU_FUSION_SETTING}".strip()

@@ -1,15 +1,14 @@
 """One model-based batch: fit a GP, then pick q points by sequential greedy log-EI.
 
 Element j of the batch uses its own Dirichlet weight w_j: the targets are the augmented
-Chebyshev scalarizations of the normalized objectives, standardized. The GP's
-hyperparameters are fitted once per batch (on the first scalarization) and shared by the
-batch: refitting q GPs would cost q times the fit, which dominates the proposal time, for a
-small change in lengthscales (the training covariance depends on the inputs only). While
-the training set is small (at most ``per_element_fit_max_rows`` padded rows) each element
-gets its own fit instead: cheap there, and on BraninCurrin it raised the median final
-hypervolume from 51.4 to 53.9 (4 seeds, see benchmarks/RESULTS.md). Above
-``fit_max_rows`` real rows the hyperparameters are fitted on a random subset of that size
-(subset-of-data estimation); the posterior always conditions on every row.
+Chebyshev scalarizations of the normalized objectives, standardized. While the padded
+training set is small (at most ``per_element_fit_max_rows`` rows) each element gets its own
+GP hyperparameter fit: on BraninCurrin that raised the median final hypervolume from 51.4
+(one shared fit) to 53.9 (4 seeds, see benchmarks/RESULTS.md). Above that size one fit on
+the first scalarization is shared by the batch, because q fits of O(n^3) each would
+dominate the proposal time; and above ``fit_max_rows`` real rows the hyperparameters are
+fitted on a random subset of that size (subset-of-data estimation). The posterior always
+conditions on every row.
 
 Kriging believer: element j conditions on the points already chosen for elements < j with
 its own posterior mean as their value. That leaves its mean unchanged and shrinks its
