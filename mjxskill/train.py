@@ -357,7 +357,7 @@ def _main(args: argparse.Namespace) -> int:
     started = time.monotonic()
     runs = run.sub_runs(config) if config.repeats > 1 else [run]
     try:
-        for i, sub in enumerate(runs):
+        for sub in runs:
             sub_config = sub.config()
             label = f"seed {sub_config.seed}: " if config.repeats > 1 else ""
             evaluate = rollout_evaluator(rollout, sub_config.batch_size, sub_config.seed)
@@ -365,6 +365,10 @@ def _main(args: argparse.Namespace) -> int:
             report.write_run_figures(sub, sub_config, ev)
             print(report.summary(sub, sub_config, ev), flush=True)
     except KeyboardInterrupt:
+        try:  # figures of what is done; the CSV already holds every finished batch
+            report.write_run_figures(sub, sub_config, sub.evaluations(sub_config))
+        except Exception:  # noqa: BLE001  (a second Ctrl-C or a plotting problem must not hide the message)
+            pass
         print(f"\ninterrupted: every finished batch is in {run.path}; continue with "
               f"python -m mjxskill.train {args.task} --resume {run.path}", file=sys.stderr)
         return 130
