@@ -40,12 +40,14 @@ class Candidates(NamedTuple):
 
 class Evaluation(NamedTuple):
     """success (N, C) success rate of each candidate from each start configuration; known (C,)
-    bool: a training configuration (else unseen); config_names (C,)."""
+    bool: a training configuration (else unseen); config_names (C,); position_error (N, C)
+    mean final position error of the task's object, m (how close a failure came)."""
 
     candidates: Candidates
     success: np.ndarray
     known: np.ndarray
     config_names: tuple[str, ...]
+    position_error: np.ndarray | None = None
 
     def mean(self, known: bool) -> np.ndarray:
         """(N,) mean success over the known (or the unseen) configurations."""
@@ -79,7 +81,7 @@ def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: 
         parts.append(rollout.worlds_per_config(key_unseen, per_config, unseen_cfg))
     worlds = jax.tree.map(lambda *xs: np.concatenate([np.asarray(x) for x in xs]), *parts)
     n_cfg = len(known_cfg) + len(unseen_cfg)
-    rows = []
+    rows, errors = [], []
     params = candidates.params
     for start in range(0, len(params), batch_size):
         chunk = params[start : start + batch_size]
@@ -87,9 +89,14 @@ def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: 
         out = rollout.run_worlds(padded, worlds)
         success = np.asarray(out.success, np.float64)[: len(chunk)]  # (b, n_cfg * per_config)
         rows.append(success.reshape(len(chunk), n_cfg, per_config).mean(axis=2))
+        metrics = getattr(out, "metrics", None) or {}
+        if "position_error" in metrics:
+            error = np.asarray(metrics["position_error"], np.float64)[: len(chunk)]
+            errors.append(error.reshape(len(chunk), n_cfg, per_config).mean(axis=2))
     names = tuple([f"known-{i}" for i in range(len(known_cfg))] + [f"unseen-{j}" for j in range(len(unseen_cfg))])
     known = np.array([True] * len(known_cfg) + [False] * len(unseen_cfg))
-    return Evaluation(candidates, np.concatenate(rows), known, names)
+    position_error = np.concatenate(errors) if len(errors) == len(rows) else None
+    return Evaluation(candidates, np.concatenate(rows), known, names, position_error)
 
 
 def significance(a: np.ndarray, b: np.ndarray) -> tuple[float, str]:
@@ -144,12 +151,15 @@ def plot_boxes(ev: Evaluation, path: Path, title: str) -> dict:
 def write_csv(ev: Evaluation, parameter_names: Sequence[str], path: Path) -> None:
     with open(path, "w", newline="") as fh:
         writer = csv.writer(fh)
+        err = ev.position_error
         writer.writerow(["candidate", "group", *parameter_names, "success_known", "success_unseen",
-                         *(f"success_{c}" for c in ev.config_names)])
+                         *(f"success_{c}" for c in ev.config_names)]
+                        + ([] if err is None else ["position_error_known_m", "position_error_unseen_m"]))
         known, unseen = ev.mean(True), ev.mean(False)
         for i, name in enumerate(ev.candidates.names):
+            extra = [] if err is None else [repr(float(err[i, ev.known].mean())), repr(float(err[i, ~ev.known].mean()) if (~ev.known).any() else "nan")]
             writer.writerow([name, ev.candidates.groups[i], *map(repr, map(float, ev.candidates.params[i])),
-                             repr(float(known[i])), repr(float(unseen[i])), *map(repr, map(float, ev.success[i]))])
+                             repr(float(known[i])), repr(float(unseen[i])), *map(repr, map(float, ev.success[i]))] + extra)
 
 
 def table(ev: Evaluation, tests: dict) -> str:
@@ -158,6 +168,10 @@ def table(ev: Evaluation, tests: dict) -> str:
     known, unseen = ev.mean(True), ev.mean(False)
     rows = [[n, g, f"{known[i]:.0%}", f"{unseen[i]:.0%}", *(f"{v:.0%}" for v in ev.success[i])]
             for i, (n, g) in enumerate(zip(ev.candidates.names, ev.candidates.groups))]
+    if ev.position_error is not None:  # mean final object position error over all configurations
+        head.append("pos.err [mm]")
+        for i, row in enumerate(rows):
+            row.append(f"{1000 * ev.position_error[i].mean():.0f}")
     widths = [max(len(r[c]) for r in [head, *rows]) for c in range(len(head))]
     fmt = lambda r: "  ".join(x.ljust(w) if c < 2 else x.rjust(w) for c, (x, w) in enumerate(zip(r, widths)))  # noqa: E731
     lines = [fmt(head), *map(fmt, rows), "", "group              known  unseen  (mean success; Mann-Whitney U vs Pareto)"]

@@ -61,7 +61,7 @@ class ScriptedRollout:
         n = len(worlds.config_index)
         w = np.arange(n)
         k = (np.round(10 * params[:, :1]).astype(int) + w // k_cfg) % (k_cfg + 1)
-        return SimpleNamespace(success=(w % k_cfg) < k)
+        return SimpleNamespace(success=(w % k_cfg) < k, metrics={"position_error": np.broadcast_to(0.001 * w, k.shape)})
 
 
 def expected_rate(p0, c, per_config):
@@ -84,6 +84,8 @@ def test_success_per_start_configuration_known_and_unseen(monkeypatch):
     assert ev.config_names == ("known-0", "known-1", "known-2", "known-3", "unseen-0", "unseen-1")
     np.testing.assert_allclose(ev.mean(True), expected[:, :4].mean(1))
     np.testing.assert_allclose(ev.mean(False), expected[:, 4:].mean(1))
+    # world w has error 1 mm * w: configuration c's mean is 1 mm * (3c + 1)
+    np.testing.assert_allclose(ev.position_error, np.broadcast_to(0.001 * (3 * np.arange(6) + 1), (7, 6)))
 
 
 def test_significance_stars_against_exact_mann_whitney():
