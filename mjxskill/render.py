@@ -1,0 +1,123 @@
+"""Render one parameter set's episode with MuJoCo's offscreen renderer (PNG frames or MP4).
+
+The episode is traced in MJX (``Rollout.trace``: joint and object positions at every BT tick,
+10 Hz) and replayed into the native ``MjModel`` for drawing. MuJoCo needs an OpenGL backend
+chosen *before* ``mujoco`` is imported: ``MUJOCO_GL=egl`` (headless GPU or Mesa's EGL),
+``osmesa`` (software) or ``glfw`` (a display). ``python -m mjxskill.select`` defaults to egl.
+The goal marker is drawn at its nominal pose (the world's randomized goal offset is not
+applied to the mocap body).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from mjxskill.cli import CommandError
+
+GL_HELP = (
+    "MuJoCo's offscreen renderer found no OpenGL backend (MUJOCO_GL={gl!r}: {err}). "
+    "Headless Linux: install Mesa's EGL (apt-get install libegl1 libgl1-mesa-dri) and run with MUJOCO_GL=egl, "
+    "or software OSMesa (apt-get install libosmesa6) with MUJOCO_GL=osmesa; with a display, MUJOCO_GL=glfw. "
+    "The parameters were exported; pass --no-render to skip rendering."
+)
+
+
+class RenderUnavailable(CommandError):
+    """No OpenGL backend (or no video encoder) for rendering."""
+
+
+def default_gl() -> None:
+    """Picks the headless EGL backend unless the user chose one (call before importing mujoco)."""
+    if "DISPLAY" not in os.environ:
+        os.environ.setdefault("MUJOCO_GL", "egl")
+
+
+def _camera(model, data):
+    import mujoco
+
+    cam = mujoco.MjvCamera()
+    mujoco.mjv_defaultFreeCamera(model, cam)
+    cam.lookat[:] = (0.5, 0.0, 0.15)  # the work area in front of the arm base
+    cam.distance = 1.6
+    cam.azimuth = 150.0
+    cam.elevation = -30.0
+    return cam
+
+
+def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480) -> np.ndarray:
+    """(T, height, width, 3) uint8 images of the native ``model`` at each row of qpos (T, nq)."""
+    import mujoco
+
+    data = mujoco.MjData(model)
+    try:
+        renderer = mujoco.Renderer(model, height, width)
+    except Exception as err:  # the GL backends raise a variety of errors when no context exists
+        raise RenderUnavailable(GL_HELP.format(gl=os.environ.get("MUJOCO_GL", ""), err=f"{type(err).__name__}: {err}")) from None
+    images = []
+    try:
+        cam = None
+        for q in np.asarray(qpos, np.float64):
+            data.qpos[:] = q
+            mujoco.mj_forward(model, data)
+            cam = cam or _camera(model, data)
+            renderer.update_scene(data, camera=cam)
+            images.append(renderer.render().copy())
+    finally:
+        renderer.close()
+    return np.stack(images)
+
+
+def write_png_frames(images: np.ndarray, folder: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for t, image in enumerate(images):
+        path = folder / f"frame_{t:04d}.png"
+        plt.imsave(path, image)
+        paths.append(path)
+    return paths
+
+
+def write_mp4(images: np.ndarray, path: Path, fps: float) -> Path:
+    """Encodes the frames with ffmpeg (through matplotlib's writer)."""
+    if shutil.which("ffmpeg") is None:
+        raise RenderUnavailable("MP4 needs ffmpeg on the PATH (apt-get install ffmpeg); use --format png for PNG frames")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FFMpegWriter
+
+    h, w = images.shape[1:3]
+    fig = plt.figure(figsize=(w / 100, h / 100), dpi=100)
+    ax = fig.add_axes([0, 0, 1, 1])
+    ax.axis("off")
+    shown = ax.imshow(images[0])
+    writer = FFMpegWriter(fps=fps)
+    with writer.saving(fig, str(path), dpi=100):
+        for image in images:
+            shown.set_data(image)
+            writer.grab_frame()
+    plt.close(fig)
+    return path
+
+
+def render_episode(rollout, params: np.ndarray, world, out: Path, fmt: str = "png", width: int = 640, height: int = 480) -> list[Path]:
+    """Traces ``params`` (P,) in ``world`` (one unbatched world) and writes PNG frames into
+    ``out/`` or ``out.mp4``. Returns the written paths."""
+    from mjxskill.rollout import load_model
+
+    _, record = rollout.trace(params, world)
+    qpos = np.asarray(record.qpos)
+    images = frames(load_model(rollout.scenario), qpos, width, height)
+    if fmt == "mp4":
+        return [write_mp4(images, out.with_suffix(".mp4"), fps=rollout.scenario.bt_hz)]
+    return write_png_frames(images, out)

@@ -1,0 +1,166 @@
+"""Run directory I/O: exact CSV round trips, torn writes, batch bookkeeping, configuration."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mjxskill.cli import CommandError
+from mjxskill.run_dir import (
+    EVALUATIONS,
+    Evaluations,
+    Run,
+    RunConfig,
+    batch_sizes,
+    evaluation_columns,
+    read_csv,
+)
+
+
+def make_config(**changes) -> RunConfig:
+    base = dict(task="toy", scenario="toy", goal="(at a b)", parameter_names=("S.x", "S.y"), parameter_units=("m", "N"),
+                bounds=((0.0, -1.0), (1.0, 1.0)), objective_names=("reach", "force"), budget=10, batch_size=4,
+                n_init=6, worlds=2, seed=0, episode_seconds=0.5)
+    base.update(changes)
+    return RunConfig(**base)
+
+
+def make_run(tmp_path, config=None) -> Run:
+    src = tmp_path / "scenario-source.yaml"
+    src.write_text("name: toy\n")
+    run = Run(tmp_path / "run")
+    run.create(config or make_config(), str(src), {"plan.txt": "(a)"})
+    return run
+
+
+def rows(iterations, p=2, o=2, seed=0) -> Evaluations:
+    rng = np.random.default_rng(seed)
+    n = len(iterations)
+    return Evaluations(np.asarray(iterations), rng.random((n, p)), rng.normal(size=(n, o)), rng.random(n), rng.random(n) * 30)
+
+
+def assert_same(a: Evaluations, b: Evaluations):
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_columns_follow_the_issue():
+    assert evaluation_columns(("Push.a", "Push.b"), ("success", "applied_force")) == [
+        "iteration", "Push.a", "Push.b", "objective_success", "objective_applied_force", "success_rate", "max_force"]
+
+
+def test_batch_sizes_match_the_optimizer_warmup_cut():
+    # mjxskill.gp.ask cuts warm-up batches so that exactly n_init random points are drawn.
+    from mjxskill import gp
+
+    cfg = gp.MOBOConfig(bounds=((0, 0), (1, 1)), n_objectives=1, batch_size=4, n_init=6, seed=0)
+    state, sizes = gp.init(cfg), []
+    while len(state.x) < cfg.n_init:
+        x = gp.ask(state)
+        sizes.append(len(x))
+        state = gp.tell(state, x, np.zeros((len(x), 1)))
+    assert list(batch_sizes(10, 4, 6))[: len(sizes)] == sizes == [4, 2]
+    assert list(batch_sizes(10, 4, 6)) == [4, 2, 4]
+
+
+@given(budget=st.integers(1, 60), batch=st.integers(1, 9), n_init=st.integers(2, 60))
+def test_batch_sizes_cover_the_budget_and_stop_at_the_warmup(budget, batch, n_init):
+    sizes = list(batch_sizes(budget, batch, n_init))
+    assert sum(sizes) == budget and all(1 <= q <= batch for q in sizes)
+    ends = np.cumsum(sizes)
+    if n_init <= budget:
+        assert n_init in ends
+
+
+finite = st.floats(allow_nan=False, width=64)
+
+
+@settings(max_examples=50, deadline=None)
+@given(values=st.lists(st.tuples(finite, finite, st.floats(width=64), finite, finite, finite), min_size=1, max_size=5))
+def test_csv_round_trips_float64_exactly(tmp_path_factory, values):
+    path = tmp_path_factory.mktemp("csv") / "e.csv"
+    v = np.array(values, np.float64)
+    ev = Evaluations(np.arange(len(v)), v[:, :2], v[:, 2:4], v[:, 4], v[:, 5])
+    cols = evaluation_columns(("a", "b"), ("o1", "o2"))
+    from mjxskill.run_dir import write_csv
+
+    write_csv(path, cols, ev)
+    back = read_csv(path, cols)
+    np.testing.assert_array_equal(back.iteration, ev.iteration)
+    for x, y in zip(back[1:], ev[1:]):
+        assert x.tobytes() == y.tobytes() or np.array_equal(x, y, equal_nan=True)
+
+
+def test_append_then_read_and_a_torn_last_line_is_ignored(tmp_path):
+    run = make_run(tmp_path)
+    cfg = run.config()
+    first, second = rows([0, 0, 0, 0]), rows([1, 1], seed=1)
+    run.append(first)
+    run.append(second)
+    assert_same(run.evaluations(cfg), first.concat(second))
+    # A kill in the middle of a write leaves part of a line: it is not a row.
+    with open(run.path / EVALUATIONS, "a") as fh:
+        fh.write("2,0.5,0.2,1.0")
+    assert_same(read_csv(run.path / EVALUATIONS, cfg.columns()), first.concat(second))
+
+
+def test_incomplete_batches_are_dropped_and_repair_rewrites_the_file(tmp_path):
+    run = make_run(tmp_path)
+    cfg = run.config()  # batches of 4, 2, 4
+    done = rows([0, 0, 0, 0, 1, 1])
+    run.append(done)
+    run.append(rows([2, 2], seed=3))  # 2 of the 4 rows of batch 2
+    assert_same(run.evaluations(cfg), done)
+    assert_same(run.repair(cfg), done)
+    assert_same(read_csv(run.path / EVALUATIONS, cfg.columns()), done)
+
+
+def test_config_round_trips_and_identifies_the_run(tmp_path):
+    cfg = make_config(repeats=3, seed=5, optimizer_options={"n_raw": 64})
+    run = make_run(tmp_path, cfg)
+    assert run.config() == cfg
+    assert (run.path / "scenario.yaml").read_text() == "name: toy\n"
+    assert (run.path / "plan.txt").read_text() == "(a)\n"
+    assert [r.path.name for r in run.sub_runs(cfg)] == ["seed-5", "seed-6", "seed-7"]
+    assert cfg.sub_run(6).seed == 6 and cfg.sub_run(6).repeats == 1
+
+
+def test_refuses_to_overwrite_a_run(tmp_path):
+    make_run(tmp_path)
+    with pytest.raises(CommandError, match="already holds a run; continue it with --resume"):
+        make_run(tmp_path)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [("format: other\n", "not an mjxskill run configuration"), ("[unclosed\n", "not valid YAML"),
+     ("format: mjxskill.run/1\ntask: x\n", "missing or has a bad field")],
+)
+def test_bad_config_files_name_the_file(tmp_path, text, message):
+    (tmp_path / "config.yaml").write_text(text)
+    with pytest.raises(CommandError, match=message) as err:
+        Run(tmp_path).config()
+    assert "config.yaml" in str(err.value)
+
+
+def test_not_a_run_directory(tmp_path):
+    with pytest.raises(CommandError, match="is not a run directory"):
+        Run(tmp_path).config()
+
+
+def test_csv_with_other_columns_is_refused(tmp_path):
+    path = tmp_path / "e.csv"
+    path.write_text("iteration,x\n0,1\n")
+    with pytest.raises(CommandError, match="does not have the columns"):
+        read_csv(path, evaluation_columns(("a",), ("o",)))
+
+
+def test_nan_objectives_survive(tmp_path):
+    run = make_run(tmp_path)
+    ev = rows([0, 0, 0, 0])
+    ev.objectives[1, 0] = math.nan
+    run.append(ev)
+    back = run.evaluations()
+    assert math.isnan(back.objectives[1, 0]) and back.objectives[0, 0] == ev.objectives[0, 0]

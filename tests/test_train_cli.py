@@ -1,0 +1,174 @@
+"""The real commands in subprocesses: a tiny push training (0.2 s episodes, 1 world) with two
+repeats, a run killed after its first batch and resumed, select's export, and bad input
+(exit code 2, one message line, no traceback)."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from mjxskill.run_dir import EVALUATIONS, PARETO, Run, read_csv
+
+# Tiny episodes and a cheap acquisition search: the commands' behaviour, not the physics or the GP.
+QUICK_GP = ["n_raw=64", "n_restarts=2", "n_opt_steps=10", "fit_starts=1", "fit_steps=10"]
+TINY = ["--budget", "6", "--batch-size", "3", "--init", "3", "--worlds", "1", "--episode-seconds", "0.2", "--quiet",
+        *(arg for option in QUICK_GP for arg in ("--optimizer-option", option))]
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def command(module, *args):
+    return [sys.executable, "-m", f"mjxskill.{module}", *map(str, args)]
+
+
+def run_cli(module, *args, timeout=600):
+    return subprocess.run(command(module, *args), cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="session")
+def repeated_run(tmp_path_factory):
+    """``train push --repeats 2 --seed 1`` on a tiny budget: sub-runs seed-1 and seed-2."""
+    out = tmp_path_factory.mktemp("train") / "push-x2"
+    done = run_cli("train", "push", *TINY, "--seed", "1", "--repeats", "2", "--out", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return out, done.stdout
+
+
+def test_train_prints_the_pipeline_and_writes_the_run_directory(repeated_run):
+    out, stdout = repeated_run
+    for text in ("goal: (skiros:at", "plan:", "behavior tree:", "learnable parameters (4",
+                 "objectives (larger is better): success, applied_force", "mean Pareto front size"):
+        assert text in stdout
+    from mjxskill import load_scenario
+
+    scn = load_scenario("push")
+    for name, lo, hi, unit in zip(scn.parameter_names, *scn.bounds, scn.parameter_units):
+        line = next(line for line in stdout.splitlines() if line.strip().startswith(name + " "))
+        assert f"[{lo:g}, {hi:g}] {unit}" in line
+    assert (out / "pareto_runs.png").is_file()
+    sizes = yaml.safe_load((out / "repeats.yaml").read_text())
+    for seed in (1, 2):
+        sub = out / f"seed-{seed}"
+        for name in ("config.yaml", "scenario.yaml", "domain.pddl", "problem.pddl", "plan.txt", "bt.txt",
+                     EVALUATIONS, PARETO, "pareto.png", "hypervolume.png", "optimizer_state.npz"):
+            assert (sub / name).is_file(), name
+        run = Run(sub)
+        config = run.config()
+        assert (config.seed, config.repeats, config.worlds) == (seed, 1, 1)
+        ev = run.evaluations()
+        assert list(ev.iteration) == [0, 0, 0, 1, 1, 1]
+        assert np.all((ev.success_rate >= 0) & (ev.success_rate <= 1)) and np.all(np.isfinite(ev.objectives))
+        assert sizes["pareto_sizes"][seed] == len(run.pareto())
+    assert sizes["mean_pareto_size"] == np.mean(list(sizes["pareto_sizes"].values()))
+    first, second = (Run(out / f"seed-{s}").evaluations() for s in (1, 2))
+    assert not np.array_equal(first.params, second.params)  # independent seeds
+
+
+def test_killed_run_resumes_to_the_same_results(repeated_run, tmp_path):
+    out, _ = repeated_run
+    cut = tmp_path / "cut"
+    proc = subprocess.Popen(command("train", "push", *TINY, "--seed", "1", "--out", cut), cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 600
+        while time.monotonic() < deadline:  # wait for the first batch on disk
+            csv = cut / EVALUATIONS
+            if csv.is_file() and len(csv.read_text().splitlines()) >= 4:
+                break
+            assert proc.poll() is None, "train exited before its first batch was on disk"
+            time.sleep(0.2)
+        was_running = proc.poll() is None
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait()
+    assert was_running
+    assert 3 <= len(Run(cut).evaluations()) < 6
+    resumed = run_cli("train", "push", "--resume", cut, "--quiet")
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    reference = out / "seed-1"
+    assert (cut / EVALUATIONS).read_text() == (reference / EVALUATIONS).read_text()
+    assert (cut / PARETO).read_text() == (reference / PARETO).read_text()
+
+
+def test_select_exports_the_picked_solution(repeated_run, tmp_path):
+    out, _ = repeated_run
+    sub = out / "seed-1"
+    front = Run(sub).pareto()
+    done = run_cli("select", sub, "--pick", "0", "--no-render", "--out", tmp_path / "sel")
+    assert done.returncode == 0, done.stderr
+    doc = yaml.safe_load((tmp_path / "sel" / "parameters.yaml").read_text())
+    values = [doc["parameters"][n]["value"] for n in Run(sub).config().parameter_names]
+    np.testing.assert_array_equal(values, front.params[0])
+    assert doc["parameters"]["Push.offset_x_start"]["unit"] == "m"
+    import json
+
+    assert json.loads((tmp_path / "sel" / "parameters.json").read_text()) == doc
+
+
+def bad_scenario(tmp_path) -> Path:
+    from mjxskill.scenario import scenario_path
+
+    text = scenario_path("push").read_text().replace("bt_hz: 10", "bt_hz: -3")
+    assert "bt_hz: -3" in text
+    path = tmp_path / "broken.yaml"
+    path.write_text(text)
+    return path
+
+
+BAD_INPUT = (
+    (["train", "nosuchtask"], "unknown task 'nosuchtask'"),
+    (["train", "push", "--budget", "0"], "argument --budget: must be at least 1, got 0"),
+    (["train", "push", "--worlds", "many"], "argument --worlds: expected an integer, got 'many'"),
+    (["train", "push", "--episode-seconds", "nan"], "argument --episode-seconds: must be a positive finite number"),
+    (["train", "push", "--budget", "6", "--init", "10"], "--init 10 exceeds the budget of 6 evaluations"),
+    (["train", "push", "--optimizer-option", "n_rwa=3"], "argument --optimizer-option: expected KEY=VALUE with KEY one of"),
+    (["train", "push", "--optimizer-option", "n_raw=0"], "--optimizer-option: MOBOConfig.n_raw: expected a positive integer"),
+    (["train", "push", "--resume", "{tmp}"], "is not a run directory"),
+    (["train", "peg", "--resume", "{run}"], "is a run of task 'push', not 'peg'"),
+    (["train", "push", "--resume", "{run}", "--budget", "9"], "drop --budget 9 (the run has 6)"),
+    (["train", "{broken}"], "bt_hz"),
+    (["train", "push", "--goal", "(skiros:at skiros:Nothing-1 skiros:ObjectGoalPose-1)"], "unknown object 'nothing-1'"),
+    (["evaluate", "{tmp}"], "is not a run directory"),
+    (["evaluate", "{run}", "--per-config", "0"], "argument --per-config: must be at least 1"),
+    (["select", "{run}", "--pick", "99"], "--pick 99: the front has rows"),
+    (["select", "{run}", "--max-force", "-1"], "argument --max-force: must be a finite number >= 0"),
+    (["select", "{run}", "--min-success", "2"], "--min-success is a rate between 0 and 1"),
+)
+
+
+def invoke(capsys, module, *args):
+    """The command's entry point in this process (what ``python -m`` runs): (exit code, stderr)."""
+    import importlib
+
+    main = importlib.import_module(f"mjxskill.{module}").main
+    try:
+        code = main(list(args))
+    except SystemExit as exit_:  # argparse's own errors
+        code = exit_.code
+    return code, capsys.readouterr().err
+
+
+# A few cases go through a real subprocess; the rest call the same entry point in-process
+# (a subprocess costs seconds of imports on a loaded 2-core machine).
+SUBPROCESS_CASES = {0, 1, 8}
+
+
+@pytest.mark.parametrize("index, case, message", [(i, c, m) for i, (c, m) in enumerate(BAD_INPUT)])
+def test_bad_input_is_one_message_and_exit_code_2(repeated_run, tmp_path, capsys, case, message, index):
+    out, _ = repeated_run
+    fill = {"tmp": tmp_path, "run": out / "seed-1", "broken": bad_scenario(tmp_path) if "{broken}" in case else ""}
+    args = [arg.format(**fill) for arg in case]
+    if index in SUBPROCESS_CASES:
+        done = run_cli(*args, timeout=120)
+        code, stderr = done.returncode, done.stderr
+    else:
+        code, stderr = invoke(capsys, *args)
+    assert code == 2, stderr
+    assert "Traceback" not in stderr
+    assert message in stderr
+    assert f"mjxskill.{case[0]}: error:" in stderr
