@@ -54,13 +54,6 @@ def test_plan_peg_with_a_goal_exports_pddl_fast_downward_solves(tmp_path):
     ]
 
 
-def test_train_is_not_built_yet_but_shows_the_plan():
-    run = cli("mjxskill.train", "push")
-    assert run.returncode == 2
-    assert "Push.offset_x_start" in run.stdout
-    assert "training is not built yet" in run.stderr and "Traceback" not in run.stderr
-
-
 def test_unknown_task():
     assert_bad_input(cli("mjxskill.plan", "pusj"), "unknown task 'pusj'", "available: peg, push")
     assert_bad_input(cli("mjxskill.train", "pusj"), "mjxskill.train: error: unknown task 'pusj'")

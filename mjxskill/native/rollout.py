@@ -29,7 +29,7 @@ from mjxskill.native.leaves import NativeBlackboard, build_native_leaves
 from mjxskill.native.motion import quat_angle
 from mjxskill.native.rewards import NativeObservation, build_native_terms
 from mjxskill.rollout.bindings import FREE, MOCAP, nominal_poses
-from mjxskill.rollout.compiled import Rollout, RolloutOutput, load_model
+from mjxskill.rollout.compiled import Rollout, RolloutOutput, load_model, summarize
 from mjxskill.rollout.episode import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, TickRecord
 from mjxskill.rollout.worlds import Worlds
 from mjxskill.sim.controller import N_ARM
@@ -235,17 +235,4 @@ class NativeRollout:
             [self.run_episode(params[i], jax.tree.map(lambda x: x[i, j], worlds)) for j in range(w)] for i in range(b)
         ]
         res = EpisodeResult(*(np.array([[getattr(r, f) for r in row] for row in results]) for f in EpisodeResult._fields))
-        objectives = np.mean(res.reward_totals @ self.objective_matrix, axis=1)
-        metrics = {f"reward_{name}": res.reward_totals[..., i] for i, name in enumerate(self.reward_names)}
-        metrics.update(
-            diverged=res.diverged,
-            bt_status=res.bt_status,
-            bt_success=res.bt_status == int(Status.SUCCESS),
-            bt_done_tick=res.bt_done_tick,
-            position_error=res.position_error,
-            orientation_error_deg=np.degrees(res.orientation_error),
-            insertion_depth=res.insertion_depth,
-            max_force=res.max_force,
-            config_index=worlds.config_index,
-        )
-        return RolloutOutput(objectives=objectives, success=res.success, metrics=metrics)
+        return summarize(res, worlds.config_index, self.objective_matrix, self.reward_names, xp=np)

@@ -215,6 +215,25 @@ def _success_spec(scn: Scenario, bindings: SceneBindings) -> dict:
     )
 
 
+def summarize(res: EpisodeResult, config_index, objective_matrix, reward_names, xp=jnp) -> RolloutOutput:
+    """(B, W) episode results -> RolloutOutput; ``xp`` is jax.numpy or numpy (the native
+    baseline reports through the same function)."""
+    objectives = xp.mean(res.reward_totals @ xp.asarray(objective_matrix), axis=1)
+    metrics = {f"reward_{name}": res.reward_totals[..., i] for i, name in enumerate(reward_names)}
+    metrics.update(
+        diverged=res.diverged,
+        bt_status=res.bt_status,
+        bt_success=res.bt_status == int(Status.SUCCESS),
+        bt_done_tick=res.bt_done_tick,
+        position_error=res.position_error,
+        orientation_error_deg=xp.degrees(res.orientation_error),
+        insertion_depth=res.insertion_depth,
+        max_force=res.max_force,
+        config_index=config_index,
+    )
+    return RolloutOutput(objectives=objectives, success=res.success, metrics=metrics)
+
+
 def _batched_episodes(r: Rollout, params: jax.Array, worlds: Worlds) -> RolloutOutput:
     b, w = worlds.config_index.shape
     flat_params = jnp.repeat(params, w, axis=0)
@@ -223,20 +242,7 @@ def _batched_episodes(r: Rollout, params: jax.Array, worlds: Worlds) -> RolloutO
     # The flat B x W batch is split over all local devices (one device: unchanged).
     res: EpisodeResult = shard_batch(over_worlds(episode, r.strategy, r.chunk))(flat_params, flat_worlds)
     res = jax.tree.map(lambda x: x.reshape((b, w) + x.shape[1:]), res)
-    objectives = jnp.mean(res.reward_totals @ jnp.asarray(r._objective_matrix), axis=1)
-    metrics = {f"reward_{name}": res.reward_totals[..., i] for i, name in enumerate(r.reward_names)}
-    metrics.update(
-        diverged=res.diverged,
-        bt_status=res.bt_status,
-        bt_success=res.bt_status == Status.SUCCESS,
-        bt_done_tick=res.bt_done_tick,
-        position_error=res.position_error,
-        orientation_error_deg=jnp.degrees(res.orientation_error),
-        insertion_depth=res.insertion_depth,
-        max_force=res.max_force,
-        config_index=worlds.config_index,
-    )
-    return RolloutOutput(objectives=objectives, success=res.success, metrics=metrics)
+    return summarize(res, worlds.config_index, r._objective_matrix, r.reward_names)
 
 
 # The Rollout is static (hashed by identity): its model, tree and leaf programs are baked into
