@@ -14,6 +14,8 @@ and the compile time of each jitted function. Ratios are against the interpreter
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 import statistics
 import time
 
@@ -26,23 +28,9 @@ from mjxskill.bt_compiled import compile_tree, init_state, tick, tick_sequence
 from mjxskill.ebt import nodes as N
 from mjxskill.ebt.interpreter import Interpreter
 
-
-def push_tree() -> N.Node:
-    stiffness = {"stiffness": (700.0, 700.0, 700.0, 50.0, 50.0, 50.0)}
-    return N.serial_star(
-        "Push",
-        N.parallel_fs(
-            "ToStart",
-            N.action("GoToStart", "go_to_linear_offset"),
-            N.action("Stiffen1", "change_stiffness", args=stiffness),
-        ),
-        N.parallel_fs(
-            "PushToGoal",
-            N.action("GoToGoal", "go_to_linear_offset"),
-            N.action("Stiffen2", "change_stiffness", args=stiffness),
-            N.action("Press", "apply_force", args={"force": (0.0, 0.0, -7.0, 0.0, 0.0, 0.0)}),
-        ),
-    )
+# The example trees live with the tests that pin their semantics.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from bt_examples import push_tree  # noqa: E402
 
 
 def all_kinds_tree() -> N.Node:

@@ -7,28 +7,10 @@ import mjxskill  # noqa: F401  (XLA flags before jax runs anything)
 from mjxskill.bt_compiled import compile_tree, format_trace
 from mjxskill.ebt import nodes as N
 
+from bt_examples import GOAL_OFFSETS, START_OFFSETS, STIFFNESS, press, push_tree
+
 K = N.Kind
-STIFF = {"stiffness": (700.0, 700.0, 700.0, 50.0, 50.0, 50.0)}
-START = {"offset_x": "Push.offset_x_start", "offset_y": "Push.offset_y_start"}
-GOAL = {"offset_x": "Push.offset_x_goal", "offset_y": "Push.offset_y_goal"}
-FORCE = {"force": (0.0, 0.0, -7.0, 0.0, 0.0, 0.0)}
-
-
-def push_tree(force=FORCE) -> N.Node:
-    return N.serial_star(
-        "Push",
-        N.parallel_fs(
-            "ToStart",
-            N.action("GoToStart", "go_to_linear_offset", params=START),
-            N.action("Stiffen1", "change_stiffness", args=STIFF),
-        ),
-        N.parallel_fs(
-            "PushToGoal",
-            N.action("GoToGoal", "go_to_linear_offset", params=GOAL),
-            N.action("Stiffen2", "change_stiffness", args=STIFF),
-            N.action("Press", "apply_force", args=force),
-        ),
-    )
+FORCE = press()  # apply_force arguments of the default push_tree
 
 
 def test_push_tree_arrays():
@@ -56,10 +38,10 @@ def test_push_leaf_table():
     ct = compile_tree(push_tree())
     assert ct.primitives == ("go_to_linear_offset", "change_stiffness", "apply_force")
     expected = [
-        (2, K.ACTION, "GoToStart", "go_to_linear_offset", 0, {}, START),
-        (3, K.ACTION, "Stiffen1", "change_stiffness", 1, STIFF, {}),
-        (5, K.ACTION, "GoToGoal", "go_to_linear_offset", 0, {}, GOAL),
-        (6, K.ACTION, "Stiffen2", "change_stiffness", 1, STIFF, {}),
+        (2, K.ACTION, "GoToStart", "go_to_linear_offset", 0, {}, START_OFFSETS),
+        (3, K.ACTION, "Stiffen1", "change_stiffness", 1, STIFFNESS, {}),
+        (5, K.ACTION, "GoToGoal", "go_to_linear_offset", 0, {}, GOAL_OFFSETS),
+        (6, K.ACTION, "Stiffen2", "change_stiffness", 1, STIFFNESS, {}),
         (7, K.ACTION, "Press", "apply_force", 2, FORCE, {}),
     ]
     assert [tuple(leaf) for leaf in ct.leaves] == expected
@@ -74,7 +56,7 @@ def test_counts_of_decorators():
 
 def test_equality_and_hash_follow_structure_not_leaf_programs():
     # Equal structure -> equal static jit argument -> one compiled tick.
-    a, b = compile_tree(push_tree()), compile_tree(push_tree(force={"force": (0.0, 0.0, -3.0, 0.0, 0.0, 0.0)}))
+    a, b = compile_tree(push_tree()), compile_tree(push_tree(force_z=-3.0))
     assert a == b and hash(a) == hash(b)
     assert a.leaves != b.leaves
     different_count = compile_tree(N.repeat(N.action("a"), 2))

@@ -15,6 +15,8 @@ from mjxskill.bt_compiled import compile_tree, init_state, tick
 from mjxskill.ebt import nodes as N
 from mjxskill.ebt.interpreter import Interpreter
 
+from bt_examples import push_tree
+
 R, S, F = int(N.Status.RUNNING), int(N.Status.SUCCESS), int(N.Status.FAILURE)
 
 ALL_KINDS_TREE = N.serial_star(
@@ -32,24 +34,6 @@ ALL_KINDS_TREE = N.serial_star(
     ),
     N.action("a6"),
 )
-
-
-def push_tree(force: float = -7.0) -> N.Node:
-    stiffness = {"stiffness": (700.0, 700.0, 700.0, 50.0, 50.0, 50.0)}
-    return N.serial_star(
-        "Push",
-        N.parallel_fs(
-            "ToStart",
-            N.action("GoToStart", "go_to_linear_offset"),
-            N.action("Stiffen1", "change_stiffness", args=stiffness),
-        ),
-        N.parallel_fs(
-            "PushToGoal",
-            N.action("GoToGoal", "go_to_linear_offset"),
-            N.action("Stiffen2", "change_stiffness", args=stiffness),
-            N.action("Press", "apply_force", args={"force": (0.0, 0.0, force, 0.0, 0.0, 0.0)}),
-        ),
-    )
 
 
 def random_scripts(ct, batch: int, ticks: int, seed: int) -> np.ndarray:
@@ -77,7 +61,7 @@ def test_jitted_tick_traces_once_across_ticks_and_equal_trees(counted_tick):
     scripts = random_scripts(compile_tree(push_tree()), batch=1, ticks=12, seed=0)[0]
     # A fresh compile of the same tree, and one whose leaves only differ in args, are equal
     # static arguments: neither may trigger a second trace (chex raises if one does).
-    for ct in (compile_tree(push_tree()), compile_tree(push_tree()), compile_tree(push_tree(force=-3.0))):
+    for ct in (compile_tree(push_tree()), compile_tree(push_tree()), compile_tree(push_tree(force_z=-3.0))):
         state = init_state(ct)
         for row in scripts:
             state, root, active = counted_tick(ct, state, row)

@@ -17,33 +17,12 @@ from mjxskill.bt_compiled import compile_tree, format_trace, init_state, started
 from mjxskill.ebt import nodes as N
 from mjxskill.ebt.interpreter import run_script
 
+from bt_examples import push_tree
+
 LETTER_STATUS = {"R": N.Status.RUNNING, "S": N.Status.SUCCESS, "F": N.Status.FAILURE}
 
 # One jit for all tables: a tree is a static argument, so each structure compiles once.
 jitted_sequence = jax.jit(tick_sequence, static_argnums=0)
-
-
-START_OFFSETS = {"offset_x": "Push.offset_x_start", "offset_y": "Push.offset_y_start"}
-GOAL_OFFSETS = {"offset_x": "Push.offset_x_goal", "offset_y": "Push.offset_y_goal"}
-
-
-def push_tree() -> N.Node:
-    """SkiREIL's Push skill: SerialStar of two ParallelFs blocks (reference.md)."""
-    stiffness = {"stiffness": (700.0, 700.0, 700.0, 50.0, 50.0, 50.0)}
-    return N.serial_star(
-        "Push",
-        N.parallel_fs(
-            "ToStart",
-            N.action("GoToStart", "go_to_linear_offset", params=START_OFFSETS),
-            N.action("Stiffen1", "change_stiffness", args=stiffness),
-        ),
-        N.parallel_fs(
-            "PushToGoal",
-            N.action("GoToGoal", "go_to_linear_offset", params=GOAL_OFFSETS),
-            N.action("Stiffen2", "change_stiffness", args=stiffness),
-            N.action("Press", "apply_force", args={"force": (0.0, 0.0, -7.0, 0.0, 0.0, 0.0)}),
-        ),
-    )
 
 
 def rows(table: str) -> list[list[str]]:
