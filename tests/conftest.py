@@ -10,3 +10,17 @@ import mjxskill  # noqa: F401  (side effect: XLA flags and compilation cache)
 import jax
 
 jax.config.update("jax_enable_x64", False)
+
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def push_rollout():
+    """The push task compiled once for the session: 2 worlds per parameter set, 8 s episodes
+    (the push ends in the goal corner after about 7 s). Callers keep 2 parameter sets per call
+    so that every call reuses the one compiled program."""
+    from mjxskill import compile_rollout, load_scenario
+
+    scn = load_scenario("push")
+    return scn, compile_rollout(scn, worlds=2, episode_seconds=8.0)

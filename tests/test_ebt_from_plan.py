@@ -195,3 +195,14 @@ def test_plans_that_do_not_fit_the_library_are_rejected(push, plan, message):
 def test_an_empty_plan_is_rejected(push):
     with pytest.raises(PlanError, match="goal already holds"):
         plan_to_tree(push, ())
+
+
+def test_the_push_starts_turned_to_the_workpiece_and_goes_straight(push, peg):
+    # Every goal turns the square tool to its element, except the push's end, which keeps the
+    # pusher's yaw: turning it on the way twists the workpiece off the push line.
+    def orientations(tree):
+        return [(n.name, n.args["object"], n.args["orientation"]) for n in tree.leaves() if n.primitive == "set_goal_from_object"]
+
+    assert [o for _, _, o in orientations(push.task.tree)] == ["tool_down_aligned", "tool_down_aligned", "tool_down"]
+    assert orientations(push.task.tree)[2][1] == "ObjectGoalPose-1"
+    assert {o for _, _, o in orientations(peg.task.tree)} == {"tool_down_aligned"}

@@ -2,17 +2,18 @@
 
 The two are independent implementations of the same episode (numpy + reference BT interpreter +
 C MuJoCo in float64, versus JAX + compiled BT + MJX in float32), so agreement on the same worlds
-checks both. Horizon 6 s: the tool reaches the object's side and pushes it for about 1.5 s
-(contacts between pusher, object and table, the -7 N press on), which shorter horizons would not
-cover (the push starts after about 4.2 s).
+checks both. The shared push rollout (8 s, conftest.py) covers the whole push: approach, the
+straight push, the prism seated in the goal corner and pressed there.
 
+Parameter sets: the hand-found push into the corner (robust, see test_rollout_push.py) and the
+planner's zero offsets (the tool lands on the prism's top and stays). Worlds: key 2.
 Tolerances: the BT's discrete outcomes (status, finishing tick, success, divergence) must be
-equal. Continuous results differ by float32 rounding and by MJX's versus MuJoCo's collision and
-contact code (same Newton solver settings): the tool's path barely (rewards that read the tool:
-2e-4 relative measured over 6 s), the pushed object more, because pushing a prism with a flat
-tool is sensitive to where and how long each corner touches: after 1.5 s of pushing its yaw
-differed by up to 4.2 deg and its position by 2.4 cm in one of four worlds (object rewards 5.5 %
-relative, objectives 0.4 %). The bounds below sit 3-5x above those measurements.
+equal. Continuous results differ by float32 rounding and by MJX's versus MuJoCo's collision code;
+measured on these worlds: rewards that read the tool 5.4e-4 relative, object rewards 6.2e-3,
+objectives 1.2e-3, final position 0.8 mm, orientation 0.2 deg. Over keys 0-2 (12 episodes) one
+episode differed in a discrete outcome: its BT distance check was met in MJX only (the tool
+pressing the seated prism stops next to the 2 cm threshold). The bounds sit 3-7x above the
+measurements.
 """
 
 import math
@@ -31,16 +32,11 @@ from mjxskill.native.motion import LinearMotion, plane_basis, spiral_step
 from mjxskill.rollout.leaves import tool_down_aligned as jax_tool_down_aligned
 from mjxskill.sim import motion as jax_motion
 
-HORIZON_S = 6.0
-
-
 @pytest.fixture(scope="module")
-def rollouts():
-    scn = load_scenario("push")
-    rollout = compile_rollout(scn, worlds=2, episode_seconds=HORIZON_S)
-    # The operators' first setting (it pushes the object) and a second one from their list.
-    params = np.stack([scn.manual_parameters["operator_a"], scn.manual_parameters["operator_b"]]).astype(np.float32)
-    worlds = rollout.sample_worlds(jax.random.key(0), 2)
+def rollouts(push_rollout):
+    scn, rollout = push_rollout
+    params = np.array([[-0.05, -0.15, 0.07, -0.10], scn.parameter_defaults], np.float32)
+    worlds = rollout.sample_worlds(jax.random.key(2), 2)
     compiled = jax.tree.map(np.asarray, rollout.run_worlds(params, worlds))
     native = NativeRollout(rollout).run_worlds(params, worlds)
     return compiled, native
@@ -54,21 +50,21 @@ def test_same_discrete_outcomes(rollouts):
 
 
 def test_the_episodes_reach_the_push(rollouts):
-    # Guards the horizon: the comparison must include contact (the object moved and turned).
-    compiled, _ = rollouts
-    assert np.all(compiled.metrics["max_force"] > 1.0)  # ApplyForce was active
-    assert np.all(compiled.metrics["orientation_error_deg"] < 25.0)  # the object turned (from 26 deg)
+    # Guards the horizon: the comparison must include the push into the corner.
+    compiled, native = rollouts
+    assert np.all(compiled.metrics["max_force"][0] > 1.0)  # ApplyForce was active
+    assert compiled.success[0].all() and not compiled.success[1].any()
 
 
 def test_rewards_and_final_poses_agree(rollouts):
     compiled, native = rollouts
     for name in ("reward_ee_to_goal", "reward_reference_tracking"):  # the tool's path
-        np.testing.assert_allclose(native.metrics[name], compiled.metrics[name], rtol=1e-3, err_msg=name)
+        np.testing.assert_allclose(native.metrics[name], compiled.metrics[name], rtol=3e-3, err_msg=name)
     for name in ("reward_object_position", "reward_object_orientation"):  # the pushed object
-        np.testing.assert_allclose(native.metrics[name], compiled.metrics[name], rtol=0.2, err_msg=name)
-    np.testing.assert_allclose(native.objectives, compiled.objectives, rtol=2e-2)
-    np.testing.assert_allclose(native.metrics["position_error"], compiled.metrics["position_error"], atol=0.08)
-    np.testing.assert_allclose(native.metrics["orientation_error_deg"], compiled.metrics["orientation_error_deg"], atol=15.0)
+        np.testing.assert_allclose(native.metrics[name], compiled.metrics[name], rtol=3e-2, err_msg=name)
+    np.testing.assert_allclose(native.objectives, compiled.objectives, rtol=5e-3)
+    np.testing.assert_allclose(native.metrics["position_error"], compiled.metrics["position_error"], atol=0.004)
+    np.testing.assert_allclose(native.metrics["orientation_error_deg"], compiled.metrics["orientation_error_deg"], atol=1.5)
     np.testing.assert_allclose(native.metrics["max_force"], compiled.metrics["max_force"], atol=1e-3)
 
 

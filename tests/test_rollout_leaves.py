@@ -14,6 +14,7 @@ from mjxskill.ebt.nodes import Status, action, parallel_fs, sequence
 from mjxskill.rollout.bindings import NOMINAL, ObjectSlot, SceneBindings
 from mjxskill.rollout.leaves import LeafWorld, build_leaf_programs, init_blackboard, reference_pose, tool_down_aligned, tool_yaw
 from mjxskill.sim.inverse_kinematics import tool_down_quat
+from mjxskill.sim.rotations import quat_mul
 
 DEFAULT_STIFFNESS = (400.0, 400.0, 400.0, 50.0, 50.0, 50.0)
 YAW_30 = (math.cos(math.radians(15)), 0.0, 0.0, math.sin(math.radians(15)))
@@ -120,3 +121,24 @@ def test_aligned_tool_yaw_is_the_nearest_quarter_turn_of_the_object_yaw(current,
     # ... and turns at most 45 degrees from where it is
     turn = (yaw - current + math.pi) % (2 * math.pi) - math.pi
     assert abs(turn) <= math.pi / 4 + 1e-4
+
+
+@pytest.mark.parametrize("yaw_deg", [-40.0, 0.0, 17.0, 100.0])
+def test_tool_down_keeps_the_current_yaw_and_aligned_turns_to_the_object(yaw_deg):
+    tree = action("ElementToBBPose", "set_goal_from_object", args={"object": "Box-1", "orientation": "tool_down"})
+    ct = compile_tree(tree)
+    programs = build_leaf_programs(ct, (), BINDINGS, DEFAULT_STIFFNESS, 0.1)
+    # A reference that is tilted a little off tool-down: the goal is straight down again.
+    tilt = jnp.asarray([math.cos(0.05), math.sin(0.05), 0.0, 0.0], jnp.float32)
+    start = quat_mul(jnp.asarray(tool_down_quat(math.radians(yaw_deg)), jnp.float32), tilt)
+    bb = init_blackboard(START_POS, start, DEFAULT_STIFFNESS, 1)
+    one = jnp.ones(1, bool)
+    bb = programs.effects(bb, one, one, WORLD, jnp.zeros(0))
+    expected = tool_down_quat(math.radians(yaw_deg))
+    assert abs(float(np.dot(np.asarray(bb.goal_quat), expected))) == pytest.approx(1.0, abs=1e-5)
+
+
+def test_an_unknown_goal_orientation_is_rejected():
+    tree = action("ElementToBBPose", "set_goal_from_object", args={"object": "Box-1", "orientation": "sideways"})
+    with pytest.raises(ValueError, match="orientation 'sideways' is not one of tool_down_aligned, tool_down"):
+        build_leaf_programs(compile_tree(tree), (), BINDINGS, DEFAULT_STIFFNESS, 0.1)

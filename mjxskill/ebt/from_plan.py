@@ -7,7 +7,8 @@ Subtrees (after SkiREIL's skills; ``||FS`` = ParallelFs, ``->`` = Sequence):
   EEPoseDistance(threshold)]]``.
 * Push(workpiece, goal) = ``->* [||FS [GoToLinearOffset(workpiece + start offsets), ChangeStiffness],
   ||FS [GoToLinearOffset(goal + goal offsets), ChangeStiffness, ApplyForce(wrench)]]`` where
-  GoToLinearOffset = GoToLinear with a learnable x/y offset, at the push height.
+  GoToLinearOffset = GoToLinear with a learnable x/y offset, at the push height; the pusher is
+  turned to the workpiece at the start and keeps its yaw on the way to the goal (a straight push).
 * PegInsertion(peg, box) = ``-> [ElementToBBPose(box pose), ||FS [MGSetGoalPose,
   ChangeStiffness, ApplyForce(z = force), OverlayMotion(spiral), EEPoseDistance(threshold)]]``.
 
@@ -18,8 +19,9 @@ ends when its distance check succeeds, which halts them.
 ``set_goal_from_object`` (SUCCESS at once): writes the motion goal = position of ``args.object``
     (scenario object name; ``args.mjcf_body`` its MJCF body or None for a pose without one, whose
     position comes from the scenario) + ``args.offset`` (3,) m world frame + the values of
-    ``params.offset_x`` / ``params.offset_y``; orientation: ``args.orientation`` = "tool_down"
-    (tool z along world -z, yaw kept).
+    ``params.offset_x`` / ``params.offset_y``; orientation (tool z along world -z):
+    ``args.orientation`` = "tool_down_aligned" (the square tool's faces turned to the element's
+    yaw) or "tool_down" (the tool's yaw kept, so the move is a pure translation).
 ``goal_pose`` (holds, RUNNING): the motion generator drives the reference toward the goal.
 ``change_stiffness`` (holds, RUNNING): ``args.stiffness`` (6,) N/m x3, Nm/rad x3.
 ``apply_force`` (holds, RUNNING): ``args.wrench`` (6,) N, Nm in the world frame; a component named
@@ -163,12 +165,12 @@ class _Context:
         return args, params
 
 
-def _set_goal(obj: "WorldObject", offset, inputs=({}, {})) -> Node:
+def _set_goal(obj: "WorldObject", offset, inputs=({}, {}), orientation: str = "tool_down_aligned") -> Node:
     args = {
         "object": obj.name,
         "mjcf_body": obj.mjcf_body,
         "offset": tuple(round(float(v), 9) for v in offset),  # no float noise in printed trees
-        "orientation": "tool_down",
+        "orientation": orientation,
         **inputs[0],
     }
     return action("ElementToBBPose", "set_goal_from_object", args=args, params=inputs[1])
@@ -201,9 +203,11 @@ def expand_push(ctx: _Context) -> Node:
     def goto_offset(obj: "WorldObject", which: str) -> Node:
         offset = (0.0, 0.0, height - float(obj.pose.position[2]))  # tool tip at the push height
         inputs = ctx.inputs(offset_x=f"offset_x_{which}", offset_y=f"offset_y_{which}")
-        return sequence(
-            f"GoToLinearOffset.{which}", _set_goal(obj, offset, inputs), _move(f"{label}.{which}", threshold)
-        )
+        # The push starts with the pusher's faces turned to the workpiece's and goes straight
+        # from there: turning the pusher on the way would twist the workpiece off the push line.
+        orientation = "tool_down_aligned" if which == "start" else "tool_down"
+        goal = _set_goal(obj, offset, inputs, orientation=orientation)
+        return sequence(f"GoToLinearOffset.{which}", goal, _move(f"{label}.{which}", threshold))
 
     wrench = tuple(float(v) for v in ctx.value("wrench"))
     return serial_star(

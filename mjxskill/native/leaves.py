@@ -13,7 +13,7 @@ import numpy as np
 
 from mjxskill.ebt.nodes import Node, Status
 from mjxskill.native.motion import LinearMotion, plane_basis, quat_mul, spiral_step
-from mjxskill.rollout.leaves import SPIRAL_NORMAL
+from mjxskill.rollout.leaves import SPIRAL_NORMAL, goal_orientation
 
 _E1, _E2 = plane_basis(SPIRAL_NORMAL)
 TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # rotation by pi about y: the tool's z along world -z
@@ -87,12 +87,17 @@ def _keep(bb, fresh, params):
     return None
 
 
+def tool_yaw(quat) -> float:
+    """Yaw (rad) of a tool-down orientation (w, x, y, z)."""
+    w, x, y, z = quat
+    return math.atan2(-2.0 * (x * y + w * z), -(1.0 - 2.0 * (y * y + z * z)))
+
+
 def tool_down_aligned(current_quat, object_yaw: float) -> np.ndarray:
     """(4,) tool pointing down (rotation by pi about y, then ``yaw`` about world z), with the
     yaw among the square tool's quarter-turn symmetric ones that aligns its faces with
     ``object_yaw`` (rad) nearest the current orientation (4,)."""
-    w, x, y, z = current_quat
-    yaw = math.atan2(-2.0 * (x * y + w * z), -(1.0 - 2.0 * (y * y + z * z)))
+    yaw = tool_yaw(current_quat)
     quarter = math.pi / 2
     target = yaw + (object_yaw - yaw + quarter / 2) % quarter - quarter / 2
     return quat_mul([math.cos(target / 2), 0.0, 0.0, math.sin(target / 2)], TOOL_DOWN)
@@ -118,10 +123,12 @@ def _program(i: int, leaf: Node, index: dict, slot_of: dict, nominal_pos: np.nda
         dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
         w, x, y, z = nominal_quat[slot_of[obj]]
         object_yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        aligned = goal_orientation(leaf) == "tool_down_aligned"
 
         def set_goal(bb, fresh, params):
             bb.goal_pos = base + np.array([dx(params), dy(params), 0.0])
-            bb.goal_quat = tool_down_aligned(bb.reference()[1], object_yaw)
+            current = bb.reference()[1]
+            bb.goal_quat = tool_down_aligned(current, object_yaw if aligned else tool_yaw(current))
 
         return (lambda bb, tool_pos, live: Status.SUCCESS), set_goal
     if primitive == "goal_pose":

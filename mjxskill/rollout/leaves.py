@@ -130,6 +130,18 @@ def tool_down_aligned(current_quat, object_yaw: float):
     return quat_mul(turn, jnp.asarray(TOOL_DOWN))
 
 
+ORIENTATIONS = ("tool_down_aligned", "tool_down")
+
+
+def goal_orientation(leaf) -> str:
+    """ElementToBBPose's ``args.orientation``: "tool_down_aligned" (default) turns the tool's
+    faces to the element's yaw; "tool_down" keeps the tool's current yaw (a pure translation)."""
+    orientation = leaf.args.get("orientation", "tool_down_aligned")
+    if orientation not in ORIENTATIONS:
+        raise ValueError(f"leaf {leaf.name!r}: orientation {orientation!r} is not one of {', '.join(ORIENTATIONS)}")
+    return orientation
+
+
 class LeafWorld(NamedTuple):
     """What leaf programs read: the tool pose and the world model's object positions (K, 3)."""
 
@@ -205,11 +217,13 @@ def _program(i: int, leaf, index: dict, bindings: SceneBindings, tick_seconds: f
         fixed = np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), np.float32)
         dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
 
+        aligned = goal_orientation(leaf) == "tool_down_aligned"
         object_yaw = _yaw_of(bindings.slots[slot].quat)
 
         def set_goal(bb, world, params, fresh):
             offset = jnp.asarray(fixed) + jnp.stack([dx(params), dy(params), jnp.float32(0.0)])
-            quat = tool_down_aligned(reference_pose(bb).quat, object_yaw)
+            current = reference_pose(bb).quat
+            quat = tool_down_aligned(current, object_yaw if aligned else tool_yaw(current))
             return bb._replace(goal_pos=world.slot_pos[slot] + offset, goal_quat=quat)
 
         return (lambda bb, world, params, live: Status.SUCCESS), set_goal
