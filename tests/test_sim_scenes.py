@@ -46,7 +46,7 @@ def test_only_tool_and_objects_collide(scene):
     name, model = scene
     assert np.all(model.geom_contype == 0) and np.all(model.geom_conaffinity == 0)
     pair_geoms = {model.geom(int(g)).name for g in np.concatenate([model.pair_geom1, model.pair_geom2])}
-    expected = {"push": {"tool_geom", "object", "table"},
+    expected = {"push": {"tool_geom", "object", "table", "fence", "stop"},
                 "peg": {"tool_geom", "wall_px", "wall_nx", "wall_py", "wall_ny", "bottom"}}[name]
     assert pair_geoms == expected
     # MJX accepts the scene (it raises for collision pairs it has no function for).
@@ -80,6 +80,42 @@ def test_push_object_and_tool_geometry():
     assert np.degrees(yaw) == pytest.approx(26.0, abs=0.1)
     friction = {model.geom(int(model.pair_geom2[i])).name: model.pair_friction[i, 0] for i in range(model.npair)}
     assert 0.2 <= min(friction.values()) and max(friction.values()) <= 0.25
+
+
+def _prism_vertices(model, data):
+    """World positions (6, 3) of the push prism's vertices."""
+    geom = model.geom("object").id
+    mesh = model.mesh("prism")
+    verts = model.mesh_vert[mesh.vertadr[0]:mesh.vertadr[0] + mesh.vertnum[0]]
+    return verts @ data.geom_xmat[geom].reshape(3, 3).T + data.geom_xpos[geom]
+
+
+def _inside(model, data, name, points):
+    """Signed distances (m) of points (N, 3) from a fixture plane, positive on the prism's side."""
+    geom = model.geom(name).id
+    normal = data.geom_xmat[geom].reshape(3, 3)[:, 2]
+    return (np.asarray(points) - data.geom_xpos[geom]) @ normal
+
+
+def test_the_goal_corner_holds_the_prism_at_the_goal_pose():
+    model = load_scene("push")
+    data = mujoco.MjData(model)
+    goal = model.body("goal")
+    # The prism at the goal pose touches the fence with its hypotenuse and the stop with its tip.
+    data.qpos[7:10], data.qpos[10:14] = goal.pos, goal.quat
+    mujoco.mj_kinematics(model, data)
+    verts = _prism_vertices(model, data)
+    fence, stop = _inside(model, data, "fence", verts), _inside(model, data, "stop", verts)
+    assert np.sum(np.abs(fence) < 1e-6) == 4 and np.all(fence > -1e-6)  # hypotenuse face: 4 vertices
+    assert np.sum(np.abs(stop) < 1e-6) == 2 and np.all(stop > -1e-6)  # the tip's edge
+    # At the start, the prism and the tool of every start posture are well inside the corner.
+    data.qpos[7:10], data.qpos[10:14] = model.body("object").pos, [1, 0, 0, 0]
+    for q in np.concatenate([postures.PUSH_STARTS, postures.PUSH_EVAL_STARTS]):
+        data.qpos[:7] = q
+        mujoco.mj_kinematics(model, data)
+        points = np.concatenate([_prism_vertices(model, data), [data.site("tool").xpos]])
+        for plane in ("fence", "stop"):
+            assert np.all(_inside(model, data, plane, points) > 0.1), plane
 
 
 def test_peg_hole_clearance_and_depth():
