@@ -30,6 +30,7 @@ from mjxskill.ebt.nodes import Status
 from mjxskill.rollout.bindings import SceneBindings, bind_scene, referenced_objects
 from mjxskill.rollout.episode import EpisodeResult, EpisodeSpec, run_episode
 from mjxskill.rollout.leaves import build_leaf_programs
+from mjxskill.rollout.program_cache import Program, load_or_trace
 from mjxskill.rollout.rewards import build_terms, objective_matrix
 from mjxskill.rollout.sharding import shard_batch
 from mjxskill.rollout.worlds import Worlds, WorldSampler, make_sampler, sample_worlds, worlds_per_config
@@ -77,6 +78,8 @@ class Rollout:
     strategy: str
     chunk: int | None
     _objective_matrix: np.ndarray = field(repr=False)
+    mj_model: mujoco.MjModel | None = field(default=None, repr=False)
+    _programs: dict = field(default_factory=dict, repr=False)
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -111,7 +114,9 @@ class Rollout:
         """Rolls out (B, P) ``params`` in W worlds each, drawn from ``key``."""
         params = self.check_params(params)
         # Sampling is a separate small program, so a call and ``run_worlds`` share one compile.
-        return _run_worlds(self, jnp.asarray(params), self.sample_worlds(key, len(params)))
+        params = jnp.asarray(params)
+        worlds = self.sample_worlds(key, len(params))
+        return self.program(params, worlds).fn(params, worlds)
 
     def run_worlds(self, params, worlds: Worlds) -> RolloutOutput:
         """Rolls out (B, P) ``params`` in explicit ``worlds`` of leading shape (B, W') or (W',)
@@ -122,7 +127,21 @@ class Rollout:
             worlds = jax.tree.map(lambda x: jnp.broadcast_to(x, (len(params),) + x.shape), worlds)
         elif len(lead) != 2 or lead[0] != len(params):
             raise ValueError(f"worlds must have leading shape (W,) or ({len(params)}, W), got {lead}")
-        return _run_worlds(self, jnp.asarray(params), worlds)
+        params = jnp.asarray(params)
+        return self.program(params, worlds).fn(params, worlds)
+
+    def program(self, params, worlds: Worlds) -> Program:
+        """The batched-episode program for arguments shaped like (B, P) ``params`` and (B, W)
+        ``worlds``: on one device read from (or traced into) the on-disk program cache, so that
+        another process skips the tracing (``mjxskill.rollout.program_cache``); over several
+        devices the sharded ``jax.jit`` program, traced in each process."""
+        shapes = tuple((np.shape(x), str(x.dtype)) for x in jax.tree.leaves((params, worlds)))
+        if shapes not in self._programs:
+            if jax.local_device_count() > 1 or self.mj_model is None:
+                self._programs[shapes] = Program(partial(_run_worlds, self), "jit", 0.0, "")
+            else:
+                self._programs[shapes] = load_or_trace(self, self.mj_model, partial(_batched_episodes, self), params, worlds)
+        return self._programs[shapes]
 
     def trace(self, params, world: Worlds):
         """Per-tick record of one parameter vector (P,) in one world (unbatched fields):
@@ -197,6 +216,7 @@ def compile_rollout(
         strategy=strategy,
         chunk=chunk,
         _objective_matrix=objective_matrix(terms, len(scn.objective_names)),
+        mj_model=mj_model,
     )
 
 

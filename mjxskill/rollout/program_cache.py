@@ -1,0 +1,171 @@
+"""The compiled rollout's batched-episode program, kept on disk between processes.
+
+JAX's persistent compilation cache keeps XLA's executables, but each new process still traces and
+lowers the whole episode (two nested scans over MJX: about 40 s for push on a 2-core CPU) only to
+compute that cache's key. This cache keeps the lowered program itself: ``jax.export``'s
+serialized StableHLO (a flatbuffer: data, never Python code or pickle), under a key made of
+everything the program depends on: mjxskill's own source, the scenario (its full, validated
+content), the MuJoCo model it loads (MJB bytes, after the scenario's timestep and gravity), the
+rollout's settings and batch shape, the jax / jaxlib / mujoco / mujoco-mjx versions, the backend
+and ``XLA_FLAGS``. A second process reads the program (well under a second), and XLA's compile
+of it is what the persistent cache then serves.
+
+Where: ``<mjxskill cache dir>/programs`` (see ``mjxskill._runtime.default_cache_dir``;
+``MJXSKILL_CACHE_DIR=off`` turns both caches off). Only single-device runs use it: a batch
+sharded over several devices is traced every time (``mjxskill.rollout.sharding``).
+A file that cannot be read back is traced again and overwritten.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.metadata
+import os
+import tempfile
+import time
+from functools import lru_cache
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable, NamedTuple
+
+import jax
+import jax.export
+import mujoco
+import numpy as np
+
+from mjxskill._runtime import default_cache_dir
+from mjxskill.rollout.worlds import Worlds
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.rollout.compiled import Rollout
+
+FORMAT = "mjxskill-rollout-program-v1"
+PACKAGE_ROOT = Path(__file__).resolve().parents[1]
+
+
+class Program(NamedTuple):
+    """A batched-episode program: ``fn(params (B, P), worlds (B, W)) -> RolloutOutput``.
+
+    origin: "disk" (read back from the cache), "traced" (traced now, and written when the cache is
+    on) or "jit" (traced by ``jax.jit`` as usual: several devices). prepare_s: seconds spent
+    reading or tracing + lowering (XLA's compile comes at the first call of ``fn``).
+    """
+
+    fn: Callable
+    origin: str
+    prepare_s: float
+    key: str
+
+
+def programs_dir() -> Path | None:
+    base = default_cache_dir()
+    return None if base is None else base / "programs"
+
+
+@lru_cache(maxsize=1)
+def package_digest() -> str:
+    """sha256 of mjxskill's Python source (any edit invalidates every stored program)."""
+    h = hashlib.sha256()
+    for path in sorted(PACKAGE_ROOT.rglob("*.py")):
+        h.update(str(path.relative_to(PACKAGE_ROOT)).encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def _version(dist: str) -> str:
+    try:
+        return importlib.metadata.version(dist)
+    except importlib.metadata.PackageNotFoundError:
+        return "none"
+
+
+def _model_bytes(model: mujoco.MjModel) -> bytes:
+    buffer = np.empty(mujoco.mj_sizeModel(model), np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return buffer.tobytes()
+
+
+def program_key(r: "Rollout", mj_model: mujoco.MjModel, args) -> str:
+    """Hex digest naming the program of rollout ``r`` for the argument shapes ``args``."""
+    h = hashlib.sha256()
+    shapes = [(str(getattr(x, "dtype", type(x))), tuple(np.shape(x))) for x in jax.tree.leaves(args)]
+    device = jax.devices()[0]
+    parts = (
+        FORMAT,
+        package_digest(),
+        repr(r.scenario),
+        repr((r.spec.ticks, r.spec.steps_per_tick, r.strategy, r.chunk)),
+        repr(shapes),
+        repr(jax.tree.structure(args)),
+        jax.__version__,
+        _version("jaxlib"),
+        mujoco.__version__,
+        _version("mujoco-mjx"),
+        device.platform,
+        str(device.device_kind),
+        os.environ.get("XLA_FLAGS", ""),
+        str(jax.config.jax_enable_x64),
+    )
+    for part in parts:
+        h.update(part.encode())
+        h.update(b"\0")
+    h.update(_model_bytes(mj_model))
+    return h.hexdigest()
+
+
+def _register_pytrees() -> None:
+    # Exported programs record their argument and result trees; NamedTuples need a stable name.
+    from mjxskill.rollout.compiled import RolloutOutput
+
+    for cls, name in ((Worlds, "mjxskill.rollout.Worlds"), (RolloutOutput, "mjxskill.rollout.RolloutOutput")):
+        try:
+            jax.export.register_namedtuple_serialization(cls, serialized_name=name)
+        except ValueError:  # registered already (a module reload)
+            pass
+
+
+_registered = False
+_in_memory: dict[str, Program] = {}
+
+
+def load_or_trace(r: "Rollout", mj_model: mujoco.MjModel, body: Callable, params, worlds: Worlds) -> Program:
+    """The program ``body(params, worlds)`` for these argument shapes: from this process's
+    memory, from disk, or traced now (and stored)."""
+    global _registered
+    args = (params, worlds)
+    key = program_key(r, mj_model, args)
+    if key in _in_memory:
+        return _in_memory[key]
+    if not _registered:
+        _register_pytrees()
+        _registered = True
+    directory = programs_dir()
+    path = None if directory is None else directory / f"{key}.stablehlo"
+    t0 = time.perf_counter()
+    exported, origin = None, "traced"
+    if path is not None and path.exists():
+        try:
+            exported, origin = jax.export.deserialize(bytearray(path.read_bytes())), "disk"
+        except Exception:  # truncated or from an incompatible jax: trace again
+            exported = None
+    if exported is None:
+        specs = jax.tree.map(lambda x: jax.ShapeDtypeStruct(np.shape(x), x.dtype), args)
+        exported = jax.export.export(jax.jit(body))(*specs)
+        if path is not None:
+            _write_atomically(path, exported.serialize())
+    program = Program(jax.jit(exported.call), origin, time.perf_counter() - t0, key)
+    _in_memory[key] = program
+    return program
+
+
+def _write_atomically(path: Path, payload: bytes | bytearray) -> None:
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+        with os.fdopen(fd, "wb") as f:
+            f.write(payload)
+        os.replace(tmp, path)
+    except OSError:  # read-only cache: the program still runs, it is just not kept
+        pass
+
+
+__all__ = ["Program", "load_or_trace", "package_digest", "program_key", "programs_dir"]

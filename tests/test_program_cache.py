@@ -1,0 +1,85 @@
+"""The on-disk program cache (mjxskill/rollout/program_cache.py): a second process reads the
+lowered rollout instead of tracing it and computes bit-identical results; a damaged file is
+traced again; anything the program depends on changes its key. Asserted on the program's origin
+and the files, not on wall-clock (benchmarks/throughput.py --cache-check times it)."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjxskill import compile_rollout, load_scenario
+from mjxskill.rollout.compiled import load_model
+from mjxskill.rollout.program_cache import program_key
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SCRIPT = """
+import json, sys, mjxskill, jax, numpy as np
+from mjxskill import compile_rollout, load_scenario
+scn = load_scenario("peg")
+r = compile_rollout(scn, worlds=2, episode_seconds=0.3)
+params = np.tile(scn.parameter_defaults, (2, 1)).astype(np.float32)
+params[1, 0] = -8.0
+worlds = r.sample_worlds(jax.random.key(0), 2)
+out = r.run_worlds(params, worlds)
+program = r.program(jax.numpy.asarray(params), worlds)
+print(json.dumps({"origin": program.origin, "key": program.key,
+                  "objectives": np.asarray(out.objectives).tolist(),
+                  "metrics": {k: np.asarray(v).tolist() for k, v in out.metrics.items()}}))
+"""
+
+
+def _process(cache: Path) -> dict:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("JAX_") and k != "XLA_FLAGS"}
+    env["MJXSKILL_CACHE_DIR"] = str(cache)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
+    out = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_a_second_process_reads_the_program_and_a_damaged_one_is_traced_again(tmp_path):
+    first = _process(tmp_path)
+    assert first["origin"] == "traced"
+    stored = tmp_path / "programs" / f"{first['key']}.stablehlo"
+    assert stored.is_file() and stored.stat().st_size > 0
+    second = _process(tmp_path)
+    assert second["origin"] == "disk" and second["key"] == first["key"]
+    assert second["objectives"] == first["objectives"] and second["metrics"] == first["metrics"]  # bit-identical
+    stored.write_bytes(b"not a program")
+    third = _process(tmp_path)
+    assert third["origin"] == "traced" and third["objectives"] == first["objectives"]
+    assert stored.stat().st_size > 100  # rewritten
+
+
+def _key(scn, seconds=0.3, batch=2, worlds=2):
+    r = compile_rollout(scn, worlds=worlds, episode_seconds=seconds)
+    params = jnp.zeros((batch, len(scn.parameter_names)), jnp.float32)
+    w = r.sample_worlds(jax.random.key(0), batch)
+    return program_key(r, load_model(scn), (params, w))
+
+
+def test_the_key_names_everything_the_program_depends_on():
+    peg = load_scenario("peg")
+    base = _key(peg)
+    assert _key(peg) == base  # deterministic
+    assert _key(load_scenario("peg")) == base  # the same content loaded again
+    others = [_key(peg, seconds=0.4), _key(peg, batch=3), _key(peg, worlds=3), _key(load_scenario("push"))]
+    assert len({base, *others}) == 5
+    # The scenario's content counts: the same file with another goal threshold gets another key.
+    text = Path(peg.source).read_text().replace("scene: ../peg.xml", f"scene: {Path(peg.scene)}")
+    assert "threshold: {type: float, unit: m, default: 0.04}" in text
+    copy = Path(os.environ.get("TMPDIR", "/tmp")) / f"peg-key-{os.getpid()}.yaml"
+    try:
+        copy.write_text(text)
+        same = _key(load_scenario(str(copy)))
+        copy.write_text(text.replace("default: 0.04}", "default: 0.05}"))
+        assert _key(load_scenario(str(copy))) != same
+    finally:
+        copy.unlink(missing_ok=True)
+    np.testing.assert_equal(len(base), 64)
