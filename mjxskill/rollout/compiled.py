@@ -138,7 +138,7 @@ class Rollout:
         shapes = tuple((np.shape(x), str(x.dtype)) for x in jax.tree.leaves((params, worlds)))
         if shapes not in self._programs:
             if jax.local_device_count() > 1 or self.mj_model is None:
-                self._programs[shapes] = Program(partial(_run_worlds, self), "jit", 0.0, "")
+                self._programs[shapes] = Program(partial(_run_worlds, self), "jit", "")
             else:
                 self._programs[shapes] = load_or_trace(self, self.mj_model, partial(_batched_episodes, self), params, worlds)
         return self._programs[shapes]

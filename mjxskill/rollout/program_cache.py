@@ -22,7 +22,6 @@ import hashlib
 import importlib.metadata
 import os
 import tempfile
-import time
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, NamedTuple
@@ -46,13 +45,12 @@ class Program(NamedTuple):
     """A batched-episode program: ``fn(params (B, P), worlds (B, W)) -> RolloutOutput``.
 
     origin: "disk" (read back from the cache), "traced" (traced now, and written when the cache is
-    on) or "jit" (traced by ``jax.jit`` as usual: several devices). prepare_s: seconds spent
-    reading or tracing + lowering (XLA's compile comes at the first call of ``fn``).
+    on) or "jit" (traced by ``jax.jit`` as usual: several devices). key: the cache key ("" for
+    "jit"). XLA's compile comes at the first call of ``fn`` (served by the persistent cache).
     """
 
     fn: Callable
     origin: str
-    prepare_s: float
     key: str
 
 
@@ -112,6 +110,7 @@ def program_key(r: "Rollout", mj_model: mujoco.MjModel, args) -> str:
     return h.hexdigest()
 
 
+@lru_cache(maxsize=1)
 def _register_pytrees() -> None:
     # Exported programs record their argument and result trees; NamedTuples need a stable name.
     from mjxskill.rollout.compiled import RolloutOutput
@@ -123,24 +122,14 @@ def _register_pytrees() -> None:
             pass
 
 
-_registered = False
-_in_memory: dict[str, Program] = {}
-
-
 def load_or_trace(r: "Rollout", mj_model: mujoco.MjModel, body: Callable, params, worlds: Worlds) -> Program:
-    """The program ``body(params, worlds)`` for these argument shapes: from this process's
-    memory, from disk, or traced now (and stored)."""
-    global _registered
+    """The program ``body(params, worlds)`` for these argument shapes: read from disk, or traced
+    now (and stored). The rollout keeps what it gets, so this runs once per rollout and shape."""
+    _register_pytrees()
     args = (params, worlds)
     key = program_key(r, mj_model, args)
-    if key in _in_memory:
-        return _in_memory[key]
-    if not _registered:
-        _register_pytrees()
-        _registered = True
     directory = programs_dir()
     path = None if directory is None else directory / f"{key}.stablehlo"
-    t0 = time.perf_counter()
     exported, origin = None, "traced"
     if path is not None and path.exists():
         try:
@@ -152,9 +141,7 @@ def load_or_trace(r: "Rollout", mj_model: mujoco.MjModel, body: Callable, params
         exported = jax.export.export(jax.jit(body))(*specs)
         if path is not None:
             _write_atomically(path, exported.serialize())
-    program = Program(jax.jit(exported.call), origin, time.perf_counter() - t0, key)
-    _in_memory[key] = program
-    return program
+    return Program(jax.jit(exported.call), origin, key)
 
 
 def _write_atomically(path: Path, payload: bytes | bytearray) -> None:
