@@ -42,9 +42,10 @@ def _profile(delta_pos, rotvec, t_end=8.0):
 
 
 def _angle_from(quats, start):
-    """Rotation angles (rad) from ``start`` (4,) to each of ``quats`` (N, 4), in float64:
-    float32 arccos-based angles are quantized near zero (steps of 3e-4 rad read as 0.15 rad/s
-    speed jumps over one 2 ms step)."""
+    """Rotation angles (rad) from ``start`` (4,) to each of ``quats`` (N, 4), in float64 from the
+    relative rotation's vector part: arccos of the dot product is ill-conditioned near zero, so
+    the quaternions' float32 rounding showed as 3e-4 rad steps (0.15 rad/s over one 2 ms step);
+    ``quat_angle`` (mjxskill.sim.rotations, mjxskill.native.motion) is such an arccos."""
     q, s = np.asarray(quats, np.float64), np.asarray(start, np.float64)
     w = q @ s
     # vector part of conj(start) * q

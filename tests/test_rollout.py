@@ -13,7 +13,7 @@ import pytest
 
 import mjxskill  # noqa: F401
 from mjxskill import compile_rollout, load_scenario
-from mjxskill.rollout import Worlds
+from rollout_inputs import params_of, placed_worlds
 
 B, W = 3, 2
 SPIRAL = {"PegInsertion.force": -5.0, "PegInsertion.radius": 0.012, "PegInsertion.path_velocity": 0.03, "PegInsertion.pitch": 0.002}
@@ -25,27 +25,10 @@ def peg():
     return scn, compile_rollout(scn, worlds=W, episode_seconds=10.0)
 
 
-def params_of(scn, *rows) -> np.ndarray:
-    out = np.tile(scn.parameter_defaults, (len(rows), 1))
-    for i, row in enumerate(rows):
-        for name, value in row.items():
-            out[i, scn.parameter_names.index(name)] = value
-    return out
-
-
-def box_worlds(rollout, offsets) -> Worlds:
+def box_worlds(rollout, offsets):
     """Worlds from start configuration 0 with the box moved by the given x-y offsets (W,) and no
     other randomization."""
-    slot = rollout.spec.bindings.slot_of["BoxWithHole-1"]
-    base = jax.tree.map(lambda x: x[0], rollout.worlds_per_config(jax.random.key(0), 1))
-    pos = np.asarray(base.object_pos, np.float32).copy()
-    pos[slot] = rollout.spec.bindings.slots[slot].position
-    worlds = []
-    for dx, dy in offsets:
-        p = pos.copy()
-        p[slot, :2] += (dx, dy)
-        worlds.append(base._replace(object_pos=jnp.asarray(p)))
-    return jax.tree.map(lambda *xs: jnp.stack(xs), *worlds)
+    return placed_worlds(rollout, [(0, {"BoxWithHole-1": offset}, None) for offset in offsets])
 
 
 def test_output_shapes_and_names(peg):

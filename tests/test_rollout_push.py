@@ -12,33 +12,20 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjxskill.rollout import Worlds
+from rollout_inputs import params_of, placed_worlds
 
 HAND_FOUND = {"Push.offset_x_start": -0.05, "Push.offset_y_start": -0.15, "Push.offset_x_goal": 0.07, "Push.offset_y_goal": -0.10}
 
 
-def params_of(scn, *rows) -> np.ndarray:
-    out = np.tile(scn.parameter_defaults, (len(rows), 1)).astype(np.float32)
-    for i, row in enumerate(rows):
-        for name, value in row.items():
-            out[i, scn.parameter_names.index(name)] = value
-    return out
-
-
-def extreme_worlds(scn, rollout, cases) -> Worlds:
-    """Worlds (W,) from (start configuration, object offset, goal offset, friction) cases."""
+def extreme_worlds(scn, rollout, cases):
+    """Worlds (W,) from (start configuration, object sign, goal sign, friction) cases: the object
+    and goal offsets at sign * sigma (the randomization's clip)."""
     sigma = scn.randomization.xy_sigma
-    slot_of = rollout.spec.bindings.slot_of
-    worlds = []
-    for config, obj_sign, goal_sign, friction in cases:
-        base = jax.tree.map(lambda x: x[config], rollout.worlds_per_config(jax.random.key(0), 1))
-        pos = np.asarray(base.object_pos, np.float32).copy()
-        for name, sign in (("ObjectToBePushed-1", obj_sign), ("ObjectGoalPose-1", goal_sign)):
-            slot = slot_of[name]
-            pos[slot] = rollout.spec.bindings.slots[slot].position
-            pos[slot, :2] += np.asarray(sign, np.float32) * sigma[name]
-        worlds.append(base._replace(object_pos=jnp.asarray(pos), friction=jnp.float32(friction)))
-    return jax.tree.map(lambda *xs: jnp.stack(xs), *worlds)
+    return placed_worlds(rollout, [
+        (config, {"ObjectToBePushed-1": np.multiply(obj_sign, sigma["ObjectToBePushed-1"]),
+                  "ObjectGoalPose-1": np.multiply(goal_sign, sigma["ObjectGoalPose-1"])}, friction)
+        for config, obj_sign, goal_sign, friction in cases
+    ])
 
 
 def test_planner_offsets_fail_and_a_straight_push_into_the_corner_succeeds(push_rollout):

@@ -114,9 +114,7 @@ class Rollout:
         """Rolls out (B, P) ``params`` in W worlds each, drawn from ``key``."""
         params = self.check_params(params)
         # Sampling is a separate small program, so a call and ``run_worlds`` share one compile.
-        params = jnp.asarray(params)
-        worlds = self.sample_worlds(key, len(params))
-        return self.program(params, worlds).fn(params, worlds)
+        return self._run(params, self.sample_worlds(key, len(params)))
 
     def run_worlds(self, params, worlds: Worlds) -> RolloutOutput:
         """Rolls out (B, P) ``params`` in explicit ``worlds`` of leading shape (B, W') or (W',)
@@ -127,6 +125,9 @@ class Rollout:
             worlds = jax.tree.map(lambda x: jnp.broadcast_to(x, (len(params),) + x.shape), worlds)
         elif len(lead) != 2 or lead[0] != len(params):
             raise ValueError(f"worlds must have leading shape (W,) or ({len(params)}, W), got {lead}")
+        return self._run(params, worlds)
+
+    def _run(self, params: np.ndarray, worlds: Worlds) -> RolloutOutput:
         params = jnp.asarray(params)
         return self.program(params, worlds).fn(params, worlds)
 

@@ -1,0 +1,37 @@
+"""Inputs for the compiled-rollout tests: parameter rows by name and hand-placed worlds."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from mjxskill.rollout import Worlds
+from mjxskill.rollout.bindings import nominal_poses
+
+
+def params_of(scn, *rows) -> np.ndarray:
+    """(len(rows), P) float32: the skill defaults with each row's {parameter name: value} set."""
+    out = np.tile(scn.parameter_defaults, (len(rows), 1)).astype(np.float32)
+    for i, row in enumerate(rows):
+        for name, value in row.items():
+            out[i, scn.parameter_names.index(name)] = value
+    return out
+
+
+def placed_worlds(rollout, cases) -> Worlds:
+    """Worlds (W,) from cases (start configuration, {object: (dx, dy) m from its nominal pose},
+    friction or None to keep the sampled one); objects not named stay at their nominal poses."""
+    bindings = rollout.spec.bindings
+    nominal = nominal_poses(bindings)[0]
+    worlds = []
+    for config, offsets, friction in cases:
+        base = jax.tree.map(lambda x: x[config], rollout.worlds_per_config(jax.random.key(0), 1))
+        pos = nominal.copy()
+        for name, offset in offsets.items():
+            pos[bindings.slot_of[name], :2] += np.asarray(offset, np.float32)
+        world = base._replace(object_pos=jnp.asarray(pos))
+        if friction is not None:
+            world = world._replace(friction=jnp.float32(friction))
+        worlds.append(world)
+    return jax.tree.map(lambda *xs: jnp.stack(xs), *worlds)
