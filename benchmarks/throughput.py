@@ -74,26 +74,21 @@ def _setup(seconds: float, batch_sets: int, options: dict | None = None):
     """(rollout, params (batch_sets, P), worlds (batch_sets, W)); prefixes are shared across
     batch sizes, so the first episodes are the same in every configuration. ``options`` override
     fields of the model's MjOption (a lever experiment; the native baseline takes the same)."""
-    import dataclasses
-
     import jax
     import numpy as np
-    from mujoco import mjx
 
     from mjxskill import compile_rollout, load_scenario
-    from mjxskill.rollout.compiled import load_model
+    from mjxskill.sim.model import load_model
 
     scn = load_scenario(SCENARIO)
-    rollout = compile_rollout(scn, worlds=WORLDS, episode_seconds=seconds)
-    if options:
-        model = load_model(scn)
-        for name, value in options.items():
-            setattr(model.opt, name, value)
-        rollout = dataclasses.replace(rollout, model=mjx.put_model(model))
+    model = load_model(scn)
+    for name, value in (options or {}).items():
+        setattr(model.opt, name, value)
+    rollout = compile_rollout(scn, worlds=WORLDS, episode_seconds=seconds, mj_model=model)
     rng = np.random.default_rng(0)
-    lo, hi = scn.bounds  # (2, P)
+    lo, hi = rollout.bounds  # (2, P)
     params = rng.uniform(lo, hi, size=(batch_sets, len(lo))).astype(np.float32)
-    manual = list(scn.manual_parameters.values())  # (P,) each, in parameter_names order
+    manual = list(rollout.task.manual_parameters.values())  # (P,) each, in parameter_names order
     for i, values in enumerate(manual[:batch_sets]):  # operators' settings first: some succeed
         params[i] = values
     worlds = rollout.sample_worlds(jax.random.key(0), batch_sets)
@@ -112,8 +107,6 @@ def _worker(args) -> None:
     import jax.monitoring
     import numpy as np
 
-    from mjxskill.rollout.compiled import _run_worlds
-
     hits = []
     jax.monitoring.register_event_listener(
         lambda event, **kw: hits.append(event) if event == "/jax/compilation_cache/cache_hits" else None
@@ -131,7 +124,7 @@ def _worker(args) -> None:
         # their sum is what a first call pays.
         t0 = time.perf_counter()
         program = rollout.program(p, wd)
-        lowered = _run_worlds.lower(rollout, p, wd) if program.origin == "jit" else program.fn.lower(p, wd)
+        lowered = program.fn.lower(p, wd)
         lower_s = time.perf_counter() - t0
         compiled = lowered.compile()
         xla_compile_s = time.perf_counter() - t0 - lower_s
@@ -201,9 +194,8 @@ def _native(rollout, params, worlds, episodes: int, options: dict | None = None)
 
     from mjxskill.native import NativeRollout
 
-    native = NativeRollout(rollout)
-    for name, value in (options or {}).items():
-        setattr(native.model.opt, name, value)
+    native = NativeRollout(rollout.scenario, rollout.task, worlds=rollout.worlds,
+                           episode_seconds=rollout.episode_seconds, mj_model=rollout.mj_model)
     worlds = jax.tree.map(np.asarray, worlds)
     n_sets = -(-episodes // WORLDS)
     t0 = time.perf_counter()
@@ -228,9 +220,8 @@ def _native_bare(rollout, worlds, steps: int, options: dict | None = None) -> di
 
     from mjxskill.native import NativeRollout
 
-    native = NativeRollout(rollout)
-    for name, value in (options or {}).items():
-        setattr(native.model.opt, name, value)
+    native = NativeRollout(rollout.scenario, rollout.task, worlds=rollout.worlds,
+                           episode_seconds=rollout.episode_seconds, mj_model=rollout.mj_model)
     world = __import__("jax").tree.map(lambda x: np.asarray(x)[0, 0], worlds)
     model = native.model
     data = native._initial_data(world)

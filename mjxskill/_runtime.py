@@ -9,7 +9,8 @@ anything imports jax.
 
 Compiling MJX code costs tens of seconds on a 2-core CPU, so the persistent compilation
 cache is on by default (``MJXSKILL_CACHE_DIR`` moves it, ``MJXSKILL_CACHE_DIR=off`` turns it
-off).
+off). It is switched on where compiling starts (``compile_rollout``) and by the commands
+(``mjxskill.cli.run``), not by importing the package, which creates no directory.
 """
 
 from __future__ import annotations
@@ -69,11 +70,12 @@ def default_cache_dir() -> Path | None:
 
 
 def enable_compilation_cache(path: Path | None = None) -> Path | None:
-    """Turns on JAX's persistent compilation cache (called at import of the package).
+    """Turns on JAX's persistent compilation cache (idempotent; called by ``compile_rollout``
+    and the commands).
 
     Done through JAX's own environment variables when jax is not imported yet, so that
-    importing mjxskill stays cheap for commands that never touch JAX (``mjxskill.plan``), and
-    a user's own ``JAX_COMPILATION_CACHE_DIR`` wins.
+    commands that never touch JAX (``mjxskill.plan``) stay cheap, and a user's own
+    ``JAX_COMPILATION_CACHE_DIR`` wins.
     """
     path = default_cache_dir() if path is None else path
     if path is None:
@@ -93,6 +95,13 @@ def enable_compilation_cache(path: Path | None = None) -> Path | None:
     if "jax" in sys.modules:  # jax read its environment already: tell it directly
         import jax
 
-        for name, (_, parse) in settings.items():
-            jax.config.update(name.lower(), parse(os.environ[name]))
+        if jax.config.jax_compilation_cache_dir != os.environ["JAX_COMPILATION_CACHE_DIR"]:
+            for name, (_, parse) in settings.items():
+                jax.config.update(name.lower(), parse(os.environ[name]))
+            try:  # a compile before this point decided "no cache" once and for all: decide again
+                from jax._src import compilation_cache
+
+                compilation_cache.reset_cache()
+            except (ImportError, AttributeError):  # private API moved: the cache may stay off
+                pass
     return Path(os.environ["JAX_COMPILATION_CACHE_DIR"])

@@ -17,7 +17,7 @@ from mujoco import mjx
 from mjxskill.sim import load_scene
 from mjxskill.sim.controller import (
     COMMAND_SIZE, ControllerConfig, ControllerState, impedance_control, make_command, split_command)
-from mjxskill.sim.native_controller import NativeControllerState, native_impedance_control
+from mjxskill.native.controller import NativeControllerState, native_impedance_control
 from mjxskill.sim.rotations import quat_conj, quat_mul, quat_to_rotvec, rotvec_to_quat
 
 N_STATES = 100

@@ -14,7 +14,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjxskill import compile_rollout, load_scenario
-from mjxskill.rollout.compiled import load_model
 from mjxskill.rollout.program_cache import program_key
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -22,9 +21,10 @@ ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = """
 import json, sys, mjxskill, jax, numpy as np
 from mjxskill import compile_rollout, load_scenario
+from mjxskill.task import plan_task
 scn = load_scenario("peg")
 r = compile_rollout(scn, worlds=2, episode_seconds=0.3)
-params = np.tile(scn.parameter_defaults, (2, 1)).astype(np.float32)
+params = np.tile(plan_task(scn).defaults, (2, 1)).astype(np.float32)
 params[1, 0] = -8.0
 worlds = r.sample_worlds(jax.random.key(0), 2)
 out = r.run_worlds(params, worlds)
@@ -59,9 +59,9 @@ def test_a_second_process_reads_the_program_and_a_damaged_one_is_traced_again(tm
 
 def _key(scn, seconds=0.3, batch=2, worlds=2):
     r = compile_rollout(scn, worlds=worlds, episode_seconds=seconds)
-    params = jnp.zeros((batch, len(scn.parameter_names)), jnp.float32)
+    params = jnp.zeros((batch, len(r.parameter_names)), jnp.float32)
     w = r.sample_worlds(jax.random.key(0), batch)
-    return program_key(r, load_model(scn), (params, w))
+    return program_key(r.identity(), r.mj_model, (params, w))
 
 
 def test_the_key_names_everything_the_program_depends_on():

@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mjxskill.cli import CommandError
-from mjxskill.run_dir import (
+from mjxskill.errors import RunError
+from mjxskill.training.run_dir import (
     EVALUATIONS,
     Evaluations,
     Run,
@@ -84,7 +84,7 @@ def test_csv_round_trips_float64_exactly(tmp_path_factory, values):
     v = np.array(values, np.float64)
     ev = Evaluations(np.arange(len(v)), v[:, :2], v[:, 2:4], v[:, 4], v[:, 5])
     cols = evaluation_columns(("a", "b"), ("o1", "o2"))
-    from mjxskill.run_dir import write_csv
+    from mjxskill.training.run_dir import write_csv
 
     write_csv(path, cols, ev)
     back = read_csv(path, cols)
@@ -129,7 +129,7 @@ def test_config_round_trips_and_identifies_the_run(tmp_path):
 
 def test_refuses_to_overwrite_a_run(tmp_path):
     make_run(tmp_path)
-    with pytest.raises(CommandError, match="already holds a run; continue it with --resume"):
+    with pytest.raises(RunError, match="already holds a run; continue it with --resume"):
         make_run(tmp_path)
 
 
@@ -140,20 +140,20 @@ def test_refuses_to_overwrite_a_run(tmp_path):
 )
 def test_bad_config_files_name_the_file(tmp_path, text, message):
     (tmp_path / "config.yaml").write_text(text)
-    with pytest.raises(CommandError, match=message) as err:
+    with pytest.raises(RunError, match=message) as err:
         Run(tmp_path).config()
     assert "config.yaml" in str(err.value)
 
 
 def test_not_a_run_directory(tmp_path):
-    with pytest.raises(CommandError, match="is not a run directory"):
+    with pytest.raises(RunError, match="is not a run directory"):
         Run(tmp_path).config()
 
 
 def test_csv_with_other_columns_is_refused(tmp_path):
     path = tmp_path / "e.csv"
     path.write_text("iteration,x\n0,1\n")
-    with pytest.raises(CommandError, match="does not have the columns"):
+    with pytest.raises(RunError, match="does not have the columns"):
         read_csv(path, evaluation_columns(("a",), ("o",)))
 
 

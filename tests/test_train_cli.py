@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 import yaml
 
-from mjxskill.run_dir import EVALUATIONS, PARETO, Run, read_csv
+from mjxskill.training.run_dir import EVALUATIONS, PARETO, Run
+from mjxskill.task import plan_task
 
 # Tiny episodes and a cheap acquisition search: the commands' behaviour, not the physics or the GP.
 QUICK_GP = ["n_raw=64", "n_restarts=2", "n_opt_steps=10", "fit_starts=1", "fit_steps=10"]
@@ -47,7 +48,7 @@ def test_train_prints_the_pipeline_and_writes_the_run_directory(repeated_run):
     from mjxskill import load_scenario
 
     scn = load_scenario("push")
-    for name, lo, hi, unit in zip(scn.parameter_names, *scn.bounds, scn.parameter_units):
+    for name, lo, hi, unit in zip(plan_task(scn).parameter_names, *plan_task(scn).bounds, plan_task(scn).parameter_units):
         line = next(line for line in stdout.splitlines() if line.strip().startswith(name + " "))
         assert f"[{lo:g}, {hi:g}] {unit}" in line
     assert (out / "pareto_runs.png").is_file()

@@ -5,14 +5,10 @@ import numpy as np
 import pytest
 
 from mjxskill.gp import hypervolume
-from mjxskill.run_dir import EVALUATIONS, OPTIMIZER_STATE, PARETO, Run, read_csv
-from mjxskill.train import (
-    BatchResult,
-    Progress,
-    hypervolume_history,
-    hypervolume_reference,
-    train,
-)
+from mjxskill.training.run_dir import EVALUATIONS, OPTIMIZER_STATE, PARETO, Run, read_csv
+from mjxskill.cli.train import Progress
+from mjxskill.training.front import hypervolume_history, hypervolume_reference
+from mjxskill.training.loop import BatchResult, train
 from test_run_dir import make_config
 
 # A cheap acquisition search: these tests pin the loop's bookkeeping, not the GP's quality.

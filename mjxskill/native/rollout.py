@@ -4,12 +4,13 @@ project would write them, in a plain single-process Python loop.
 Per BT tick: every leaf's status in Python (``mjxskill.native.leaves``), one tick of the
 reference interpreter (``mjxskill.ebt.interpreter.Interpreter``), the active leaves' effects,
 then ``steps_per_tick`` control steps of ``native_impedance_control`` + ``mujoco.mj_step``, then
-the tick's rewards in numpy. Same MJCF model and timestep, same worlds (``Worlds`` from the
-compiled rollout's sampler), same world-model poses for the skills, same divergence containment;
-float64 throughout where MJX runs float32.
+the tick's rewards in numpy. Same MJCF model and timestep, same worlds (``mjxskill.rollout.worlds``),
+same world-model poses for the skills, same divergence containment (``mjxskill.rollout.types``);
+float64 throughout where MJX runs float32. Nothing of the compiled rollout or of MJX is imported:
+this engine is the independent reference the compiled one is tested against.
 
-    native = NativeRollout(rollout)                       # rollout = compile_rollout(...)
-    out = native.run_worlds(params, rollout.sample_worlds(key, len(params)))
+    native = NativeRollout(scn, task, worlds=7)           # as compile_rollout(scn, task, worlds=7)
+    out = native.run_worlds(params, native.sample_worlds(key, len(params)))
     out.objectives, out.success, out.metrics              # as RolloutOutput, numpy arrays
 """
 
@@ -17,7 +18,6 @@ from __future__ import annotations
 
 import copy
 import math
-from typing import NamedTuple
 
 import jax
 import mujoco
@@ -25,16 +25,23 @@ import numpy as np
 
 from mjxskill.ebt.interpreter import Interpreter, TickResult
 from mjxskill.ebt.nodes import Status
+from mjxskill.native.controller import NativeControllerState, native_impedance_control
 from mjxskill.native.leaves import NativeBlackboard, build_native_leaves
 from mjxskill.native.motion import quat_angle
 from mjxskill.native.rewards import NativeObservation, build_native_terms
 from mjxskill.rollout.bindings import FREE, MOCAP, nominal_poses
-from mjxskill.rollout.compiled import Rollout, RolloutOutput, load_model, summarize
-from mjxskill.rollout.episode import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, TickRecord
-from mjxskill.rollout.worlds import Worlds
-from mjxskill.sim.controller import N_ARM
-from mjxskill.sim.native_controller import NativeControllerState, native_impedance_control
-
+from mjxskill.rollout.types import (
+    MAX_QVEL,
+    MIN_OBJECT_Z,
+    EpisodeResult,
+    RolloutOutput,
+    TickRecord,
+    episode_setup,
+    objective_matrix,
+    summarize,
+)
+from mjxskill.rollout.worlds import Worlds, make_sampler, sample_worlds, worlds_per_config
+from mjxskill.sim.controller_config import N_ARM
 
 def _live_nodes(interp: Interpreter, result: TickResult) -> set[int]:
     """Nodes that carry on at the next tick: ticked, and they and all ancestors RUNNING."""
@@ -48,28 +55,54 @@ def _live_nodes(interp: Interpreter, result: TickResult) -> set[int]:
 
 
 class NativeRollout:
-    """The episodes of ``rollout`` (a compiled :class:`~mjxskill.rollout.Rollout`) in native
-    MuJoCo; reads only its host-side settings (nothing is compiled)."""
+    """The episodes of ``task`` in ``scn`` on native MuJoCo (arguments as ``compile_rollout``;
+    nothing is compiled)."""
 
-    def __init__(self, rollout: Rollout):
-        scn, spec = rollout.scenario, rollout.spec
-        self.spec = spec
-        self.worlds = rollout.worlds
-        self.model = load_model(scn)
+    def __init__(self, scn, task=None, *, worlds: int | None = None, episode_seconds: float | None = None,
+                 start_configs: np.ndarray | None = None, mj_model: mujoco.MjModel | None = None):
+        if task is None:
+            from mjxskill.task import plan_task
+
+            task = plan_task(scn)
+        if mj_model is None:
+            from mjxskill.sim.model import load_model
+
+            mj_model = load_model(scn)
+        seconds = scn.episode_seconds if episode_seconds is None else float(episode_seconds)
+        self.scenario, self.task = scn, task
+        self.spec = episode_setup(scn, task, mj_model, seconds)
+        self.worlds = scn.randomization.n_worlds if worlds is None else int(worlds)
+        self.sampler = make_sampler(scn, self.spec.bindings, start_configs)
+        sampler, n_worlds = self.sampler, self.worlds
+        # The compiled rollout's sampling program, written the same way: the same worlds, bit for bit.
+        self._sample = jax.jit(lambda key, batch: sample_worlds(sampler, key, (batch, n_worlds)), static_argnums=1)
+        self.model = mj_model
         self.base_pair_friction = self.model.pair_friction.copy()
-        self.tree = scn.task.tree
+        self.tree = task.tree
         self.interp = Interpreter(self.tree)
         self.leaf_ids = [i for i, n in enumerate(self.interp.nodes) if n.is_leaf]
         self.leaf_position = {nid: k for k, nid in enumerate(self.leaf_ids)}
-        nominal_pos, nominal_quat = nominal_poses(spec.bindings)
+        nominal_pos, nominal_quat = nominal_poses(self.spec.bindings)
         self.programs = build_native_leaves(
-            self.tree.leaves(), scn.parameter_names, spec.bindings.slot_of, nominal_pos, nominal_quat, 1.0 / scn.bt_hz
+            self.tree.leaves(), task.parameter_names, self.spec.bindings.slot_of, nominal_pos, nominal_quat, 1.0 / scn.bt_hz
         )
-        self.terms = build_native_terms(scn, spec.bindings.slot_of)
-        self.objective_matrix = np.zeros((len(self.terms), len(scn.objective_names)))
-        for r, t in enumerate(self.terms):
-            self.objective_matrix[r, t.objective] = t.weight
+        self.terms = build_native_terms(scn, self.spec.bindings.slot_of)
+        self.objective_matrix = objective_matrix(self.terms, len(scn.objective_names), np.float64)
         self.reward_names = tuple(t.name for t in self.terms)
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return self.task.parameter_names
+
+    def sample_worlds(self, key, batch: int) -> Worlds:
+        """The (batch, W) worlds for ``batch`` parameter sets drawn from ``key``: the same as
+        the compiled rollout's for the same key, settings and worlds (one shared sampler)."""
+        return jax.tree.map(np.asarray, self._sample(key, batch))
+
+    def worlds_per_config(self, key, per_config: int, configs: np.ndarray | None = None) -> Worlds:
+        """``per_config`` worlds from each start configuration (as ``Rollout.worlds_per_config``)."""
+        sampler = self.sampler if configs is None else self.sampler._replace(configs=np.asarray(configs, np.float32))
+        return jax.tree.map(np.asarray, worlds_per_config(sampler, key, per_config))
 
     @property
     def control_steps_per_episode(self) -> int:

@@ -24,7 +24,7 @@ import os
 import tempfile
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, NamedTuple
+from typing import Callable, NamedTuple
 
 import jax
 import jax.export
@@ -32,10 +32,8 @@ import mujoco
 import numpy as np
 
 from mjxskill._runtime import default_cache_dir
+from mjxskill.rollout.types import RolloutOutput
 from mjxskill.rollout.worlds import Worlds
-
-if TYPE_CHECKING:  # pragma: no cover
-    from mjxskill.rollout.compiled import Rollout
 
 FORMAT = "mjxskill-rollout-program-v1"
 PACKAGE_ROOT = Path(__file__).resolve().parents[1]
@@ -82,16 +80,16 @@ def _model_bytes(model: mujoco.MjModel) -> bytes:
     return buffer.tobytes()
 
 
-def program_key(r: "Rollout", mj_model: mujoco.MjModel, args) -> str:
-    """Hex digest naming the program of rollout ``r`` for the argument shapes ``args``."""
+def program_key(identity: str, mj_model: mujoco.MjModel, args) -> str:
+    """Hex digest naming the program of a rollout for the argument shapes ``args``. identity:
+    what else shapes the program (``Rollout.identity``: scenario, plan, episode settings)."""
     h = hashlib.sha256()
     shapes = [(str(getattr(x, "dtype", type(x))), tuple(np.shape(x))) for x in jax.tree.leaves(args)]
     device = jax.devices()[0]
     parts = (
         FORMAT,
         package_digest(),
-        repr(r.scenario),
-        repr((r.spec.ticks, r.spec.steps_per_tick, r.strategy, r.chunk)),
+        identity,
         repr(shapes),
         repr(jax.tree.structure(args)),
         jax.__version__,
@@ -113,8 +111,6 @@ def program_key(r: "Rollout", mj_model: mujoco.MjModel, args) -> str:
 @lru_cache(maxsize=1)
 def _register_pytrees() -> None:
     # Exported programs record their argument and result trees; NamedTuples need a stable name.
-    from mjxskill.rollout.compiled import RolloutOutput
-
     for cls, name in ((Worlds, "mjxskill.rollout.Worlds"), (RolloutOutput, "mjxskill.rollout.RolloutOutput")):
         try:
             jax.export.register_namedtuple_serialization(cls, serialized_name=name)
@@ -122,12 +118,12 @@ def _register_pytrees() -> None:
             pass
 
 
-def load_or_trace(r: "Rollout", mj_model: mujoco.MjModel, body: Callable, params, worlds: Worlds) -> Program:
+def load_or_trace(identity: str, mj_model: mujoco.MjModel, body: Callable, params, worlds: Worlds) -> Program:
     """The program ``body(params, worlds)`` for these argument shapes: read from disk, or traced
     now (and stored). The rollout keeps what it gets, so this runs once per rollout and shape."""
     _register_pytrees()
     args = (params, worlds)
-    key = program_key(r, mj_model, args)
+    key = program_key(identity, mj_model, args)
     directory = programs_dir()
     path = None if directory is None else directory / f"{key}.stablehlo"
     exported, origin = None, "traced"

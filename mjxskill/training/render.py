@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjxskill.cli import CommandError
+from mjxskill.errors import UserError
 
 GL_HELP = (
     "MuJoCo's offscreen renderer found no OpenGL backend (MUJOCO_GL={gl!r}: {err}). "
@@ -26,7 +26,7 @@ GL_HELP = (
 )
 
 
-class RenderUnavailable(CommandError):
+class RenderUnavailable(UserError):
     """No OpenGL backend (or no video encoder) for rendering."""
 
 
@@ -113,11 +113,9 @@ def write_mp4(images: np.ndarray, path: Path, fps: float) -> Path:
 def render_episode(rollout, params: np.ndarray, world, out: Path, fmt: str = "png", width: int = 640, height: int = 480) -> list[Path]:
     """Traces ``params`` (P,) in ``world`` (one unbatched world) and writes PNG frames into
     ``out/`` or ``out.mp4``. Returns the written paths."""
-    from mjxskill.rollout import load_model
-
     _, record = rollout.trace(params, world)
     qpos = np.asarray(record.qpos)
-    images = frames(load_model(rollout.scenario), qpos, width, height)
+    images = frames(rollout.mj_model, qpos, width, height)
     if fmt == "mp4":
         return [write_mp4(images, out.with_suffix(".mp4"), fps=rollout.scenario.bt_hz)]
     return write_png_frames(images, out)

@@ -29,7 +29,7 @@ from typing import Iterator, NamedTuple
 import numpy as np
 import yaml
 
-from mjxskill.cli import CommandError
+from mjxskill.errors import RunError
 
 CONFIG = "config.yaml"
 SCENARIO_COPY = "scenario.yaml"
@@ -80,9 +80,9 @@ class RunConfig:
         try:
             data = yaml.safe_load(text)
         except yaml.YAMLError as err:
-            raise CommandError(f"{where} is not valid YAML: {err}") from None
+            raise RunError(f"{where} is not valid YAML: {err}") from None
         if not isinstance(data, dict) or data.get("format") != FORMAT:
-            raise CommandError(f"{where} is not an mjxskill run configuration (format {FORMAT!r} expected)")
+            raise RunError(f"{where} is not an mjxskill run configuration (format {FORMAT!r} expected)")
         data = dict(data)
         data.pop("format")
         try:
@@ -104,7 +104,7 @@ class RunConfig:
                 optimizer_options=dict(data.get("optimizer_options") or {}),
             )
         except (KeyError, TypeError, ValueError, IndexError) as err:
-            raise CommandError(f"{where} is missing or has a bad field: {err}") from None
+            raise RunError(f"{where} is missing or has a bad field: {err}") from None
 
     def columns(self) -> list[str]:
         """Header of evaluations.csv and pareto.csv."""
@@ -200,7 +200,7 @@ def read_csv(path: Path, columns: list[str]) -> Evaluations:
         lines = lines[:-1]  # the last line was cut short
     rows = list(csv.reader([line for line in lines if line]))
     if not rows or rows[0] != columns:
-        raise CommandError(
+        raise RunError(
             f"{path} does not have the columns this task expects: got {rows[0] if rows else 'nothing'}, "
             f"expected {columns}"
         )
@@ -210,7 +210,7 @@ def read_csv(path: Path, columns: list[str]) -> Evaluations:
     try:
         data = np.array([[float(v) for v in row] for row in body], np.float64)
     except ValueError as err:
-        raise CommandError(f"{path} holds a value that is not a number: {err}") from None
+        raise RunError(f"{path} holds a value that is not a number: {err}") from None
     data = data.reshape(-1, len(columns))
     return Evaluations(data[:, 0].astype(int), data[:, 1 : 1 + p], data[:, 1 + p : 1 + p + o], data[:, 1 + p + o], data[:, 2 + p + o])
 
@@ -226,7 +226,7 @@ class Run:
         """Writes config.yaml, the scenario copy, the planning artefacts ``texts`` (file name ->
         text) and the header of evaluations.csv. Refuses a directory that already holds a run."""
         if (self.path / CONFIG).exists():
-            raise CommandError(f"{self.path} already holds a run; continue it with --resume {self.path}")
+            raise RunError(f"{self.path} already holds a run; continue it with --resume {self.path}")
         try:
             self.path.mkdir(parents=True, exist_ok=True)
             (self.path / SCENARIO_COPY).write_text(Path(scenario_source).read_text())
@@ -237,12 +237,12 @@ class Run:
             # config.yaml last: its presence marks a complete run directory.
             (self.path / CONFIG).write_text(config.to_yaml())
         except OSError as err:
-            raise CommandError(f"cannot write the run directory {str(self.path)!r}: {err.strerror}") from None
+            raise RunError(f"cannot write the run directory {str(self.path)!r}: {err.strerror}") from None
 
     def config(self) -> RunConfig:
         path = self.path / CONFIG
         if not path.is_file():
-            raise CommandError(f"{self.path} is not a run directory (no {CONFIG})")
+            raise RunError(f"{self.path} is not a run directory (no {CONFIG})")
         return RunConfig.from_yaml(path.read_text(), str(path))
 
     # -- evaluations ---------------------------------------------------------------------------
@@ -277,7 +277,7 @@ class Run:
         config = self.config() if config is None else config
         path = self.path / PARETO
         if not path.is_file():
-            raise CommandError(f"{self.path} has no {PARETO} yet (train it first)")
+            raise RunError(f"{self.path} has no {PARETO} yet (train it first)")
         return read_csv(path, config.columns())
 
     # -- small state ---------------------------------------------------------------------------

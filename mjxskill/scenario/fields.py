@@ -12,11 +12,9 @@ from pathlib import Path
 
 import yaml
 
+from mjxskill.errors import ScenarioError
+
 _constructor = yaml.constructor.SafeConstructor()
-
-
-class ScenarioError(ValueError):
-    """An invalid scenario file; the message names the file, the key path and the line."""
 
 
 def compose_file(path: Path) -> "Field":

@@ -11,7 +11,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from mjxskill.sim.controller import N_ARM, ControllerConfig
+from mjxskill.sim.controller_config import N_ARM, ControllerConfig
 
 
 class NativeControllerState:

@@ -1,0 +1,52 @@
+"""The Pareto front of a run and its hypervolume.
+
+Hypervolume (progress bar, ``hypervolume.png``): computed in the optimizer's space, the negated
+objectives (minimized), with a reference point fixed once the warm-up is complete: per
+objective, the worst warm-up value plus 10 % of the warm-up range (1e-9 if the range is 0). It
+is stored in ``run_state.json`` and is a pure function of the warm-up rows, so a resumed run
+reports the same numbers.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mjxskill.training.run_dir import Evaluations, Run, RunConfig
+
+HV_MARGIN = 0.1  # reference point = worst warm-up value + this fraction of the warm-up range
+
+
+def hypervolume_reference(warmup_objectives: np.ndarray) -> np.ndarray:
+    """(O,) reference point in the minimized space (-objectives) from the (n_init, O) warm-up."""
+    z = -np.asarray(warmup_objectives, np.float64)
+    z = np.where(np.isfinite(z), z, np.nan)
+    worst, best = np.nanmax(z, axis=0), np.nanmin(z, axis=0)
+    span = np.where(worst > best, worst - best, 1e-9)
+    return worst + HV_MARGIN * span
+
+
+def hypervolume_history(ev: Evaluations, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Hypervolume after each batch: (evaluations done (k,), hypervolume (k,))."""
+    from mjxskill.gp import hypervolume
+
+    ends = np.flatnonzero(np.diff(np.append(ev.iteration, -1)) != 0) + 1
+    return ends, np.array([hypervolume(-ev.objectives[:e], ref) for e in ends])
+
+
+def reference_from(run: Run, config: RunConfig, ev: Evaluations) -> np.ndarray | None:
+    """The stored reference point, or the one the warm-up defines (written once known)."""
+    state = run.run_state()
+    if "hv_reference" in state:
+        return np.asarray(state["hv_reference"], np.float64)
+    if len(ev) < min(config.n_init, config.budget):
+        return None
+    ref = hypervolume_reference(ev.objectives[: config.n_init])
+    run.write_run_state({**state, "hv_reference": ref.tolist(), "hv_space": "negated objectives (minimized)"})
+    return ref
+
+
+def pareto_mask_of(ev: Evaluations) -> np.ndarray:
+    """(n,) bool: the non-dominated rows (objectives maximized)."""
+    from mjxskill.gp import pareto_mask
+
+    return pareto_mask(-ev.objectives) if len(ev) else np.zeros(0, bool)
