@@ -96,6 +96,22 @@ def test_killed_run_resumes_to_the_same_results(repeated_run, tmp_path):
     assert (cut / PARETO).read_text() == (reference / PARETO).read_text()
 
 
+def test_the_engine_is_a_run_setting(repeated_run, tmp_path):
+    out, stdout = repeated_run
+    assert "engine: native (auto: the native engine on the CPU" in stdout  # what auto picks here
+    assert yaml.safe_load((out / "seed-1" / "config.yaml").read_text())["engine"] == "native"
+    mjx = tmp_path / "mjx"
+    done = run_cli("train", "push", *TINY, "--budget", "3", "--seed", "1", "--engine", "mjx", "--out", mjx)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "engine: mjx (as asked)" in done.stdout
+    assert yaml.safe_load((mjx / "config.yaml").read_text())["engine"] == "mjx"
+    # the same worlds and parameters on the other engine: the warm-up rows agree on what is discrete
+    native, compiled = Run(out / "seed-1").evaluations(), Run(mjx).evaluations()
+    np.testing.assert_array_equal(native.params[:3], compiled.params[:3])
+    np.testing.assert_array_equal(native.success_rate[:3], compiled.success_rate[:3])
+    np.testing.assert_allclose(native.objectives[:3], compiled.objectives[:3], rtol=2e-3)
+
+
 def test_select_exports_the_picked_solution(repeated_run, tmp_path):
     out, _ = repeated_run
     sub = out / "seed-1"
@@ -132,6 +148,8 @@ BAD_INPUT = (
     (["train", "push", "--resume", "{tmp}"], "is not a run directory"),
     (["train", "peg", "--resume", "{run}"], "is a run of task 'push', not 'peg'"),
     (["train", "push", "--resume", "{run}", "--budget", "9"], "drop --budget 9 (the run has 6)"),
+    (["train", "push", "--resume", "{run}", "--engine", "mjx"], "on its own engine 'native'; drop --engine mjx"),
+    (["train", "push", "--engine", "warp"], "argument --engine: invalid choice: 'warp'"),
     (["train", "{broken}"], "bt_hz"),
     (["train", "push", "--goal", "(skiros:at skiros:Nothing-1 skiros:ObjectGoalPose-1)"], "unknown object 'nothing-1'"),
     (["evaluate", "{tmp}"], "is not a run directory"),

@@ -14,6 +14,7 @@ from typing import Sequence
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
+from mjxskill.engines import CHOICES, build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 
 
@@ -25,6 +26,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=cli_args.int_at_least(0), default=0, help="seed of the worlds and the random sets")
     parser.add_argument("--batch-size", type=cli_args.positive_int, help="candidates per compiled call (default: the run's batch size)")
     parser.add_argument("--episode-seconds", type=cli_args.positive_float, help="episode length (default: the run's)")
+    parser.add_argument("--engine", choices=CHOICES, help="physics engine (default: the run's; the other one checks "
+                        "how a solution transfers between engines)")
     return parser
 
 
@@ -44,9 +47,9 @@ def _main(args: argparse.Namespace) -> int:
     print(f"evaluating {len(candidates.names)} parameter sets x {n_cfg} start configurations x {args.per_config} worlds "
           f"({len(scn.robot.start_configs)} known, {len(scn.robot.eval_configs)} unseen)", flush=True)
 
-    from mjxskill.rollout import compile_rollout
-
-    rollout = compile_rollout(scn, task, worlds=1, episode_seconds=args.episode_seconds or config.episode_seconds)
+    engine, why = resolve_engine(args.engine) if args.engine else (config.engine, "the run's")
+    print(f"engine: {engine} ({why})", flush=True)
+    rollout = build_rollout(scn, task, engine, worlds=1, episode_seconds=args.episode_seconds or config.episode_seconds)
     ev = evaluate_candidates(rollout, candidates, args.per_config, args.seed, args.batch_size or config.batch_size)
     out = run.path / "evaluation"
     out.mkdir(exist_ok=True)

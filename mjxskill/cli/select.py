@@ -72,7 +72,7 @@ def _main(args: argparse.Namespace) -> int:
     if args.no_render:
         return 0
 
-    from mjxskill.rollout import compile_rollout
+    from mjxskill.engines import build_rollout
     from mjxskill.training.render import RenderUnavailable, render_episode
     from mjxskill.training.run_task import load_run_task
 
@@ -82,10 +82,10 @@ def _main(args: argparse.Namespace) -> int:
         raise CommandError(f"--config-index {args.config_index}: the task has known start configurations 0-{n_known - 1}")
     import jax
 
-    rollout = compile_rollout(scn, task, worlds=1, episode_seconds=config.episode_seconds)
+    rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
     worlds = rollout.worlds_per_config(jax.random.PRNGKey(args.seed), 1)
     world = jax.tree.map(lambda x: x[args.config_index], worlds)
-    print(f"rendering from start configuration {args.config_index} (compiles the episode trace once) ...", flush=True)
+    print(f"rendering from start configuration {args.config_index} ({config.engine} engine) ...", flush=True)
     try:
         paths = render_episode(rollout, front.params[k], world, folder / ("episode" if args.format == "mp4" else "frames"),
                                args.format, *args.size)

@@ -23,6 +23,7 @@ import numpy as np
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
+from mjxskill.engines import CHOICES, build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 from mjxskill.training.loop import optimizer_config, rollout_evaluator, train
 from mjxskill.training.run_dir import Evaluations, Run, RunConfig
@@ -85,6 +86,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, help="run directory (default runs/<task>-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue the run in RUN_DIR to its budget")
     parser.add_argument("--quiet", action="store_true", help="no progress bar: one log line per batch")
+    parser.add_argument("--engine", choices=CHOICES, default=None,
+                        help="physics engine: mjx (compiled MJX), native (native MuJoCo, one process per core) or auto "
+                             "(MJX on a GPU/TPU, native on a CPU; the default); stored with the run")
     parser.add_argument("--optimizer-option", action="append", type=optimizer_option, metavar="KEY=VALUE", default=None,
                         help="a further mjxskill.gp.MOBOConfig setting, e.g. n_raw=256 (repeatable; stored with the run)")
     return parser
@@ -117,8 +121,9 @@ SETTING_FLAGS = {"budget": "budget", "batch_size": "batch_size", "init": "n_init
                  "seed": "seed", "episode_seconds": "episode_seconds", "goal": "goal", "repeats": "repeats"}
 
 
-def resolve_config(args: argparse.Namespace, scn, task) -> RunConfig:
-    """The run configuration of a new run of ``task``: flags over the scenario's defaults."""
+def resolve_config(args: argparse.Namespace, scn, task, engine: str) -> RunConfig:
+    """The run configuration of a new run of ``task`` on ``engine``: flags over the scenario's
+    defaults."""
     opt = scn.optimizer
     config = RunConfig(
         task=scn.name,
@@ -137,6 +142,7 @@ def resolve_config(args: argparse.Namespace, scn, task) -> RunConfig:
         episode_seconds=float(args.episode_seconds if args.episode_seconds is not None else scn.episode_seconds),
         repeats=args.repeats or 1,
         optimizer_options=dict(args.optimizer_option or []),
+        engine=engine,
     )
     try:
         optimizer_config(config)
@@ -159,6 +165,8 @@ def _resumed_config(args: argparse.Namespace) -> RunConfig:
                  for flag, value in given.items() if value != getattr(config, SETTING_FLAGS[flag])]
     if conflicts:
         raise CommandError(f"--resume continues {args.resume} with its own settings; drop {', '.join(conflicts)}")
+    if args.engine not in (None, "auto", config.engine):
+        raise CommandError(f"--resume continues {args.resume} on its own engine {config.engine!r}; drop --engine {args.engine}")
     if args.out is not None and Path(args.out).resolve() != Path(args.resume).resolve():
         raise CommandError("--out and --resume name different directories; --resume writes into its own")
     return config
@@ -174,7 +182,8 @@ def _main(args: argparse.Namespace) -> int:
         scn, task = load_run_task(run, config, scenario=args.task)
     else:
         scn, task = scenario_and_task(args.task, args.goal)
-        config = resolve_config(args, scn, task)
+        engine, why = resolve_engine(args.engine or "auto")
+        config = resolve_config(args, scn, task, engine)
         out = args.out or Path("runs") / f"{scn.name}-{time.strftime('%Y%m%d-%H%M%S')}"
         run = Run(out)
         run.create(config, scn.source, planning_texts(task))
@@ -188,11 +197,13 @@ def _main(args: argparse.Namespace) -> int:
           f"{config.worlds} worlds, {config.episode_seconds:g} s episodes, seed {config.seed}"
           + (f", {config.repeats} repeats" if config.repeats > 1 else ""))
     print(f"run directory: {run.path}", flush=True)
+    if args.resume is not None:
+        why = "the run's own"
+    print(f"engine: {config.engine} ({why})", flush=True)
 
-    from mjxskill.rollout import compile_rollout
     from mjxskill.training import report
 
-    rollout = compile_rollout(scn, task, worlds=config.worlds, episode_seconds=config.episode_seconds)
+    rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds)
     started = time.monotonic()
     runs = run.sub_runs(config) if config.repeats > 1 else [run]
     try:
@@ -211,6 +222,8 @@ def _main(args: argparse.Namespace) -> int:
         print(f"\ninterrupted: every finished batch is in {run.path}; continue with "
               f"python -m mjxskill.train {args.task} --resume {run.path}", file=sys.stderr)
         return 130
+    finally:
+        getattr(rollout, "close", lambda: None)()  # the native engine's worker processes
     if config.repeats > 1:
         print(report.write_repeats(run, config, runs), flush=True)
     print(f"done in {time.monotonic() - started:.0f} s; results in {run.path}")

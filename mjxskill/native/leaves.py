@@ -54,6 +54,23 @@ class NativeBlackboard:
             pos = pos + r * (math.cos(th) * _E1 + math.sin(th) * _E2)
         return pos, quat
 
+    def references(self, n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The references of the next ``n`` control periods, positions (n, 3) and quaternions
+        (n, 4), and the blackboard advanced past them: what ``n`` rounds of ``reference()`` and
+        ``advance(dt)`` give, with the motion evaluated for all ``n`` times at once."""
+        times = np.cumsum(np.concatenate([[self.mg_time], np.full(n, dt)]))  # sequential sums, as += dt
+        pos, quat = self.motion.at_times(times[:-1])
+        self.mg_time = float(times[-1])
+        if self.spiral_on:
+            radius_max, velocity, pitch = self.spiral_params
+            offsets = np.empty((n, 3))
+            for k in range(n):
+                r, th = self.spiral_radius, self.spiral_theta
+                offsets[k] = r * (math.cos(th) * _E1 + math.sin(th) * _E2)
+                self.spiral_theta, self.spiral_radius = spiral_step(th, r, radius_max, velocity, pitch, dt)
+            pos = pos + offsets
+        return pos, quat
+
     def advance(self, dt: float) -> None:
         """One control period of the motion generator and the spiral."""
         self.mg_time += dt

@@ -45,6 +45,7 @@ class RunConfig:
     """What a run is: the task, its parameter space and objectives, and the training flags.
 
     task: scenario name ("push"); scenario: what ``load_scenario`` was given (a name or a path).
+    engine: the physics engine the run's batches are evaluated on (``mjxskill.engines``).
     bounds: ((lower...), (upper...)) in parameter order. optimizer_options: settings of the GP
     optimizer other than the defaults (``--optimizer-option``). repeats > 1: this directory holds one
     sub-run per seed (``seed-<s>/``) and no evaluations of its own.
@@ -65,6 +66,7 @@ class RunConfig:
     episode_seconds: float
     repeats: int = 1
     optimizer_options: dict = field(default_factory=dict)  # further mjxskill.gp.MOBOConfig fields
+    engine: str = "mjx"  # "mjx" or "native" (mjxskill.engines); runs from before the setting were MJX
 
     def to_yaml(self) -> str:
         data = {"format": FORMAT, **asdict(self)}
@@ -102,6 +104,7 @@ class RunConfig:
                 episode_seconds=float(data["episode_seconds"]),
                 repeats=int(data.get("repeats", 1)),
                 optimizer_options=dict(data.get("optimizer_options") or {}),
+                engine=_engine(data.get("engine", "mjx"), where),
             )
         except (KeyError, TypeError, ValueError, IndexError) as err:
             raise RunError(f"{where} is missing or has a bad field: {err}") from None
@@ -115,6 +118,14 @@ class RunConfig:
         from dataclasses import replace
 
         return replace(self, seed=seed, repeats=1)
+
+
+def _engine(value, where: str) -> str:
+    from mjxskill.engines import ENGINES
+
+    if value not in ENGINES:
+        raise RunError(f"{where}: engine {value!r} is not one of {', '.join(ENGINES)}")
+    return str(value)
 
 
 def evaluation_columns(parameter_names, objective_names) -> list[str]:
