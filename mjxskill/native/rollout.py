@@ -178,14 +178,31 @@ class NativeRollout:
     def _lockstep(self, params: np.ndarray, worlds: Worlds) -> list[EpisodeResult]:
         from mjxskill.native.lockstep import run_lockstep
 
-        workers = min(self.workers, len(params))
-        if workers <= 1:
+        if min(self.workers, len(params)) <= 1:
             return run_lockstep(self, params, worlds)
-        if self._pool is None:
+        return self.start_workers().run(params, worlds)
+
+    def start_workers(self):
+        """Starts the worker processes now (a call starts them when it first needs them: a few
+        seconds of imports each). Returns the pool."""
+        if self._pool is None and self.workers > 1:
             from mjxskill.native.pool import WorkerPool
 
             self._pool = WorkerPool(self, self.workers)
-        return self._pool.run(params, worlds)
+        return self._pool
+
+    def memory_per_episode(self) -> int:
+        """Bytes one episode holds while it runs: its model copy and its MjData (buffer and the
+        arena it used), measured on a short plain episode."""
+        from mjxskill.native.episode import NativeEpisode
+
+        world = jax.tree.map(lambda x: np.asarray(x)[0, 0], self.sample_worlds(jax.random.key(0), 1))
+        episode = NativeEpisode(self, self.task.defaults, world, self.model.__copy__())
+        for t in range(min(self.spec.ticks, 5)):
+            episode.begin_tick()
+            episode.plain_steps()
+            episode.end_tick(t)
+        return int(mujoco.mj_sizeModel(episode.model) + episode.data.nbuffer + episode.data.maxuse_arena)
 
     def close(self) -> None:
         """Stops the worker processes (they also stop when this process exits)."""
