@@ -114,3 +114,25 @@ def test_bad_params_are_refused_as_by_the_compiled_rollout(push):
     with pytest.raises(ValueError, match="finite"):
         engine(np.full((1, 4), np.nan), jax.random.key(0))
     json.dumps(engine.task.goal)  # plain data: what the worker recipe sends
+
+
+def test_a_diverging_world_is_contained_in_lockstep_as_in_the_loop():
+    # A NaN start posture diverges at the first tick; its companions in the same lockstep call
+    # are untouched and it is charged the worst rewards, as the plain loop and MJX do.
+    scn = load_scenario("peg")
+    task = plan_task(scn)
+    params = np.array([[-6.0, 0.01, 0.05, 0.002]] * 2)
+    engine = NativeRollout(scn, task, worlds=2, episode_seconds=0.5, workers=1)
+    worlds = engine.sample_worlds(jax.random.key(3), 2)
+    broken = worlds._replace(arm_qpos=worlds.arm_qpos.copy())
+    broken.arm_qpos[1, 0] = np.nan
+    plain, lockstep, clean = (engine.run_worlds(params, broken, plain=True), engine.run_worlds(params, broken),
+                              engine.run_worlds(params, worlds))
+    assert bool(lockstep.metrics["diverged"][1, 0]) and int(np.sum(lockstep.metrics["diverged"])) == 1
+    assert not bool(lockstep.success[1, 0])
+    for term in engine.terms:
+        assert float(lockstep.metrics[f"reward_{term.name}"][1, 0]) == pytest.approx(term.worst_raw * engine.spec.ticks)
+    assert_same_outputs(plain, lockstep, atol=1e-9)
+    for name in lockstep.metrics:  # the other episodes of the call: as without the broken one
+        np.testing.assert_array_equal(np.asarray(lockstep.metrics[name])[0], np.asarray(clean.metrics[name])[0])
+        np.testing.assert_array_equal(np.asarray(lockstep.metrics[name])[1, 1], np.asarray(clean.metrics[name])[1, 1])

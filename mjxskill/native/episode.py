@@ -26,6 +26,9 @@ from mjxskill.rollout.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, TickRe
 from mjxskill.sim.controller_config import N_ARM
 
 
+_RESET_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+
+
 def _live_nodes(interp: Interpreter, result: TickResult) -> set[int]:
     """Nodes that carry on at the next tick: ticked, and they and all ancestors RUNNING."""
     live, stack = set(), [0]
@@ -114,6 +117,12 @@ class NativeEpisode:
 
     def healthy(self) -> bool:
         data = self.data
+        # MuJoCo resets the data to the model's initial state when its state or accelerations go
+        # bad (NaN, huge) and only counts a warning: without this check such a world would carry
+        # on from qpos0 where MJX's keeps its NaNs and is contained (found by the engines'
+        # agreement test on a world with a NaN start posture).
+        if any(data.warning[w].number for w in _RESET_WARNINGS):
+            return False
         if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
             return False
         if np.any(np.abs(data.qvel) >= MAX_QVEL):

@@ -61,7 +61,8 @@ def _control_steps(episodes: list[NativeEpisode], cfg, site: int, steps: int, nv
         np.stack([e.cstate.stiffness for e in episodes]),
         np.stack([e.cstate.wrench for e in episodes]),
     )
-    jacp, jacr = np.zeros((m, 3, nv)), np.zeros((m, 3, nv))
+    jac_full = np.zeros((m, 6, nv))  # rows 0-2 translation, 3-5 rotation (mj_jacSite writes both)
+    jac = jac_full[:, :, :N_ARM]
     site_pos, site_quat = np.zeros((m, 3)), np.zeros((m, 4))
     q, qd, bias = np.zeros((m, N_ARM)), np.zeros((m, N_ARM)), np.zeros((m, N_ARM))
     # Views into each episode's MjData, made once per tick (an attribute read makes a new view).
@@ -72,13 +73,12 @@ def _control_steps(episodes: list[NativeEpisode], cfg, site: int, steps: int, nv
     ]
     for k in range(steps):
         for i, (model, data, xpos, xmat, qpos, qvel, qbias, _) in enumerate(views):
-            mujoco.mj_jacSite(model, data, jacp[i], jacr[i], site)
+            mujoco.mj_jacSite(model, data, jac_full[i, :3], jac_full[i, 3:], site)
             site_pos[i] = xpos
             mujoco.mju_mat2Quat(site_quat[i], xmat)
             q[i] = qpos
             qd[i] = qvel
             bias[i] = qbias
-        jac = np.concatenate([jacp, jacr], axis=1)[:, :, :N_ARM]
         tau, state = batched_impedance_control(
             cfg, jac, site_pos, site_quat, q, qd, bias, ref_pos[k], ref_quat[k], cmd_wrench, cmd_stiffness,
             nullspace_target, state,
