@@ -15,6 +15,7 @@ import numpy as np
 
 from mjxskill import compile_rollout, load_scenario
 from mjxskill.rollout.program_cache import program_key
+from scenario_texts import shipped_text
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -72,7 +73,7 @@ def test_the_key_names_everything_the_program_depends_on():
     others = [_key(peg, seconds=0.4), _key(peg, batch=3), _key(peg, worlds=3), _key(load_scenario("push"))]
     assert len({base, *others}) == 5
     # The scenario's content counts: the same file with another goal threshold gets another key.
-    text = Path(peg.source).read_text().replace("scene: ../peg.xml", f"scene: {Path(peg.scene)}")
+    text = shipped_text("peg")
     assert "threshold: {type: float, unit: m, default: 0.04}" in text
     copy = Path(os.environ.get("TMPDIR", "/tmp")) / f"peg-key-{os.getpid()}.yaml"
     try:
