@@ -15,6 +15,7 @@ from typing import Sequence
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.errors import CommandError
+from mjxskill.training.settings import BY_NAME
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -24,7 +25,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--random", type=cli_args.int_at_least(0), default=10, help="random parameter sets (default 10)")
     parser.add_argument("--seed", type=cli_args.seed_type(), default=0, help="seed of the worlds and the random sets")
     parser.add_argument("--batch-size", type=cli_args.positive_int, help="candidates per compiled call (default: the run's batch size)")
-    parser.add_argument("--episode-seconds", type=cli_args.positive_float, help="episode length (default: the run's)")
+    parser.add_argument("--episode-seconds", type=cli_args.setting_type(BY_NAME["episode_seconds"]),
+                        help="episode length in s (default: the run's)")
     return parser
 
 

@@ -9,6 +9,9 @@ Layout of a run directory::
     pareto.csv           the non-dominated rows of evaluations.csv
     optimizer_state.npz  the GP optimizer's state (``mjxskill.gp.save_state``)
     run_state.json       the hypervolume reference point, fixed after the warm-up
+    .lock                the writer's lock and who holds it (run_lock)
+    evaluations.csv.orig-<n>, evaluations-set-aside.csv
+                         after a resume that could not use every line (resume)
 
 ``evaluations.csv`` is the source of truth: a run is resumed by replaying its rows into a fresh
 optimizer state, so a run killed at any moment loses at most the batch it was evaluating, and
