@@ -7,4 +7,4 @@ if __name__ == "__main__":
 
     raise SystemExit(run_command("mjxskill.select", "mjxskill.cli.select"))
 
-from mjxskill.cli.select import main  # noqa: E402  (imported as a module: the command's entry point)
+from mjxskill.cli.select import main  # noqa: E402, F401  (imported as a module: the command's entry point)

@@ -31,7 +31,6 @@ def test_reward_constants_follow_the_table(tmp_path):
 
 
 def test_the_loader_accepts_cap_and_rejects_an_unknown_constant(tmp_path):
-    scn = load_scenario("push")
     text = shipped_text("push")
     anchor = "  - {name: reference_tracking,"
     assert text.count(anchor) == 1

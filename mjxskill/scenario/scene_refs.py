@@ -35,7 +35,8 @@ def check_scene(scene: Path, scene_field: Field, tool_site: Field, bodies: dict[
     site_name = tool_site.string()
     if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name) < 0:
         sites = _names(mujoco, model, mujoco.mjtObj.mjOBJ_SITE, model.nsite)
-        tool_site.fail(f"the scene {scene.name} has no site {site_name!r}{close_matches(site_name, sites)} (sites: {', '.join(sites) or 'none'})")
+        tool_site.fail(f"the scene {scene.name} has no site {site_name!r}{close_matches(site_name, sites)} "
+                       f"(sites: {', '.join(sites) or 'none'})")
     known = None
     for field in bodies.values():
         if field.is_null():
