@@ -167,3 +167,14 @@ def test_nan_objectives_survive(tmp_path):
     run.append(ev)
     back = run.evaluations()
     assert math.isnan(back.objectives[1, 0]) and back.objectives[0, 0] == ev.objectives[0, 0]
+
+
+def test_config_bounds_that_leave_nothing_to_learn_are_named_not_blamed_on_options(tmp_path):
+    text = make_config().to_yaml().replace("bounds:\n- - 0.0\n  - -1.0\n- - 1.0", "bounds:\n- - 0.0\n  - -1.0\n- - 0.0")
+    assert "- - 0.0\n  - 1.0" in text  # the upper bounds are now (0.0, 1.0): S.x has [0, 0]
+    (tmp_path / "config.yaml").write_text(text)
+    with pytest.raises(RunError) as err:
+        Run(tmp_path).config()
+    line = text[: text.index("bounds:")].count("\n") + 1
+    assert str(err.value) == (f"{tmp_path / 'config.yaml'}: bounds (line {line}): S.x: lower bound 0 is not below "
+                              f"the upper bound 0")

@@ -123,7 +123,9 @@ def parse(data: bytes, columns: list[str], bounds, where: str) -> Parsed:
     world) and are kept."""
     lines = data.split(b"\n")
     header = lines[0].decode("utf-8", "replace")
-    if header != ",".join(columns) or len(lines) == 1:
+    if len(lines) == 1:
+        raise RunError(f"{where} has no complete header line ({len(data)} bytes): it was cut short")
+    if header != ",".join(columns):
         got = next(csv.reader([header]), []) if header else "nothing"
         raise RunError(f"{where} does not have the columns this task expects: got {got}, expected {columns}")
     o = sum(1 for c in columns if c.startswith("objective_"))
