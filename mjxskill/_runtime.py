@@ -60,6 +60,18 @@ def configure_xla_flags(environ: "os._Environ[str] | dict[str, str]" = os.enviro
     return flags
 
 
+_warned: set[str] = set()
+
+
+def _warn_once(message: str) -> None:
+    """A ``Notice`` (the command line prints it as one warning line), once per process."""
+    if message not in _warned:
+        _warned.add(message)
+        from mjxskill.errors import Notice
+
+        warnings.warn(message, Notice, stacklevel=3)
+
+
 def default_cache_dir() -> Path | None:
     """Where compiled XLA executables are kept between processes (None: cache off)."""
     setting = os.environ.get("MJXSKILL_CACHE_DIR")
@@ -82,8 +94,11 @@ def enable_compilation_cache(path: Path | None = None) -> Path | None:
         return None
     try:
         path.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return None  # read-only home: run without a cache rather than fail
+    except OSError as err:  # read-only home, or the setting names a file: run without a cache
+        why = "it is a file" if path.exists() and not path.is_dir() else err.strerror
+        _warn_once(f"the compile cache {str(path)!r} is not a usable directory ({why}); compile caches "
+                   f"are off, so every run compiles from scratch (set MJXSKILL_CACHE_DIR to a directory, or off)")
+        return None
     settings = {
         "JAX_COMPILATION_CACHE_DIR": (str(path), str),
         # Cache everything that took noticeable time; MJX steps take seconds to compile.

@@ -36,4 +36,10 @@ class CommandError(UserError):
     """A command's flags or arguments that cannot be honoured (e.g. an unwritable folder)."""
 
 
-__all__ = ["CommandError", "GoalError", "PlanError", "RunError", "ScenarioError", "UserError"]
+class Notice(UserWarning):
+    """Not an error, but what the user must be told: rows of a run set aside, a compile cache
+    that is off. Issued with ``warnings.warn``; the command line prints it as one
+    ``prog: warning: message`` line."""
+
+
+__all__ = ["CommandError", "GoalError", "Notice", "PlanError", "RunError", "ScenarioError", "UserError"]

@@ -1,6 +1,10 @@
-"""``python -m mjxskill.select``: the command of :mod:`mjxskill.cli.select`."""
+"""``python -m mjxskill.select``: the command of :mod:`mjxskill.cli.select`.
 
-from mjxskill.cli.select import main
+Run as a program, Ctrl-C is handled from the first import on (``mjxskill.cli.interrupt``)."""
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from mjxskill.cli.interrupt import run_command
+
+    raise SystemExit(run_command("mjxskill.select", "mjxskill.cli.select"))
+
+from mjxskill.cli.select import main  # noqa: E402, F401  (imported as a module: the command's entry point)

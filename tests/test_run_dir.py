@@ -106,15 +106,18 @@ def test_append_then_read_and_a_torn_last_line_is_ignored(tmp_path):
     assert_same(read_csv(run.path / EVALUATIONS, cfg.columns()), first.concat(second))
 
 
-def test_incomplete_batches_are_dropped_and_repair_rewrites_the_file(tmp_path):
+def test_incomplete_batches_are_not_counted_and_reading_changes_nothing(tmp_path):
     run = make_run(tmp_path)
     cfg = run.config()  # batches of 4, 2, 4
     done = rows([0, 0, 0, 0, 1, 1])
     run.append(done)
     run.append(rows([2, 2], seed=3))  # 2 of the 4 rows of batch 2
+    before = (run.path / EVALUATIONS).read_bytes()
     assert_same(run.evaluations(cfg), done)
-    assert_same(run.repair(cfg), done)
-    assert_same(read_csv(run.path / EVALUATIONS, cfg.columns()), done)
+    batches = run.batches(cfg)
+    assert sorted(batches.complete) == [0, 1] and [r.line for r in batches.rejected] == [8, 9]
+    assert all("batch 2 is incomplete (2 of 4 rows)" in r.reason for r in batches.rejected)
+    assert (run.path / EVALUATIONS).read_bytes() == before
 
 
 def test_config_round_trips_and_identifies_the_run(tmp_path):
@@ -136,7 +139,7 @@ def test_refuses_to_overwrite_a_run(tmp_path):
 @pytest.mark.parametrize(
     "text, message",
     [("format: other\n", "not an mjxskill run configuration"), ("[unclosed\n", "not valid YAML"),
-     ("format: mjxskill.run/1\ntask: x\n", "missing or has a bad field")],
+     ("format: mjxskill.run/1\ntask: x\n", "missing key 'scenario'")],
 )
 def test_bad_config_files_name_the_file(tmp_path, text, message):
     (tmp_path / "config.yaml").write_text(text)
@@ -164,3 +167,14 @@ def test_nan_objectives_survive(tmp_path):
     run.append(ev)
     back = run.evaluations()
     assert math.isnan(back.objectives[1, 0]) and back.objectives[0, 0] == ev.objectives[0, 0]
+
+
+def test_config_bounds_that_leave_nothing_to_learn_are_named_not_blamed_on_options(tmp_path):
+    text = make_config().to_yaml().replace("bounds:\n- - 0.0\n  - -1.0\n- - 1.0", "bounds:\n- - 0.0\n  - -1.0\n- - 0.0")
+    assert "- - 0.0\n  - 1.0" in text  # the upper bounds are now (0.0, 1.0): S.x has [0, 0]
+    (tmp_path / "config.yaml").write_text(text)
+    with pytest.raises(RunError) as err:
+        Run(tmp_path).config()
+    line = text[: text.index("bounds:")].count("\n") + 1
+    assert str(err.value) == (f"{tmp_path / 'config.yaml'}: bounds (line {line}): S.x: lower bound 0 is not below "
+                              f"the upper bound 0")

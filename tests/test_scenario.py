@@ -16,8 +16,10 @@ from hypothesis import strategies as st
 
 from mjxskill.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 from mjxskill.task import plan_task
+from scenario_texts import shipped_text
 
 PUSH_YAML = SCENARIO_DIR / "push.yaml"
+PUSH_TEXT = shipped_text("push")  # the scene path absolute: edited copies load from tmp_path
 
 
 @pytest.fixture(scope="module")
@@ -225,7 +227,7 @@ MUTATIONS = {
 @pytest.mark.parametrize("kind", list(MUTATIONS))
 def test_invalid_file_fails_naming_file_key_and_line(kind, tmp_path):
     old, new, key_path, message, *anchor = MUTATIONS[kind]
-    text = PUSH_YAML.read_text()
+    text = PUSH_TEXT
     assert text.count(old) == 1, f"mutation anchor for {kind!r} must occur once"
     mutated = text.replace(old, new)
     path = tmp_path / "push.yaml"
@@ -275,7 +277,7 @@ def _paths(tree, prefix=()):
         yield from _paths(value, (*prefix, key))
 
 
-PUSH_TREE = yaml.safe_load(PUSH_YAML.read_text())
+PUSH_TREE = yaml.safe_load(PUSH_TEXT)
 PUSH_PATHS = list(_paths(PUSH_TREE))
 
 

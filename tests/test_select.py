@@ -34,7 +34,7 @@ FRONT = Evaluations(
 )
 def test_choose_by_constraint(max_force, min_success, expected):
     if expected is None:
-        with pytest.raises(CommandError, match="no Pareto solution meets the limits"):
+        with pytest.raises(CommandError, match="no Pareto solution meets --max-force 8, --min-success 0.7"):
             choose(FRONT, max_force, min_success)
     else:
         assert choose(FRONT, max_force, min_success) == expected

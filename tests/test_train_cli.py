@@ -5,7 +5,6 @@ repeats, a run killed after its first batch and resumed, select's export, and ba
 import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -13,6 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
+from cli_helpers import ROOT, command, invoke, run_cli
 from mjxskill.training.run_dir import EVALUATIONS, PARETO, Run
 from mjxskill.task import plan_task
 
@@ -20,17 +20,6 @@ from mjxskill.task import plan_task
 QUICK_GP = ["n_raw=64", "n_restarts=2", "n_opt_steps=10", "fit_starts=1", "fit_steps=10"]
 TINY = ["--budget", "6", "--batch-size", "3", "--init", "3", "--worlds", "1", "--episode-seconds", "0.2", "--quiet",
         *(arg for option in QUICK_GP for arg in ("--optimizer-option", option))]
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def command(module, *args):
-    return [sys.executable, "-m", f"mjxskill.{module}", *map(str, args)]
-
-
-def run_cli(module, *args, timeout=600):
-    return subprocess.run(command(module, *args), cwd=ROOT, capture_output=True, text=True, timeout=timeout)
-
-
 @pytest.fixture(scope="session")
 def repeated_run(tmp_path_factory):
     """``train push --repeats 2 --seed 1`` on a tiny budget: sub-runs seed-1 and seed-2."""
@@ -148,7 +137,7 @@ BAD_INPUT = (
     (["train", "push", "--resume", "{tmp}"], "is not a run directory"),
     (["train", "peg", "--resume", "{run}"], "is a run of task 'push', not 'peg'"),
     (["train", "push", "--resume", "{run}", "--budget", "9"], "drop --budget 9 (the run has 6)"),
-    (["train", "push", "--resume", "{run}", "--engine", "mjx"], "on its own engine 'native'; drop --engine mjx"),
+    (["train", "push", "--resume", "{run}", "--engine", "mjx"], "drop --engine mjx (the run has native)"),
     (["train", "push", "--engine", "warp"], "argument --engine: invalid choice: 'warp'"),
     (["train", "{broken}"], "bt_hz"),
     (["train", "push", "--goal", "(skiros:at skiros:Nothing-1 skiros:ObjectGoalPose-1)"], "unknown object 'nothing-1'"),
@@ -158,18 +147,6 @@ BAD_INPUT = (
     (["select", "{run}", "--max-force", "-1"], "argument --max-force: must be a finite number >= 0"),
     (["select", "{run}", "--min-success", "2"], "--min-success is a rate between 0 and 1"),
 )
-
-
-def invoke(capsys, module, *args):
-    """The command's entry point in this process (what ``python -m`` runs): (exit code, stderr)."""
-    import importlib
-
-    main = importlib.import_module(f"mjxskill.{module}").main
-    try:
-        code = main(list(args))
-    except SystemExit as exit_:  # argparse's own errors
-        code = exit_.code
-    return code, capsys.readouterr().err
 
 
 # A few cases go through a real subprocess; the rest call the same entry point in-process

@@ -4,6 +4,7 @@ flush-before-propose, interrupt/resume equivalence, Pareto file, hypervolume ref
 import numpy as np
 import pytest
 
+from mjxskill.errors import Notice
 from mjxskill.gp import hypervolume
 from mjxskill.training.run_dir import EVALUATIONS, OPTIMIZER_STATE, PARETO, Run, read_csv
 from mjxskill.cli.train import Progress
@@ -110,7 +111,8 @@ def test_a_torn_batch_is_evaluated_again_on_resume(tmp_path, uninterrupted):
     with open(run.path / EVALUATIONS, "a") as fh:  # a kill while batch 2 was being written
         fh.write("".join(text[7:9]) + text[9][:12])
     second = Recorder()
-    train(run, CONFIG, second)
+    with pytest.warns(Notice, match="set aside"):  # the torn rows are kept beside the file, and said
+        train(run, CONFIG, second)
     assert [it for it, _ in second.calls] == [2]
     assert (run.path / EVALUATIONS).read_text() == (full_run.path / EVALUATIONS).read_text()
 

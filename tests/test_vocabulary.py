@@ -12,6 +12,7 @@ from mjxskill.rollout.leaves import LEAF_PROGRAMS as COMPILED_LEAVES
 from mjxskill.rollout.rewards import build_terms
 from mjxskill.scenario import load_scenario
 from mjxskill.scenario.schema import REQUIRED, REWARD_KINDS
+from scenario_texts import shipped_text
 
 
 def test_both_engines_implement_exactly_the_ebt_primitives():
@@ -30,8 +31,7 @@ def test_reward_constants_follow_the_table(tmp_path):
 
 
 def test_the_loader_accepts_cap_and_rejects_an_unknown_constant(tmp_path):
-    scn = load_scenario("push")
-    text = open(scn.source).read().replace("scene: ../push.xml", f"scene: {scn.scene}")
+    text = shipped_text("push")
     anchor = "  - {name: reference_tracking,"
     assert text.count(anchor) == 1
     extra = "  - {name: commanded_force, kind: applied_wrench, objective: applied_force, weight: -0.1, constants: {cap: 20.0}}\n"

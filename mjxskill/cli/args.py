@@ -29,16 +29,6 @@ def int_at_least(minimum: int) -> Callable[[str], int]:
 positive_int = int_at_least(1)
 
 
-def positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (value > 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
-    return value
-
-
 def nonnegative_float(text: str) -> float:
     try:
         value = float(text)
@@ -47,3 +37,24 @@ def nonnegative_float(text: str) -> float:
     if not (value >= 0 and math.isfinite(value)):
         raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
     return value
+
+
+def setting_type(setting) -> Callable[[str], object]:
+    """The argparse type of a run setting (``mjxskill.training.settings.Setting``): the check
+    config.yaml goes through too."""
+
+    def parse(text: str):
+        try:
+            return setting.coerce(text)
+        except ValueError as err:
+            raise argparse.ArgumentTypeError(str(err)) from None
+
+    parse.__name__ = setting.name
+    return parse
+
+
+def seed_type() -> Callable[[str], int]:
+    """``--seed`` of every command: an integer in the range of a run's seed."""
+    from mjxskill.training.settings import SEED
+
+    return setting_type(SEED)

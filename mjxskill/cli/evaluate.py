@@ -16,6 +16,7 @@ from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.engines import CHOICES, build_rollout, resolve_engine
 from mjxskill.errors import CommandError
+from mjxskill.training.settings import BY_NAME
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -23,9 +24,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("run", type=Path, help="run directory written by mjxskill.train")
     parser.add_argument("--per-config", type=cli_args.positive_int, default=5, help="worlds per start configuration (default 5)")
     parser.add_argument("--random", type=cli_args.int_at_least(0), default=10, help="random parameter sets (default 10)")
-    parser.add_argument("--seed", type=cli_args.int_at_least(0), default=0, help="seed of the worlds and the random sets")
+    parser.add_argument("--seed", type=cli_args.seed_type(), default=0, help="seed of the worlds and the random sets")
     parser.add_argument("--batch-size", type=cli_args.positive_int, help="candidates per compiled call (default: the run's batch size)")
-    parser.add_argument("--episode-seconds", type=cli_args.positive_float, help="episode length (default: the run's)")
+    parser.add_argument("--episode-seconds", type=cli_args.setting_type(BY_NAME["episode_seconds"]),
+                        help="episode length in s (default: the run's)")
     parser.add_argument("--engine", choices=CHOICES, help="physics engine (default: the run's; the other one checks "
                         "how a solution transfers between engines)")
     return parser
@@ -40,7 +42,7 @@ def _main(args: argparse.Namespace) -> int:
     config = run.config()
     if config.repeats > 1:
         raise CommandError(f"{run.path} holds {config.repeats} repeated runs; evaluate one of them, e.g. {run.sub_runs(config)[0].path}")
-    front = run.pareto(config)
+    front = run.front(config)  # an empty front is refused as select refuses it
     scn, task = load_run_task(run, config)
     candidates = build_candidates(task, front.params, args.random, args.seed)
     n_cfg = len(scn.robot.start_configs) + len(scn.robot.eval_configs)

@@ -31,7 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--no-render", action="store_true", help="export the parameters only")
     parser.add_argument("--format", choices=("png", "mp4"), default="png", help="PNG frames (default) or an MP4 (needs ffmpeg)")
     parser.add_argument("--config-index", type=cli_args.int_at_least(0), default=0, help="known start configuration to render from (default 0)")
-    parser.add_argument("--seed", type=cli_args.int_at_least(0), default=0, help="seed of the rendered world's randomization")
+    parser.add_argument("--seed", type=cli_args.seed_type(), default=0, help="seed of the rendered world's randomization")
     parser.add_argument("--size", type=cli_args.positive_int, nargs=2, default=(640, 480), metavar=("W", "H"), help="frame size in pixels")
     return parser
 
@@ -48,9 +48,7 @@ def _main(args: argparse.Namespace) -> int:
     config = run.config()
     if config.repeats > 1:
         raise CommandError(f"{run.path} holds {config.repeats} repeated runs; select from one of them, e.g. {run.sub_runs(config)[0].path}")
-    front = run.pareto(config)
-    if len(front) == 0:
-        raise CommandError(f"{run.path} has an empty Pareto front (no evaluations yet)")
+    front = run.front(config)
     if args.min_success is not None and args.min_success > 1:
         raise CommandError(f"--min-success is a rate between 0 and 1, got {args.min_success}")
     print(f"Pareto front of {run.path} ({len(front)} solutions):")

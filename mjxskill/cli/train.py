@@ -13,6 +13,7 @@ loop itself is ``mjxskill.training.loop.train``, which this command drives with 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import sys
 import time
@@ -23,10 +24,12 @@ import numpy as np
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
-from mjxskill.engines import CHOICES, build_rollout, resolve_engine
+from mjxskill.engines import build_rollout, resolve_engine
 from mjxskill.errors import CommandError
-from mjxskill.training.loop import optimizer_config, rollout_evaluator, train
+from mjxskill.training.loop import rollout_evaluator, train
+from mjxskill.training.run_config import optimizer_problem
 from mjxskill.training.run_dir import Evaluations, Run, RunConfig
+from mjxskill.training.settings import BY_NAME, SETTINGS, cross_problems, optimizer_option_names
 
 
 class Progress:
@@ -75,38 +78,23 @@ def build_parser() -> argparse.ArgumentParser:
         description="Learn the free skill parameters of a task (multi-objective Bayesian optimization in MJX).",
     )
     cli_args.add_task_argument(parser)
-    parser.add_argument("--budget", type=cli_args.positive_int, help="evaluations (parameter sets) per run (default: the scenario's)")
-    parser.add_argument("--batch-size", type=cli_args.positive_int, help="parameter sets per batch (default: the scenario's)")
-    parser.add_argument("--init", type=cli_args.int_at_least(2), help="random warm-up evaluations (default: the scenario's)")
-    parser.add_argument("--worlds", type=cli_args.positive_int, help="randomized worlds per parameter set (default: the scenario's)")
-    parser.add_argument("--seed", type=cli_args.int_at_least(0), help="seed of the optimizer and the worlds (default: the scenario's)")
-    parser.add_argument("--episode-seconds", type=cli_args.positive_float, help="episode length in s (default: the scenario's)")
-    parser.add_argument("--goal", help="PDDL goal to plan instead of the scenario's")
-    parser.add_argument("--repeats", type=cli_args.positive_int, help="independent runs with seeds seed..seed+N-1 (default 1)")
+    for setting in SETTINGS:  # the same checks as config.yaml's (mjxskill.training.settings)
+        default = setting.default_text or ("the scenario's" if setting.scenario is not None else setting.default)
+        parser.add_argument(setting.flag, dest=setting.name, type=cli_args.setting_type(setting),
+                            help=f"{setting.help} (default: {default})")
     parser.add_argument("--out", type=Path, help="run directory (default runs/<task>-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue the run in RUN_DIR to its budget")
     parser.add_argument("--quiet", action="store_true", help="no progress bar: one log line per batch")
-    parser.add_argument("--engine", choices=CHOICES, default=None,
-                        help="physics engine: mjx (compiled MJX), native (native MuJoCo, one process per core) or auto "
-                             "(MJX on a GPU/TPU, native on a CPU; the default); stored with the run")
     parser.add_argument("--optimizer-option", action="append", type=optimizer_option, metavar="KEY=VALUE", default=None,
                         help="a further mjxskill.gp.MOBOConfig setting, e.g. n_raw=256 (repeatable; stored with the run)")
     return parser
 
 
-RUN_DEFINED = ("bounds", "n_objectives", "batch_size", "n_init", "seed")  # set by the run, not by options
-
-
 def optimizer_option(text: str) -> tuple[str, int | float]:
     """``KEY=VALUE`` for a numeric MOBOConfig field (argparse type)."""
-    import dataclasses
-
-    from mjxskill.gp import MOBOConfig
-
     key, sep, value = text.partition("=")
-    fields = [f.name for f in dataclasses.fields(MOBOConfig) if f.name not in RUN_DEFINED]
-    if not sep or key not in fields:
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE with KEY one of {', '.join(fields)}; got {text!r}")
+    if not sep or key not in optimizer_option_names():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE with KEY one of {', '.join(optimizer_option_names())}; got {text!r}")
     try:
         number = int(value)
     except ValueError:
@@ -117,41 +105,35 @@ def optimizer_option(text: str) -> tuple[str, int | float]:
     return key, number
 
 
-SETTING_FLAGS = {"budget": "budget", "batch_size": "batch_size", "init": "n_init", "worlds": "worlds",
-                 "seed": "seed", "episode_seconds": "episode_seconds", "goal": "goal", "repeats": "repeats"}
+def _origin(args: argparse.Namespace, name: str, value) -> str:
+    """Where a setting's value came from, for a message: its flag, or the scenario."""
+    setting = BY_NAME[name]
+    return f"{setting.flag} {value}" if getattr(args, name) is not None else f"{name} {value} (the scenario's default)"
 
 
-def resolve_config(args: argparse.Namespace, scn, task, engine: str) -> RunConfig:
-    """The run configuration of a new run of ``task`` on ``engine``: flags over the scenario's
-    defaults."""
-    opt = scn.optimizer
+def resolve_config(args: argparse.Namespace, scn, task) -> RunConfig:
+    """The run configuration of a new run of ``task``: flags over the scenario's defaults."""
+    values = {s.name: getattr(args, s.name) if getattr(args, s.name) is not None else s.default_for(scn) for s in SETTINGS}
+    values["goal"] = task.goal
+    values["engine"] = resolve_engine(values["engine"])[0]
+    for name, problem in cross_problems(values):
+        raise CommandError(f"{_origin(args, name, values[name])} {problem}")
     config = RunConfig(
         task=scn.name,
         # a scenario name stays a name; a YAML path is made absolute for evaluate/select
         scenario=args.task if Path(args.task).name == args.task and not args.task.endswith((".yaml", ".yml")) else str(Path(args.task).resolve()),
-        goal=task.goal,
         parameter_names=tuple(task.parameter_names),
         parameter_units=tuple(task.parameter_units),
         bounds=(tuple(map(float, task.bounds[0])), tuple(map(float, task.bounds[1]))),
         objective_names=tuple(scn.objective_names),
-        budget=args.budget if args.budget is not None else opt.budget,
-        batch_size=args.batch_size if args.batch_size is not None else opt.batch_size,
-        n_init=args.init if args.init is not None else opt.n_init,
-        worlds=args.worlds if args.worlds is not None else scn.randomization.n_worlds,
-        seed=args.seed if args.seed is not None else opt.seed,
-        episode_seconds=float(args.episode_seconds if args.episode_seconds is not None else scn.episode_seconds),
-        repeats=args.repeats or 1,
         optimizer_options=dict(args.optimizer_option or []),
-        engine=engine,
+        **values,
     )
-    try:
-        optimizer_config(config)
-    except ValueError as err:  # MOBOConfig names the bad setting
-        raise CommandError(f"--optimizer-option: {err}") from None
-    if config.n_init > config.budget:
-        raise CommandError(f"--init {config.n_init} exceeds the budget of {config.budget} evaluations")
     if not config.parameter_names:
         raise CommandError(f"the plan for {config.goal!r} leaves no parameter to learn")
+    problem = optimizer_problem(config)  # the run's own settings are checked: an option is left
+    if problem:
+        raise CommandError(f"--optimizer-option: {problem}" if args.optimizer_option else f"the optimizer refuses this run: {problem}")
     return config
 
 
@@ -160,36 +142,37 @@ def _resumed_config(args: argparse.Namespace) -> RunConfig:
     config = run.config()
     if args.optimizer_option and dict(args.optimizer_option) != config.optimizer_options:
         raise CommandError(f"--resume continues {args.resume} with its own optimizer options {config.optimizer_options}; drop --optimizer-option")
-    given = {flag: getattr(args, flag) for flag in SETTING_FLAGS if getattr(args, flag) is not None}
-    conflicts = [f"--{flag.replace('_', '-')} {value} (the run has {getattr(config, SETTING_FLAGS[flag])})"
-                 for flag, value in given.items() if value != getattr(config, SETTING_FLAGS[flag])]
+    conflicts = [f"{s.flag} {getattr(args, s.name)} (the run has {getattr(config, s.name)})" for s in SETTINGS
+                 if getattr(args, s.name) is not None and getattr(args, s.name) != getattr(config, s.name)]
     if conflicts:
         raise CommandError(f"--resume continues {args.resume} with its own settings; drop {', '.join(conflicts)}")
-    if args.engine not in (None, "auto", config.engine):
-        raise CommandError(f"--resume continues {args.resume} on its own engine {config.engine!r}; drop --engine {args.engine}")
     if args.out is not None and Path(args.out).resolve() != Path(args.resume).resolve():
         raise CommandError("--out and --resume name different directories; --resume writes into its own")
     return config
 
 
 def _main(args: argparse.Namespace) -> int:
-    from mjxskill.task import describe, planning_texts
+    from mjxskill.task import planning_texts
     from mjxskill.training.run_task import load_run_task, scenario_and_task
 
     if args.resume is not None:
         config = _resumed_config(args)
         run = Run(args.resume)
-        scn, task = load_run_task(run, config, scenario=args.task)
-    else:
-        scn, task = scenario_and_task(args.task, args.goal)
-        engine, why = resolve_engine(args.engine or "auto")
-        config = resolve_config(args, scn, task, engine)
-        out = args.out or Path("runs") / f"{scn.name}-{time.strftime('%Y%m%d-%H%M%S')}"
-        run = Run(out)
-        run.create(config, scn.source, planning_texts(task))
-        if config.repeats > 1:
-            for sub in run.sub_runs(config):
-                sub.create(config.sub_run(int(sub.path.name.split("-")[1])), scn.source, planning_texts(task))
+        lock = run.lock()  # before anything is read for resuming: one writer per run
+        with lock:
+            run.check(config)
+            scn, task = load_run_task(run, config, scenario=args.task)
+            return _train(args, run, config, scn, task)
+    scn, task = scenario_and_task(args.task, args.goal)
+    config = resolve_config(args, scn, task)
+    run = Run(args.out or Path("runs") / f"{scn.name}-{time.strftime('%Y%m%d-%H%M%S')}")
+    run.create(config, scn.source, planning_texts(task))
+    with run.lock():
+        return _train(args, run, config, scn, task)
+
+
+def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> int:
+    from mjxskill.task import describe
 
     print(describe(scn, task))
     print(f"objectives (larger is better): {', '.join(config.objective_names)}")
@@ -197,33 +180,39 @@ def _main(args: argparse.Namespace) -> int:
           f"{config.worlds} worlds, {config.episode_seconds:g} s episodes, seed {config.seed}"
           + (f", {config.repeats} repeats" if config.repeats > 1 else ""))
     print(f"run directory: {run.path}", flush=True)
-    if args.resume is not None:
-        why = "the run's own"
+    why = "the run's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
     print(f"engine: {config.engine} ({why})", flush=True)
-
-    from mjxskill.training import report
-
-    rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds)
-    started = time.monotonic()
+    cli.interrupt.set_message(f"interrupted: every finished batch is in {run.path}; continue with "
+                              f"python -m mjxskill.train {args.task} --resume {run.path}")
     runs = run.sub_runs(config) if config.repeats > 1 else [run]
+    sub, sub_config = run, config
     try:
+        from mjxskill.training import report
+
+        rollout = build_rollout(scn, task, resolve_engine(config.engine)[0], worlds=config.worlds,
+                                episode_seconds=config.episode_seconds)
+        started = time.monotonic()
         for sub in runs:
-            sub_config = sub.config()
-            label = f"seed {sub_config.seed}: " if config.repeats > 1 else ""
-            evaluate = rollout_evaluator(rollout, sub_config.batch_size, sub_config.seed)
-            ev = train(sub, sub_config, evaluate, progress=Progress(sub_config.budget, args.quiet, label))
-            report.write_run_figures(sub, sub_config, ev)
-            print(report.summary(sub, sub_config, ev), flush=True)
+            with sub.lock() if sub is not run else contextlib.nullcontext():
+                sub_config = sub.config()
+                label = f"seed {sub_config.seed}: " if config.repeats > 1 else ""
+                evaluate = rollout_evaluator(rollout, sub_config.batch_size, sub_config.seed)
+                ev = train(sub, sub_config, evaluate, progress=Progress(sub_config.budget, args.quiet, label))
+                report.write_run_figures(sub, sub_config, ev)
+                print(report.summary(sub, sub_config, ev), flush=True)
     except KeyboardInterrupt:
+        cli.interrupt.acknowledge()
         try:  # figures of what is done; the CSV already holds every finished batch
+            from mjxskill.training import report
+
             report.write_run_figures(sub, sub_config, sub.evaluations(sub_config))
         except Exception:  # noqa: BLE001  (a second Ctrl-C or a plotting problem must not hide the message)
             pass
-        print(f"\ninterrupted: every finished batch is in {run.path}; continue with "
-              f"python -m mjxskill.train {args.task} --resume {run.path}", file=sys.stderr)
-        return 130
+        print(f"\nmjxskill.train: {cli.interrupt.message()}", file=sys.stderr)
+        return cli.EXIT_INTERRUPTED
     finally:
-        getattr(rollout, "close", lambda: None)()  # the native engine's worker processes
+        if "rollout" in locals():
+            getattr(rollout, "close", lambda: None)()  # the native engine's worker processes
     if config.repeats > 1:
         print(report.write_repeats(run, config, runs), flush=True)
     print(f"done in {time.monotonic() - started:.0f} s; results in {run.path}")
@@ -232,4 +221,3 @@ def _main(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     return cli.run(_main, build_parser(), argv)
-

@@ -16,7 +16,8 @@ import numpy as np
 from mjxskill.errors import GoalError, ScenarioError
 from mjxskill.planner.world_pddl import check_atom, goal_literals, parse_literal
 from mjxskill.scenario.fields import Field, compose_file
-from mjxskill.scenario.schema import Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping
+from mjxskill.scenario.scene_refs import check_scene
+from mjxskill.scenario.schema import MAX_EPISODE_SECONDS, Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping
 from mjxskill.scenario.sections import optimizer, randomization, rewards, success
 from mjxskill.scenario.skills import manual_parameters, skill
 
@@ -86,7 +87,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         source=str(path),
         scene=str((path.parent / top["scene"].string()).resolve()),
         gravity=top["gravity"].boolean(),
-        episode_seconds=top["episode_seconds"].number(positive=True),
+        episode_seconds=top["episode_seconds"].number(positive=True, maximum=MAX_EPISODE_SECONDS),
         bt_hz=bt_hz,
         control_hz=control_hz,
         types=types,
@@ -107,15 +108,23 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         goal_literals(scn, scn.goal)
     except GoalError as err:
         top["goal"].fail(str(err))
+    refs = _scene_fields(top, robot_field, objects_field)
+    check_scene(Path(scn.scene), refs.pop("scene"), refs.pop("robot.tool_site"), refs)
     return scn
 
 
-def _locations(top, robot: Field, objects: Field) -> dict[str, str]:
-    fields = {"goal": top["goal"], "scene": top["scene"], "robot.tool_site": robot.mapping(optional=_ROBOT_KEYS)["tool_site"]}
+def _scene_fields(top, robot: Field, objects: Field) -> dict[str, Field]:
+    """The scene and the entries naming things in it: key path -> Field."""
+    fields = {"scene": top["scene"], "robot.tool_site": robot.mapping(optional=_ROBOT_KEYS)["tool_site"]}
     for name, field in objects.items():
         entries = field.mapping(optional=_OBJECT_KEYS)
         if "mjcf_body" in entries:
             fields[f"objects.{name}.mjcf_body"] = entries["mjcf_body"]
+    return fields
+
+
+def _locations(top, robot: Field, objects: Field) -> dict[str, str]:
+    fields = {"goal": top["goal"], **_scene_fields(top, robot, objects)}
     return {key: f.where() for key, f in fields.items()}
 
 

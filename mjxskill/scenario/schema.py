@@ -29,6 +29,13 @@ from typing import Mapping
 import numpy as np
 
 
+# Bounds of the run settings a scenario gives defaults for, shared with the command-line flags
+# and a run's config.yaml (mjxskill.training.settings): one number, one place.
+MAX_EPISODE_SECONDS = 3600.0  # an hour of simulated time; the shipped episodes last 12 and 18 s
+MAX_SEED = 2**32 - 1  # seeds become uint32 PRNG keys and numpy seed words
+MIN_N_INIT = 2  # the optimizer's warm-up needs two points to fit a model
+
+
 def frozen_array(values, dtype=np.float64) -> np.ndarray:
     """A read-only copy of ``values``."""
     array = np.array(values, dtype=dtype)

@@ -5,6 +5,8 @@ from __future__ import annotations
 from mjxskill.scenario.fields import Field
 from mjxskill.scenario.schema import (
     REQUIRED,
+    MAX_SEED,
+    MIN_N_INIT,
     REWARD_KINDS,
     Optimizer,
     Randomization,
@@ -94,8 +96,8 @@ def optimizer(field: Field) -> Optimizer:
     opt = Optimizer(
         budget=f["budget"].integer(minimum=1),
         batch_size=f["batch_size"].integer(minimum=1),
-        n_init=f["n_init"].integer(minimum=1),
-        seed=f["seed"].integer(minimum=0),
+        n_init=f["n_init"].integer(minimum=MIN_N_INIT),
+        seed=f["seed"].integer(minimum=0, maximum=MAX_SEED),
         repetitions=f["repetitions"].integer(minimum=1),
     )
     if opt.n_init > opt.budget:

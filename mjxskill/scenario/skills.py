@@ -79,6 +79,9 @@ def _skill_parameter(name: str, field: Field, types) -> SkillParameter:
         bounds = (lower, upper)
     if learnable and bounds is None:
         field.fail("a learnable parameter needs bounds: [lower, upper]")
+    if learnable and bounds[0] == bounds[1]:
+        f["bounds"].fail(f"bounds [{bounds[0]:g}, {bounds[1]:g}] leave a learnable parameter nothing to learn; "
+                         f"widen them or set learnable: false")
     return SkillParameter(name, type_, False, unit, default, bounds, learnable, description)
 
 

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mjxskill.training.run_dir import Evaluations, Run, RunConfig
+from mjxskill.errors import RunError
+from mjxskill.training.run_dir import RUN_STATE, Evaluations, Run, RunConfig, batch_sizes
 
 HV_MARGIN = 0.1  # reference point = worst warm-up value + this fraction of the warm-up range
 
@@ -34,15 +35,27 @@ def hypervolume_history(ev: Evaluations, ref: np.ndarray) -> tuple[np.ndarray, n
 
 
 def reference_from(run: Run, config: RunConfig, ev: Evaluations) -> np.ndarray | None:
-    """The stored reference point, or the one the warm-up defines (written once known)."""
+    """The stored reference point, or the one the warm-up defines (written once known). ``ev``
+    in batch order; the warm-up is its rows of the warm-up batches, once all are there."""
     state = run.run_state()
     if "hv_reference" in state:
-        return np.asarray(state["hv_reference"], np.float64)
-    if len(ev) < min(config.n_init, config.budget):
+        ref = np.asarray(state["hv_reference"], np.float64)
+        if ref.shape != (len(config.objective_names),):
+            raise RunError(f"{run.path / RUN_STATE}: hv_reference has {ref.size} values for "
+                           f"{len(config.objective_names)} objectives; delete it and --resume recomputes it")
+        return ref
+    warmup = ev.iteration < _warmup_batches(config)
+    if warmup.sum() < min(config.n_init, config.budget):
         return None
-    ref = hypervolume_reference(ev.objectives[: config.n_init])
+    ref = hypervolume_reference(ev.objectives[warmup])
     run.write_run_state({**state, "hv_reference": ref.tolist(), "hv_space": "negated objectives (minimized)"})
     return ref
+
+
+def _warmup_batches(config: RunConfig) -> int:
+    """How many batches the random warm-up takes (``batch_sizes`` stops it at n_init points)."""
+    ends = np.cumsum(list(batch_sizes(config.budget, config.batch_size, config.n_init)))
+    return int(np.searchsorted(ends, min(config.n_init, config.budget)) + 1)
 
 
 def pareto_mask_of(ev: Evaluations) -> np.ndarray:

@@ -13,7 +13,9 @@ from typing import Callable, NamedTuple, Protocol
 import numpy as np
 
 from mjxskill.training.front import pareto_mask_of, reference_from
-from mjxskill.training.run_dir import OPTIMIZER_STATE, Evaluations, Run, RunConfig, batch_sizes
+from mjxskill.training.resume import resume_batches
+from mjxskill.training.run_config import optimizer_config
+from mjxskill.training.run_dir import OPTIMIZER_STATE, Evaluations, Run, RunConfig, batch_sizes, concat_all
 
 
 class BatchResult(NamedTuple):
@@ -66,50 +68,51 @@ def rollout_evaluator(rollout, batch_size: int, seed: int) -> BatchEvaluator:
     return evaluate
 
 
-def optimizer_config(config: RunConfig):
-    """The ``mjxskill.gp.MOBOConfig`` of a run: its parameter space, batches and seed, and the
-    further optimizer options it was started with."""
-    from mjxskill.gp import MOBOConfig
-
-    return MOBOConfig(
-        bounds=config.bounds,
-        n_objectives=len(config.objective_names),
-        batch_size=config.batch_size,
-        n_init=config.n_init,
-        seed=config.seed,
-        **config.optimizer_options,
-    )
-
-
 def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Progress | None = None) -> Evaluations:
     """Runs (or continues) the optimizer loop of ``run`` to ``config.budget`` evaluations.
 
-    The optimizer state is replayed from the rows on disk; each batch is appended and flushed
-    before the next proposal. Returns all evaluations.
+    The complete batches on disk are kept (``mjxskill.training.resume``: what cannot be used is
+    set aside, never dropped) and only the missing ones are evaluated. The optimizer state is
+    replayed batch by batch in batch order, so every proposal is the one an uninterrupted run
+    makes; each new batch is on disk before the next proposal. Returns all evaluations.
     """
     from mjxskill import gp
 
-    ev = run.repair(config)
+    done = resume_batches(run, config)
+    shape = (len(config.parameter_names), len(config.objective_names))
     state = gp.init(optimizer_config(config))
-    if len(ev):
-        state = gp.tell(state, ev.params, -ev.objectives)
     sizes = list(batch_sizes(config.budget, config.batch_size, config.n_init))
-    batch = int(np.searchsorted(np.cumsum(sizes), len(ev), side="right"))
+    known = lambda: concat_all((done[b] for b in sorted(done)), *shape)  # noqa: E731  (in batch order)
+    ev = known()
     if progress:
         progress.start(ev, reference_from(run, config, ev))
-    while len(ev) < config.budget:
-        x = gp.ask(state, num=sizes[batch])
+    for batch, size in enumerate(sizes):
+        if batch in done:  # replayed: the optimizer sees it where the uninterrupted run did
+            state = gp.tell(state, done[batch].params, -done[batch].objectives)
+            continue
+        x = gp.ask(state, num=size)
         result = evaluate(x, batch)
-        new = Evaluations(np.full(len(x), batch), x, *(np.asarray(a, np.float64) for a in result))
-        run.append(new)  # on disk before anything else happens
-        ev = ev.concat(new)
+        new = done[batch] = Evaluations(np.full(len(x), batch), x, *(np.asarray(a, np.float64) for a in result))
+        ev = known()
+        if max(done) == batch:
+            run.append(new)  # on disk before anything else happens
+        else:  # filled in before batches already on disk: the file stays in batch order
+            run.write_evaluations(config, ev)
         state = gp.tell(state, x, -new.objectives)
-        gp.save_state(state, run.path / OPTIMIZER_STATE)
+        _save_state(gp, state, run.path / OPTIMIZER_STATE)
         run.write_pareto(config, ev, pareto_mask_of(ev))
         if progress:
             progress.update(new, ev, reference_from(run, config, ev))
-        batch += 1
     run.write_pareto(config, ev, pareto_mask_of(ev))
     if progress:
         progress.close()
     return ev
+
+
+def _save_state(gp, state, path) -> None:
+    """The optimizer state, replaced in one step (a kill mid-write leaves the previous one)."""
+    import os
+
+    tmp = path.with_name(path.name + ".tmp")
+    gp.save_state(state, tmp)
+    os.replace(tmp, path)

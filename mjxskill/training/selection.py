@@ -21,19 +21,27 @@ def choose(front, max_force: float | None = None, min_success: float | None = No
     """Row of ``front`` (Evaluations) meeting the limits with the best success rate, ties by
     the first objective. Raises CommandError when no row meets them."""
     ok = np.ones(len(front), bool)
+    # A NaN (a diverged world) meets no limit: it is not known to be within it.
     if max_force is not None:
         ok &= front.max_force <= max_force
     if min_success is not None:
         ok &= front.success_rate >= min_success
     if not ok.any():
-        raise CommandError(
-            f"no Pareto solution meets the limits (max force {max_force}, min success {min_success}); the front's "
-            f"peak forces span {front.max_force.min():.1f}-{front.max_force.max():.1f} N and its success rates "
-            f"{front.success_rate.min():.0%}-{front.success_rate.max():.0%}"
-        )
+        limits = ", ".join(f"{name} {value:g}" for name, value in (("--max-force", max_force), ("--min-success", min_success))
+                           if value is not None)
+        raise CommandError(f"no Pareto solution meets {limits or 'the limits'}: the front's {len(front)} rows have "
+                           f"peak forces {_span(front.max_force, '{:.1f}', ' N')} and success rates "
+                           f"{_span(front.success_rate, '{:.0%}', '')}")
     rows = np.flatnonzero(ok)
     order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows]))
     return int(rows[order[0]])
+
+
+def _span(values: np.ndarray, fmt: str, unit: str) -> str:
+    finite = values[np.isfinite(values)]
+    text = f"{fmt.format(finite.min())}-{fmt.format(finite.max())}{unit}" if len(finite) else "unknown"
+    missing = len(values) - len(finite)
+    return text + (f" ({missing} not a number: a diverged world)" if missing else "")
 
 
 def export_document(config, front, k: int, run_path: Path) -> dict:
