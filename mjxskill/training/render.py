@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import shutil
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -48,7 +49,11 @@ def _camera(model, data):
     return cam
 
 
-def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480) -> np.ndarray:
+# (frames done, frames in all) after each drawn frame
+FrameProgress = Callable[[int, int], None]
+
+
+def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progress: FrameProgress | None = None) -> np.ndarray:
     """(T, height, width, 3) uint8 images of the native ``model`` at each row of qpos (T, nq)."""
     import mujoco
 
@@ -66,6 +71,8 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480) -> np.n
             cam = cam or _camera(model, data)
             renderer.update_scene(data, camera=cam)
             images.append(renderer.render().copy())
+            if progress:
+                progress(len(images), len(qpos))
     finally:
         renderer.close()
     return np.stack(images)
@@ -110,12 +117,22 @@ def write_mp4(images: np.ndarray, path: Path, fps: float) -> Path:
     return path
 
 
-def render_episode(rollout, params: np.ndarray, world, out: Path, fmt: str = "png", width: int = 640, height: int = 480) -> list[Path]:
+def render_world(rollout, config_index: int, seed: int = 0):
+    """The one world an episode is rendered in: start configuration ``config_index`` (a known
+    one) with the objects randomized from ``seed`` (unbatched fields)."""
+    import jax
+
+    worlds = rollout.worlds_per_config(jax.random.PRNGKey(seed), 1)
+    return jax.tree.map(lambda x: x[config_index], worlds)
+
+
+def render_episode(rollout, params: np.ndarray, world, out: Path, fmt: str = "png", width: int = 640, height: int = 480,
+                   progress: FrameProgress | None = None) -> list[Path]:
     """Traces ``params`` (P,) in ``world`` (one unbatched world) and writes PNG frames into
     ``out/`` or ``out.mp4``. Returns the written paths."""
     _, record = rollout.trace(params, world)
     qpos = np.asarray(record.qpos)
-    images = frames(rollout.mj_model, qpos, width, height)
+    images = frames(rollout.mj_model, qpos, width, height, progress)
     if fmt == "mp4":
         return [write_mp4(images, out.with_suffix(".mp4"), fps=rollout.scenario.bt_hz)]
     return write_png_frames(images, out)
