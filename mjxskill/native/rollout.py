@@ -108,6 +108,16 @@ class NativeRollout:
     def control_steps_per_episode(self) -> int:
         return self.spec.ticks * self.spec.steps_per_tick
 
+    @property
+    def mj_model(self) -> mujoco.MjModel:
+        """The native model it simulates (as ``Rollout.mj_model``)."""
+        return self.model
+
+    def trace(self, params, world: Worlds):
+        """(EpisodeResult, TickRecord) of ``params`` (P,) in one world, as ``Rollout.trace``:
+        so an episode renders from either engine (``mjxskill.training.render``)."""
+        return self.run_episode(params, world, record=True)
+
     # -- one episode ------------------------------------------------------------------------
 
     def _initial_data(self, world) -> mujoco.MjData:
