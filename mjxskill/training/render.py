@@ -22,13 +22,18 @@ from mjxskill.errors import UserError
 GL_HELP = (
     "MuJoCo's offscreen renderer found no OpenGL backend (MUJOCO_GL={gl!r}: {err}). "
     "Headless Linux: install Mesa's EGL (apt-get install libegl1 libgl1-mesa-dri) and run with MUJOCO_GL=egl, "
-    "or software OSMesa (apt-get install libosmesa6) with MUJOCO_GL=osmesa; with a display, MUJOCO_GL=glfw. "
-    "The parameters were exported; pass --no-render to skip rendering."
+    "or software OSMesa (apt-get install libosmesa6) with MUJOCO_GL=osmesa; with a display, MUJOCO_GL=glfw."
 )
+AFTER_SELECT = "The parameters were exported; pass --no-render to skip rendering."
 
 
 class RenderUnavailable(UserError):
-    """No OpenGL backend (or no video encoder) for rendering."""
+    """No OpenGL backend (or no video encoder) for rendering. ``reason``: what is missing and how
+    to get it; the message adds ``next_step``, what the command can do about it."""
+
+    def __init__(self, reason: str, next_step: str = ""):
+        super().__init__(f"{reason} {next_step}" if next_step else reason)
+        self.reason = reason
 
 
 def default_gl() -> None:
@@ -61,7 +66,8 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progres
     try:
         renderer = mujoco.Renderer(model, height, width)
     except Exception as err:  # the GL backends raise a variety of errors when no context exists
-        raise RenderUnavailable(GL_HELP.format(gl=os.environ.get("MUJOCO_GL", ""), err=f"{type(err).__name__}: {err}")) from None
+        raise RenderUnavailable(GL_HELP.format(gl=os.environ.get("MUJOCO_GL", ""), err=f"{type(err).__name__}: {err}"),
+                                AFTER_SELECT) from None
     images = []
     try:
         cam = None
