@@ -266,7 +266,7 @@ def test_a_point_is_rolled_out_on_demand_without_blocking_the_server(tmp_path):
         assert status == 200 and doc["job"]["state"] in ("queued", "running")
         for _ in range(100):  # the worker is inside the "compile": the server still answers
             status, doc = get_json(base, f"{path}?config=1")
-            if doc["job"]["stage"].startswith("loading the scenario and compiling"):
+            if doc["job"]["stage"].startswith("loading the scenario and building the rollout"):
                 break
             threading.Event().wait(0.05)
         assert doc["job"]["state"] == "running" and doc["worlds"] is None
@@ -295,6 +295,12 @@ def test_a_point_is_rolled_out_on_demand_without_blocking_the_server(tmp_path):
         # a second request is answered from the run directory, with nothing computed again
         status, again = get_json(base, path, {"config": 1})
         assert again["worlds"] == got and again["video"] == doc["video"] and standin.calls == 1
+    # results of other settings are not taken for these
+    entry = runs_in(run.path)[0]
+    other = Solutions(run.path, standin, per_config=2, size=(64, 48)).status(0, entry, index, front.params[0], 1)
+    assert other["worlds"] is None and other["video"] is not None
+    other = Solutions(run.path, standin, per_config=1, size=(80, 60)).status(0, entry, index, front.params[0], 1)
+    assert other["worlds"] == got and other["video"] is None
 
 
 def test_export_copies_the_rendering_the_page_made(tmp_path):

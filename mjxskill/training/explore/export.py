@@ -16,7 +16,7 @@ from pathlib import Path
 
 from mjxskill.errors import CommandError
 from mjxskill.training.explore.data import RunEntry, evaluation_rows
-from mjxskill.training.explore.solutions import Solutions, read_cached
+from mjxskill.training.explore.solutions import Solutions
 
 
 def export_solution(entry: RunEntry, k: int, solutions: Solutions | None = None) -> dict:
@@ -37,12 +37,12 @@ def export_solution(entry: RunEntry, k: int, solutions: Solutions | None = None)
     written = [str(p) for p in write_export(doc, folder)]
     if solutions is not None:
         index = int(evaluation_rows(entry.evaluations(), front.take(slice(k, k + 1)))[0])
-        written += _copy_rendering(solutions.folder(entry, index), front.params[k], folder)
+        cache = solutions.folder(entry, index)
+        written += _copy_rendering(cache, solutions.cached_video(cache, front.params[k], 0), folder)
     return {"folder": str(folder), "written": written}
 
 
-def _copy_rendering(cache: Path, params, folder: Path) -> list[str]:
-    video = read_cached(cache / "known-0.json", params)
+def _copy_rendering(cache: Path, video: dict | None, folder: Path) -> list[str]:
     if video is None:
         return []
     if video["kind"] == "mp4":

@@ -75,14 +75,14 @@ def _write_json(path: Path, doc: dict) -> None:
     os.replace(tmp, path)
 
 
-def read_cached(path: Path, params: np.ndarray) -> dict | None:
-    """The cached document at ``path`` if it was computed for ``params``."""
+def read_cached(path: Path, params: np.ndarray, **settings) -> dict | None:
+    """The cached document at ``path`` if it was computed for ``params`` with ``settings``."""
     try:
         doc = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
     ok = doc.get("format") == FORMAT and doc.get("params") == numbers(params)
-    return doc if ok else None
+    return doc if ok and all(doc.get(k) == v for k, v in settings.items()) else None
 
 
 class Solutions:
@@ -107,13 +107,19 @@ class Solutions:
     def url(self, path: Path) -> str:
         return "/files/" + Path(os.path.relpath(path, self.root)).as_posix()
 
+    def cached_worlds(self, folder: Path, params: np.ndarray) -> dict | None:
+        return read_cached(folder / "worlds.json", params, per_config=self.per_config, seed=self.seed)
+
+    def cached_video(self, folder: Path, params: np.ndarray, config_index: int) -> dict | None:
+        return read_cached(folder / f"known-{config_index}.json", params, seed=self.seed, size=list(self.size))
+
     # -- what the page asks -------------------------------------------------------------------
     def status(self, run: int, entry: RunEntry, index: int, params: np.ndarray, config_index: int) -> dict:
         """What is known of point ``(run, index)``: its per-world results and its rendering from
         known start configuration ``config_index`` (None until computed), and its job."""
         folder = self.folder(entry, index)
-        worlds = read_cached(folder / "worlds.json", params)
-        video = read_cached(folder / f"known-{config_index}.json", params)
+        worlds = self.cached_worlds(folder, params)
+        video = self.cached_video(folder, params, config_index)
         if video is not None:
             video = {**video, "urls": [self.url(folder / f) for f in video["files"]]}
         with self._lock:
@@ -161,16 +167,16 @@ class Solutions:
         config = job.entry.config
         key = (config.scenario, config.goal, config.episode_seconds)
         if key not in self._rollouts:
-            self._set(job, "loading the scenario and compiling the rollout (about a minute on a CPU)", 0.02)
+            self._set(job, "loading the scenario and building the rollout", 0.02)
             self._rollouts[key] = self.rollout_factory(job.entry)
         return self._rollouts[key]
 
     def _run(self, job: Job) -> str:
         folder = self.folder(job.entry, job.index)
         rollout = self._rollout(job)
-        if read_cached(folder / "worlds.json", job.params) is None:
+        if self.cached_worlds(folder, job.params) is None:
             _write_json(folder / "worlds.json", self._worlds(job, rollout))
-        if read_cached(folder / f"known-{job.config_index}.json", job.params) is None:
+        if self.cached_video(folder, job.params, job.config_index) is None:
             return self._render(job, rollout, folder)
         return ""
 
@@ -179,7 +185,7 @@ class Solutions:
 
         worlds, names, known = evaluation_worlds(rollout, self.per_config, self.seed)
         self._set(job, f"rolling out {len(names) * self.per_config} worlds ({self.per_config} per start configuration; "
-                       "the first call compiles)", 0.1)
+                       "the first call compiles: a minute or two on a CPU)", 0.1)
         out = rollout.run_worlds(job.params[None], worlds)
         success = np.asarray(out.success, bool)[0]
         metric = lambda name: np.asarray(out.metrics[name], np.float64)[0]  # noqa: E731
@@ -208,9 +214,10 @@ class Solutions:
         try:
             paths = render_episode(rollout, job.params, world, out, fmt, *self.size, progress=progress)
         except RenderUnavailable as err:
-            return f"the per-world results are ready; no video: {err}"
+            return f"the per-world results are ready; no video: {err.reason}"
         _write_json(folder / f"known-{job.config_index}.json", {
-            "format": FORMAT, "params": numbers(job.params), "kind": fmt, "fps": float(rollout.scenario.bt_hz),
+            "format": FORMAT, "params": numbers(job.params), "seed": self.seed, "size": list(self.size), "kind": fmt,
+            "fps": float(rollout.scenario.bt_hz),
             "world": f"known start configuration {job.config_index}, objects randomized with seed {self.seed}",
             "files": [Path(os.path.relpath(p, folder)).as_posix() for p in paths]})
         return ""
