@@ -322,3 +322,36 @@ def test_export_copies_the_rendering_the_page_made(tmp_path):
     if copied.is_dir():
         assert sorted(p.name for p in copied.iterdir()) == sorted(Path(f).name for f in doc["video"]["files"])
         assert all((copied / Path(f).name).read_bytes() == (cache / f).read_bytes() for f in doc["video"]["files"])
+
+
+NO_DISPLAY_SCRIPT = """
+import sys, time
+sys.path.insert(0, sys.argv[1])
+import mjxskill
+from explore_runs import make_push_run
+from test_explore import NativeStandIn
+from mjxskill.training.explore import Solutions
+from mjxskill.training.explore.data import runs_in
+
+run = make_push_run(__import__("pathlib").Path(sys.argv[2]))
+entry, ev = runs_in(run.path)[0], run.evaluations()
+solutions = Solutions(run.path, NativeStandIn(), per_config=1, size=(32, 24))
+for config in (0, 1):
+    solutions.start(0, entry, 0, ev.params[0], config)
+    while (doc := solutions.status(0, entry, 0, ev.params[0], config))["job"]["state"] not in ("done", "failed"):
+        time.sleep(0.05)
+    print(config, doc["job"]["state"], doc["worlds"] is not None, doc["video"] is None, doc["job"]["message"][:60], flush=True)
+"""
+
+
+def test_a_renderer_that_failed_once_is_not_tried_again(tmp_path):
+    """GLFW without a display: MuJoCo's first context fails, and a second attempt in the same
+    process aborts it (libc++abi: recursive initialization of a static in mjr_makeContext) or,
+    from another thread, hangs holding the GIL: the whole server with it. The page asks once."""
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+    env.update(MUJOCO_GL="glfw", PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    done = subprocess.run([sys.executable, "-c", NO_DISPLAY_SCRIPT, str(Path(__file__).parent), str(tmp_path / "push-0")],
+                          capture_output=True, text=True, env=env, timeout=240)
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = done.stdout.splitlines()
+    assert lines == [f"{c} done True True the per-world results are ready; no video: MuJoCo's offscree" for c in (0, 1)], done.stdout

@@ -98,6 +98,10 @@ class Solutions:
         self._queue: queue.Queue[Job] = queue.Queue()
         self._rollouts: dict[tuple, object] = {}
         self._worker: threading.Thread | None = None
+        # Why this process cannot render, once it failed to: the GL backend is fixed when mujoco
+        # is imported, and after a failed mjr_makeContext another attempt aborts the process
+        # (same thread) or hangs holding the GIL (another thread).
+        self._no_video: str | None = None
 
     # -- where things are ---------------------------------------------------------------------
     @staticmethod
@@ -206,6 +210,8 @@ class Solutions:
         n_known = len(rollout.scenario.robot.start_configs)
         if not 0 <= job.config_index < n_known:
             raise CommandError(f"start configuration {job.config_index}: the task has known ones 0-{n_known - 1}")
+        if self._no_video is not None:
+            return f"the per-world results are ready; no video: {self._no_video}"
         fmt = "mp4" if shutil.which("ffmpeg") else "png"
         out = folder / f"known-{job.config_index}"
         self._set(job, "tracing the episode (compiled once)", 0.55)
@@ -214,6 +220,7 @@ class Solutions:
         try:
             paths = render_episode(rollout, job.params, world, out, fmt, *self.size, progress=progress)
         except RenderUnavailable as err:
+            self._no_video = err.reason
             return f"the per-world results are ready; no video: {err.reason}"
         _write_json(folder / f"known-{job.config_index}.json", {
             "format": FORMAT, "params": numbers(job.params), "seed": self.seed, "size": list(self.size), "kind": fmt,
