@@ -42,11 +42,12 @@ def evaluations(config: RunConfig, seed: int) -> Evaluations:
     return Evaluations(iteration, params, objectives, success, force)
 
 
-def write_run(run: Run, config: RunConfig, seed: int) -> Evaluations:
-    src = run.path.parent / f"{run.path.name}-scenario.yaml"
-    src.parent.mkdir(parents=True, exist_ok=True)
-    src.write_text("name: push\n")
-    run.create(config, str(src), {"plan.txt": "(GoToLinear) (Push)"})
+def write_run(run: Run, config: RunConfig, seed: int, create: bool = True) -> Evaluations:
+    if create:
+        src = run.path.parent / f"{run.path.name}-scenario.yaml"
+        src.parent.mkdir(parents=True, exist_ok=True)
+        src.write_text("name: push\n")
+        run.create(config, str(src), {"plan.txt": "(GoToLinear) (Push)"})
     ev = evaluations(config, seed)
     run.append(ev)
     run.write_pareto(config, ev, pareto_mask_of(ev))
@@ -67,8 +68,8 @@ def make_repeated_run(path: Path, repeats: int = 3) -> Run:
     src = path.parent / f"{path.name}-scenario.yaml"
     path.parent.mkdir(parents=True, exist_ok=True)
     src.write_text("name: push\n")
-    root.create(config, str(src), {"plan.txt": "(GoToLinear) (Push)"})
+    root.create(config, str(src), {"plan.txt": "(GoToLinear) (Push)"})  # creates the sub-runs too
     for sub in root.sub_runs(config):
         seed = int(sub.path.name.split("-")[1])
-        write_run(sub, config.sub_run(seed), seed)
+        write_run(sub, config.sub_run(seed), seed, create=False)
     return root

@@ -107,7 +107,7 @@ def test_choose_is_selects_rule(push_run):
             status, doc = get_json(base, f"/api/choose?{query}")
             assert status == 200 and doc == {"run": 0, "k": choose(front, limits.get("max_force"), limits.get("min_success"))}
         status, doc = get_json(base, "/api/choose?max_force=0")
-        assert status == 400 and "no Pareto solution meets the limits" in doc["error"]
+        assert status == 400 and "no Pareto solution meets --max-force" in doc["error"]
         status, doc = get_json(base, "/api/choose?max_force=lots")
         assert status == 400 and "max_force must be a number" in doc["error"]
 

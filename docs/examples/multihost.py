@@ -23,6 +23,17 @@ import sys
 from pathlib import Path
 
 
+def wait_for_all(name: str, minutes: float = 60.0) -> None:
+    """A barrier of the coordination service (no collective): the processes' compiles and
+    rollouts take different times, and the gloo collectives below give up on a peer that is more
+    than 30 s late. JAX's own checkpointing waits the same way (its client is not public API)."""
+    from jax._src import distributed
+
+    client = distributed.global_state.client
+    if client is not None:
+        client.wait_at_barrier(name, timeout_in_ms=int(minutes * 60_000))
+
+
 def evaluate(args) -> None:
     import mjxskill  # noqa: F401  (XLA flags first)
     import jax
@@ -34,9 +45,6 @@ def evaluate(args) -> None:
     jax.config.update("jax_cpu_collectives_implementation", "gloo")
     jax.distributed.initialize(coordinator_address=args.coordinator, num_processes=args.processes,
                                process_id=args.process_id)
-    # Meet once now, while all processes are at the same point: the collectives' connections are
-    # made within a 30 s rendezvous, and the compile below may take one process longer than that.
-    multihost_utils.process_allgather(np.zeros(1), tiled=True)
     rollout = mjxskill.compile_rollout(mjxskill.load_scenario(args.task), worlds=args.worlds,
                                        episode_seconds=args.episode_seconds)
     lo, hi = rollout.bounds
@@ -44,6 +52,7 @@ def evaluate(args) -> None:
     key = jax.random.key(args.seed)
     mine = np.array_split(params, jax.process_count())[jax.process_index()]              # this process's share
     out = rollout(mine, jax.random.fold_in(key, jax.process_index()))                     # local devices only
+    wait_for_all("rollouts done")
     objectives = multihost_utils.process_allgather(out.objectives, tiled=True)           # (B, O) everywhere
     success = multihost_utils.process_allgather(out.success.mean(axis=1), tiled=True)    # (B,)
     if jax.process_index() == 0 and args.json:
