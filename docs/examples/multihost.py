@@ -20,6 +20,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 
@@ -62,6 +63,20 @@ def evaluate(args) -> None:
           f"gathered objectives {np.asarray(objectives).shape}", flush=True)
 
 
+def wait_all_or_stop(procs: list[subprocess.Popen]) -> int:
+    """The worst exit code of the local processes; once one fails, the others are stopped (they
+    would wait for it at the next barrier until its timeout)."""
+    while True:
+        codes = [p.poll() for p in procs]
+        if any(c not in (None, 0) for c in codes) or all(c == 0 for c in codes):
+            break
+        time.sleep(0.5)
+    for p in procs:
+        if p.poll() is None:
+            p.terminate()
+    return max(abs(p.wait()) for p in procs)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--local", type=int, metavar="N", help="start N processes on this machine")
@@ -81,7 +96,7 @@ def main(argv=None) -> int:
         base += ["--episode-seconds", str(args.episode_seconds)] if args.episode_seconds else []
         base += ["--json", args.json] if args.json else []
         procs = [subprocess.Popen(base + ["--process-id", str(i)], env=dict(os.environ)) for i in range(args.local)]
-        return max(p.wait() for p in procs)
+        return wait_all_or_stop(procs)
     evaluate(args)
     return 0
 
