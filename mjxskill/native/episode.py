@@ -19,8 +19,8 @@ from mjxskill.ebt.interpreter import Interpreter, TickResult
 from mjxskill.ebt.nodes import Status
 from mjxskill.native.controller import NativeControllerState, native_impedance_control
 from mjxskill.native.leaves import NativeBlackboard
-from mjxskill.native.motion import quat_angle
 from mjxskill.native.rewards import NativeObservation
+from mjxskill.native.success import success
 from mjxskill.rollout.bindings import FREE, MOCAP
 from mjxskill.rollout.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, TickRecord
 from mjxskill.sim.controller_config import N_ARM
@@ -216,15 +216,5 @@ class NativeEpisode:
         return TickRecord(*(np.array(f) for f in zip(*self.records))) if self.records else None
 
     def _success(self):
-        spec = self.engine.spec
         slot_pos, slot_quat = self.slot_poses()
-        if spec.success_kind == "object_at_pose":
-            d_pos = float(np.linalg.norm(slot_pos[spec.success_object, :2] - slot_pos[spec.success_target, :2]))
-            d_rot = quat_angle(slot_quat[spec.success_object], slot_quat[spec.success_target])
-            return d_pos < spec.position_tolerance and d_rot < spec.orientation_tolerance, d_pos, d_rot, 0.0
-        tool_pos = self.data.site_xpos[spec.ctrl.site_id]
-        hole_top = slot_pos[spec.success_target] + np.asarray(spec.hole_top_local)
-        lateral = float(np.linalg.norm(tool_pos[:2] - hole_top[:2]))
-        depth = float(hole_top[2] - tool_pos[2])
-        inside = bool(np.all(np.abs(tool_pos[:2] - hole_top[:2]) < spec.hole_half_width))
-        return inside and depth > spec.depth, lateral, 0.0, depth
+        return success(self.engine.spec.success, self.data.site_xpos[self.engine.spec.ctrl.site_id].copy(), slot_pos, slot_quat)

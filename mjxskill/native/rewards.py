@@ -1,6 +1,6 @@
 """The reward terms of ``mjxskill.rollout.rewards`` in numpy, for the native-MuJoCo baseline.
 
-Same kinds, constants and defaults (``mjxskill.scenario.schema.REWARD_KINDS``); a term maps one :class:`NativeObservation` (end of a BT tick)
+Same kinds, constants and defaults (``mjxskill.scenario.vocabulary.REWARD_KINDS``); a term maps one :class:`NativeObservation` (end of a BT tick)
 to a raw float, and knows the worst raw value a diverged world is charged per tick.
 """
 
@@ -12,7 +12,8 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from mjxskill.native.motion import quat_angle
-from mjxskill.scenario.schema import REWARD_KINDS, Reward, Scenario
+from mjxskill.scenario.schema import Reward, Scenario
+from mjxskill.scenario.vocabulary import REWARD_KINDS
 
 
 class NativeObservation(NamedTuple):

@@ -57,9 +57,9 @@ class NativeRollout:
 
             task = plan_task(scn)
         if mj_model is None:
-            from mjxskill.sim.model import load_model
+            from mjxskill.sim.model import build_model
 
-            mj_model = load_model(scn)
+            mj_model = build_model(scn)
         seconds = scn.episode_seconds if episode_seconds is None else float(episode_seconds)
         self.scenario, self.task = scn, task
         self.episode_seconds = seconds

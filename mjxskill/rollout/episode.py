@@ -25,6 +25,7 @@ from mjxskill.ebt.nodes import Status
 from mjxskill.rollout.bindings import FREE, MOCAP, nominal_poses
 from mjxskill.rollout.leaves import Blackboard, LeafPrograms, LeafWorld, advance, init_blackboard, reference_pose
 from mjxskill.rollout.rewards import Observation, RewardTerm, raw_rewards
+from mjxskill.rollout.success import success
 from mjxskill.rollout.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, EpisodeSetup, TickRecord
 from mjxskill.rollout.worlds import Worlds
 from mjxskill.sim.controller import (
@@ -35,7 +36,6 @@ from mjxskill.sim.controller import (
     make_command,
     tool_pose,
 )
-from mjxskill.sim.rotations import quat_angle
 
 
 class EpisodeSpec(NamedTuple):
@@ -219,17 +219,4 @@ def run_episode(
 def _success(spec: EpisodeSpec, data: mjx.Data, world: Worlds):
     """(success, position error, orientation error, insertion depth) at the end of the episode."""
     slot_pos, slot_quat = slot_poses(spec, data, world)
-    zero = jnp.zeros((), jnp.float32)
-    if spec.setup.success_kind == "object_at_pose":
-        d_pos = jnp.linalg.norm(slot_pos[spec.setup.success_object, :2] - slot_pos[spec.setup.success_target, :2])
-        d_rot = quat_angle(slot_quat[spec.setup.success_object], slot_quat[spec.setup.success_target])
-        ok = (d_pos < spec.setup.position_tolerance) & (d_rot < spec.setup.orientation_tolerance)
-        return ok, d_pos, d_rot, zero
-    # "inserted": the tool (peg tip) is inside the hole's footprint, deeper than ``depth``.
-    tool_pos = data.site_xpos[spec.setup.ctrl.site_id]
-    hole_top = slot_pos[spec.setup.success_target] + jnp.asarray(spec.setup.hole_top_local, jnp.float32)
-    lateral = jnp.linalg.norm(tool_pos[:2] - hole_top[:2])
-    depth = hole_top[2] - tool_pos[2]
-    inside = jnp.all(jnp.abs(tool_pos[:2] - hole_top[:2]) < spec.setup.hole_half_width)
-    return inside & (depth > spec.setup.depth), lateral, zero, depth
-
+    return success(spec.setup.success, data.site_xpos[spec.setup.ctrl.site_id], slot_pos, slot_quat)

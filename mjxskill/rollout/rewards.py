@@ -4,7 +4,7 @@ Each term maps an :class:`Observation` of one world at one BT tick to a raw per-
 rollout sums ``weight * raw`` over the episode's ticks, and an objective is the sum of its
 rewards, averaged over the worlds of a parameter set. Larger is better everywhere.
 
-Kinds, their constants and defaults: ``mjxskill.scenario.schema.REWARD_KINDS`` (one table for
+Kinds, their constants and defaults: ``mjxskill.scenario.vocabulary.REWARD_KINDS`` (one table for
 the loader and both engines); what each computes: ``mjxskill.scenario.schema.Reward``.
 """
 
@@ -17,7 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjxskill.rollout.bindings import SceneBindings
-from mjxskill.scenario.schema import REWARD_KINDS, Reward, Scenario
+from mjxskill.scenario.schema import Reward, Scenario
+from mjxskill.scenario.vocabulary import REWARD_KINDS
 from mjxskill.sim.rotations import quat_angle
 
 class Observation(NamedTuple):

@@ -17,7 +17,10 @@ from mjxskill.errors import GoalError, ScenarioError
 from mjxskill.planner.world_pddl import check_atom, goal_literals, parse_literal
 from mjxskill.scenario.fields import Field, compose_file
 from mjxskill.scenario.scene_refs import check_scene
-from mjxskill.scenario.schema import MAX_EPISODE_SECONDS, Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping
+from mjxskill.scenario.schema import (
+    MAX_EPISODE_SECONDS, Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping,
+)
+from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.scenario.sections import optimizer, randomization, rewards, success
 from mjxskill.scenario.skills import manual_parameters, skill
 
@@ -98,7 +101,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         goal=top["goal"].string(),
         rewards=rewards(top["rewards"], objectives, object_names),
         objective_names=tuple(objectives),
-        success=success(top["success"], object_names),
+        success=success(top["success"], objects),
         randomization=randomization(top["randomization"], object_names),
         optimizer=optimizer(top["optimizer"]),
         manual_parameters=manual_parameters(top.get("manual_parameters"), skills),
@@ -109,7 +112,13 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     except GoalError as err:
         top["goal"].fail(str(err))
     refs = _scene_fields(top, robot_field, objects_field)
-    check_scene(Path(scn.scene), refs.pop("scene"), refs.pop("robot.tool_site"), refs)
+    geoms = {key: refs.pop(key) for key in list(refs) if key.endswith(".mjcf_geom")}
+    check_scene(Path(scn.scene), refs.pop("scene"), refs.pop("robot.tool_site"), refs, geoms)
+    # The physics the YAML gives is written into the MJCF model: what cannot be is an error now,
+    # naming the entry (mjxskill.sim.model), not a run that silently simulates something else.
+    from mjxskill.sim.model import build_model
+
+    build_model(scn)
     return scn
 
 
@@ -118,13 +127,21 @@ def _scene_fields(top, robot: Field, objects: Field) -> dict[str, Field]:
     fields = {"scene": top["scene"], "robot.tool_site": robot.mapping(optional=_ROBOT_KEYS)["tool_site"]}
     for name, field in objects.items():
         entries = field.mapping(optional=_OBJECT_KEYS)
-        if "mjcf_body" in entries:
-            fields[f"objects.{name}.mjcf_body"] = entries["mjcf_body"]
+        for key in ("mjcf_body", "mjcf_geom"):
+            if key in entries:
+                fields[f"objects.{name}.{key}"] = entries[key]
     return fields
 
 
 def _locations(top, robot: Field, objects: Field) -> dict[str, str]:
+    """key path -> "file: key path (line N)" of the entries checked after loading: the goal,
+    the scene references and every object entry (the model builder names them)."""
     fields = {"goal": top["goal"], **_scene_fields(top, robot, objects)}
+    for name, field in objects.items():
+        for key, entry in field.mapping(optional=_OBJECT_KEYS).items():
+            fields[f"objects.{name}.{key}"] = entry
+            if key == "extra" and entry.node.tag.endswith(":map"):
+                fields.update((f"objects.{name}.extra.{k}", v) for k, v in entry.items())
     return {key: f.where() for key, f in fields.items()}
 
 
@@ -270,7 +287,7 @@ def _nonnegative_vector(field: Field, length: int) -> np.ndarray:
 
 
 _OBJECT_KEYS = (
-    "type", "mjcf_body", "shape", "size", "mass", "friction", "com_offset", "pose", "approach_offset",
+    "type", "mjcf_body", "mjcf_geom", "shape", "size", "mass", "friction", "com_offset", "pose", "approach_offset",
     "extra", "relations",
 )
 
@@ -278,25 +295,40 @@ _OBJECT_KEYS = (
 def _object(name: str, field: Field, types, predicates, names) -> WorldObject:
     f = field.mapping(required=("type", "shape", "size", "pose"), optional=_OBJECT_KEYS)
     pose = f["pose"].mapping(required=("position", "rpy_deg"))
+    shape = f["shape"].string(choices=SHAPES)
+    kind = SHAPES[shape]
     size = f["size"].vector()
+    if len(size) != kind.size:
+        f["size"].fail(f"a {shape} has {kind.size} sizes (m), got {len(size)}")
     for item, v in zip(f["size"].seq(), size):
         if v < 0:
             item.fail(f"sizes are lengths >= 0 (m), got {v}")
+    name_of = lambda key: None if key not in f or f[key].is_null() else f[key].string()  # noqa: E731
+    body, geom = name_of("mjcf_body"), name_of("mjcf_geom")
+    if body is not None and geom is not None:
+        f["mjcf_geom"].fail("an object is an MJCF body or a geom of the world body, not both")
     optional_number = lambda key: None if key not in f or f[key].is_null() else f[key].number(positive=True)  # noqa: E731
-    extra = f["extra"].items() if "extra" in f else []
+    # Physics the simulator takes from the YAML (mjxskill.sim.model) needs something to write it into.
+    for key in ("mass", "com_offset"):
+        if key in f and not f[key].is_null() and body is None:
+            f[key].fail(f"{key} needs a body to simulate it (mjcf_body); {name} has none")
+    if "friction" in f and not f["friction"].is_null() and body is None and geom is None:
+        f["friction"].fail(f"friction needs a body or geom to simulate it (mjcf_body or mjcf_geom); {name} has neither")
+    extra = f["extra"].mapping(required=kind.extra) if "extra" in f else {}
+    if kind.extra and "extra" not in f:
+        f["shape"].fail(f"a {shape} needs extra: {{{', '.join(f'{k}: ...' for k in kind.extra)}}}")
     return WorldObject(
         name=name,
         type=f["type"].string().lower(),
         pose=Pose(frozen_array(pose["position"].vector(3)), frozen_array(pose["rpy_deg"].vector(3))),
-        mjcf_body=None if "mjcf_body" not in f or f["mjcf_body"].is_null() else f["mjcf_body"].string(),
-        shape=f["shape"].string(),
+        mjcf_body=body,
+        shape=shape,
         size=frozen_array(size),
         mass=optional_number("mass"),
         friction=optional_number("friction"),
         com_offset=frozen_array(f["com_offset"].vector(3) if "com_offset" in f else (0.0, 0.0, 0.0)),
         approach_offset=frozen_array(f["approach_offset"].vector(3) if "approach_offset" in f else (0.0, 0.0, 0.0)),
-        extra=frozen_mapping((k, v.number()) for k, v in extra),
+        extra=frozen_mapping((k, v.number(positive=True)) for k, v in extra.items()),
         relations=_relations(f.get("relations"), types, predicates, names),
+        mjcf_geom=geom,
     )
-
-
