@@ -17,7 +17,9 @@ FRONT = Evaluations(
     params=np.array([[0.1, 0.0], [0.2, 0.5], [0.3, -0.5], [0.4, 1.0]]),
     objectives=np.array([[5.0, -1.0], [7.0, -2.0], [7.5, -3.0], [9.0, -4.0]]),
     success_rate=np.array([0.2, 0.6, 0.6, 1.0]),
-    max_force=np.array([2.0, 5.0, 8.0, 12.0]),
+    peak_contact_force=np.array([2.0, 5.0, 8.0, 12.0]),
+    mean_contact_force=np.array([0.5, 1.0, 2.0, 3.0]),
+    peak_commanded_force=np.full(4, 7.0),
 )
 
 
@@ -44,7 +46,8 @@ def test_export_names_every_parameter_with_its_unit(tmp_path):
     doc = export_document(make_config(), FRONT, 2, tmp_path)
     assert doc["parameters"] == {"S.x": {"value": 0.3, "unit": "m"}, "S.y": {"value": -0.5, "unit": "N"}}
     assert doc["objectives"] == {"reach": 7.5, "force": -3.0}
-    assert doc["success_rate"] == 0.6 and doc["max_force_N"] == 8.0 and doc["pareto_index"] == 2
+    assert doc["success_rate"] == 0.6 and doc["pareto_index"] == 2
+    assert (doc["peak_contact_force_N"], doc["mean_contact_force_N"], doc["peak_commanded_force_N"]) == (8.0, 2.0, 7.0)
 
 
 def test_frames_match_the_scene_or_explain_how_to_get_gl():
@@ -68,3 +71,12 @@ def test_frames_match_the_scene_or_explain_how_to_get_gl():
     red = lambda im: (im[..., 0] > 150) & (im[..., 1] < 80)  # noqa: E731
     assert red(images[0]).any() and red(images[1]).any()
     assert not np.array_equal(red(images[0]), red(images[1]))
+
+
+def test_a_force_limit_on_a_run_without_measured_forces_is_refused():
+    # a run written before contact forces were measured: its commanded force is no measure of
+    # what the tool did, so --max-force says so instead of choosing by it
+    old = Evaluations(*FRONT[:4], np.full(4, np.nan), np.full(4, np.nan), FRONT.peak_commanded_force)
+    with pytest.raises(CommandError, match="written before contact forces were measured"):
+        choose(old, 5.0)
+    assert choose(old, None, 0.5) == 3

@@ -59,7 +59,9 @@ class _Carry(NamedTuple):
     done_tick: jax.Array
     diverged: jax.Array
     totals: jax.Array
-    max_force: jax.Array
+    peak_commanded_force: jax.Array
+    peak_contact_force: jax.Array
+    contact_force_sum: jax.Array  # over the control steps
 
 
 def initial_data(spec: EpisodeSpec, model: mjx.Model, template: mjx.Data, world: Worlds) -> mjx.Data:
@@ -129,13 +131,17 @@ def run_episode(
     nominal_pos = jnp.asarray(nominal_poses(spec.setup.bindings)[0])
     n_terms = len(spec.terms)
 
+    force_sensors = jnp.asarray(spec.setup.bindings.force_sensors, jnp.int32)
+
     def control_step(carry, _):
-        data, ctrl, bb = carry
+        data, ctrl, bb, force_sum, force_peak = carry
         ref = reference_pose(bb)
         command = make_command(ref.pos, ref.quat, bb.wrench, bb.stiffness)
         tau, ctrl = impedance_control(spec.setup.ctrl, model, data, command, nullspace_target, ctrl)
         data = mjx.step(model, data.replace(ctrl=data.ctrl.at[:N_ARM].set(tau)))
-        return (data, ctrl, advance(bb, dt)), None
+        # the tool's touch sensors, computed by mjx.step: the step's measured contact force
+        force = jnp.sum(data.sensordata[force_sensors])
+        return (data, ctrl, advance(bb, dt), force_sum + force, jnp.maximum(force_peak, force)), None
 
     def bt_tick(c: _Carry, t):
         tool_pos, tool_quat = tool_pose(spec.setup.ctrl, model, c.data)
@@ -151,7 +157,9 @@ def run_episode(
         bt = _where(c.done, c.bt, bt)
         root = jnp.where(c.done, c.status, root)
         bb = spec.leaves.effects(c.bb, active, started, leaf_world, params)
-        (data, ctrl, bb), _ = jax.lax.scan(control_step, (c.data, c.ctrl, bb), None, length=spec.setup.steps_per_tick)
+        zero = jnp.zeros((), jnp.float32)
+        (data, ctrl, bb, force_sum, force_peak), _ = jax.lax.scan(
+            control_step, (c.data, c.ctrl, bb, zero, zero), None, length=spec.setup.steps_per_tick)
 
         healthy = _healthy(spec, data) & ~c.diverged
         data, ctrl, bb = _where(healthy, (data, ctrl, bb), (c.data, c.ctrl, c.bb))
@@ -166,6 +174,7 @@ def run_episode(
             slot_quat=slot_quat,
             wrench=ctrl.wrench,
             bt_succeeded=root == Status.SUCCESS,
+            contact_force=force_sum / spec.setup.steps_per_tick,
         )
         raw = raw_rewards(spec.terms, obs) if n_terms else jnp.zeros(0, jnp.float32)
         totals = c.totals + raw
@@ -181,7 +190,9 @@ def run_episode(
                 done_tick=jnp.where(~c.done & finished, t, c.done_tick),
                 diverged=~healthy,
                 totals=totals,
-                max_force=jnp.maximum(c.max_force, jnp.linalg.norm(ctrl.wrench[:3])),
+                peak_commanded_force=jnp.maximum(c.peak_commanded_force, jnp.linalg.norm(ctrl.wrench[:3])),
+                peak_contact_force=jnp.where(healthy, jnp.maximum(c.peak_contact_force, force_peak), c.peak_contact_force),
+                contact_force_sum=jnp.where(healthy, c.contact_force_sum + force_sum, c.contact_force_sum),
             ),
             trace,
         )
@@ -196,7 +207,9 @@ def run_episode(
         done_tick=jnp.int32(-1),
         diverged=jnp.zeros((), bool),
         totals=jnp.zeros(n_terms, jnp.float32),
-        max_force=jnp.zeros((), jnp.float32),
+        peak_commanded_force=jnp.zeros((), jnp.float32),
+        peak_contact_force=jnp.zeros((), jnp.float32),
+        contact_force_sum=jnp.zeros((), jnp.float32),
     )
     c, trace = jax.lax.scan(bt_tick, carry, jnp.arange(spec.setup.ticks, dtype=jnp.int32))
     worst = jnp.asarray([t.worst_raw * spec.setup.ticks for t in spec.terms], jnp.float32).reshape(n_terms)
@@ -211,7 +224,10 @@ def run_episode(
         position_error=pos_err,
         orientation_error=rot_err,
         insertion_depth=depth,
-        max_force=c.max_force,
+        peak_commanded_force=c.peak_commanded_force,
+        # a diverged world's forces are not known: NaN, which meets no force limit
+        peak_contact_force=jnp.where(c.diverged, jnp.nan, c.peak_contact_force),
+        mean_contact_force=jnp.where(c.diverged, jnp.nan, c.contact_force_sum / (spec.setup.ticks * spec.setup.steps_per_tick)),
     )
     return (result, trace) if record else result
 

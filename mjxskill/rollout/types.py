@@ -115,7 +115,10 @@ class EpisodeResult(NamedTuple):
     root's last status (RUNNING if it never finished). bt_done_tick: tick the root finished (-1:
     never). position_error m, orientation_error rad: success object to target at the end (peg:
     tool to hole axis, 0). insertion_depth m: below the hole's top (peg; 0 for push).
-    max_force N: largest |feed-forward force| commanded.
+    peak_commanded_force N: largest |feed-forward force| the skills commanded (after the
+    controller's rate limits). peak_contact_force, mean_contact_force N: the largest and the
+    mean over the control steps of the measured normal contact force between the tool (or
+    held item) and everything else (``mjxskill.sim.tool_force``).
     """
 
     reward_totals: np.ndarray
@@ -126,7 +129,9 @@ class EpisodeResult(NamedTuple):
     position_error: np.ndarray
     orientation_error: np.ndarray
     insertion_depth: np.ndarray
-    max_force: np.ndarray
+    peak_commanded_force: np.ndarray
+    peak_contact_force: np.ndarray
+    mean_contact_force: np.ndarray
 
 
 class TickRecord(NamedTuple):
@@ -148,8 +153,8 @@ class TickRecord(NamedTuple):
 class RolloutOutput(NamedTuple):
     """objectives (B, O) float32; success (B, W) bool; metrics: name -> (B, W) array
     (``reward_<name>`` totals per world, ``diverged``, ``bt_status``, ``bt_done_tick``,
-    ``position_error`` m, ``orientation_error_deg``, ``insertion_depth`` m, ``max_force`` N,
-    ``config_index``)."""
+    ``position_error`` m, ``orientation_error_deg``, ``insertion_depth`` m,
+    ``peak_commanded_force``, ``peak_contact_force``, ``mean_contact_force`` N, ``config_index``)."""
 
     objectives: np.ndarray
     success: np.ndarray
@@ -178,7 +183,9 @@ def summarize(res: EpisodeResult, config_index, objective_matrix, reward_names, 
         position_error=res.position_error,
         orientation_error_deg=xp.degrees(res.orientation_error),
         insertion_depth=res.insertion_depth,
-        max_force=res.max_force,
+        peak_commanded_force=res.peak_commanded_force,
+        peak_contact_force=res.peak_contact_force,
+        mean_contact_force=res.mean_contact_force,
         config_index=config_index,
     )
     return RolloutOutput(objectives=objectives, success=res.success, metrics=metrics)

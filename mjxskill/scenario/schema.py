@@ -153,12 +153,14 @@ class SkillParameter:
 
 @dataclass(frozen=True)
 class Skill:
-    """A skill of the library: PDDL action plus how it expands into an eBT (``from_plan``).
+    """A skill of the library: PDDL action plus its behavior tree.
 
     parameters: in declaration order; the ``plan`` ones are the PDDL action's arguments in that
     order. preconditions / holdconditions / postconditions: PDDL literals over ``?argument``
     variables; hold-conditions must hold while the skill runs, so they become preconditions in
-    PDDL; negated postconditions are delete effects.
+    PDDL; negated postconditions are delete effects. tree: the skill's eBT as a template over
+    the primitive library (``mjxskill.ebt.template``), filled in per planned use
+    (``mjxskill.ebt.from_plan``).
     """
 
     name: str
@@ -166,6 +168,7 @@ class Skill:
     preconditions: tuple[str, ...]
     holdconditions: tuple[str, ...]
     postconditions: tuple[str, ...]
+    tree: object = None
 
     @property
     def pddl_name(self) -> str:
@@ -194,6 +197,10 @@ class Reward:
     ee_distance_to_box: 1 / (w (d + d_o)), d = tool to ``target`` distance (m).
     applied_wrench: min(|Fx| + |Fy| + |Fz|, cap) of the commanded force (N); use a negative
     weight. The cap bounds the worst value, which a diverged world receives.
+    contact_force: min(F, cap), F the measured normal contact force between the tool (or the
+    item it holds) and everything else, N, averaged over the tick's control steps: summed over
+    the episode, the accumulated force (its peak is the metric ``peak_contact_force``); use a
+    negative weight.
     exp_*: exp(-(d_m + d_o) / (2 sigma_w^2)) with d_m the tool-to-``target`` distance
     (exp_ee_to_goal), the tool reference-to-actual distance (exp_ee_to_reference) or
     position_weight * |p_obj - p_target| + orientation_weight * |angle (rad)| between ``object``
@@ -272,7 +279,7 @@ class Optimizer:
 class ManualSet:
     """An operator's parameter set from the YAML's ``manual_parameters``.
 
-    values: learnable parameter name (e.g. "Push.offset_x_start") -> value, checked against the
+    values: learnable parameter name (e.g. "Slide.offset_x_start") -> value, checked against the
     skill's bounds when loaded. where: the set's place in the file (for errors found when a plan
     is matched with it, see ``mjxskill.task``).
     """
@@ -286,7 +293,8 @@ class Scenario:
     """A validated scenario: the world model and the task settings, no plan (``mjxskill.task``
     plans a goal in it). See the module docstring for units and frames.
 
-    name: "push" / "peg". source: the YAML file. scene: the MJCF file. gravity: False runs the
+    name: "push" / "peg". source: the YAML file. libraries: the skill library files it includes
+    (``skill_library``). scene: the MJCF file. gravity: False runs the
     scene without gravity (SkiREIL's peg). types: PDDL type -> parent type (None: root).
     predicates: name -> argument types. objects: name -> WorldObject (poses included).
     skills: name -> Skill. goal: the default goal. manual_parameters: name -> ManualSet, the
@@ -315,6 +323,7 @@ class Scenario:
     optimizer: Optimizer
     manual_parameters: Mapping[str, ManualSet]
     locations: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
+    libraries: tuple[str, ...] = ()
 
     def where(self, key_path: str) -> str:
         """``"file: key path (line N)"`` of a YAML entry (the file alone when not recorded)."""

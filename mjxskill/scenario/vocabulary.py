@@ -37,6 +37,7 @@ REWARD_KINDS: Mapping[str, RewardKind] = MappingProxyType(
         "task_completion": RewardKind(MappingProxyType({"value": REQUIRED})),
         "ee_distance_to_box": RewardKind(MappingProxyType({"w": REQUIRED, "d_o": REQUIRED}), ("target",)),
         "applied_wrench": RewardKind(MappingProxyType({"cap": 100.0})),
+        "contact_force": RewardKind(MappingProxyType({"cap": 100.0})),
         "exp_ee_to_goal": RewardKind(MappingProxyType({"sigma_w": REQUIRED, "d_o": REQUIRED}), ("target",)),
         "exp_ee_to_reference": RewardKind(MappingProxyType({"sigma_w": REQUIRED, "d_o": REQUIRED})),
         "object_pose_divergence": RewardKind(
