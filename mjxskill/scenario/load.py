@@ -22,7 +22,7 @@ from mjxskill.scenario.schema import (
 )
 from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.scenario.sections import optimizer, randomization, rewards, success
-from mjxskill.scenario.skills import manual_parameters, skill
+from mjxskill.scenario.skills import manual_parameters, skill, skill_fields
 
 SCENARIO_DIR = Path(__file__).resolve().parents[2] / "assets" / "scenarios"
 
@@ -57,10 +57,10 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     top = root.mapping(
         required=(
             "name", "scene", "gravity", "episode_seconds", "bt_hz", "control_hz", "types", "predicates",
-            "robot", "objects", "skills", "goal", "objectives", "rewards", "success", "randomization",
+            "robot", "objects", "goal", "objectives", "rewards", "success", "randomization",
             "optimizer",
         ),
-        optional=("manual_parameters",),
+        optional=("manual_parameters", "skills", "skill_library"),
     )
     types = _types(top["types"])
     predicates = _predicates(top["predicates"], types)
@@ -72,9 +72,11 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     objects = frozen_mapping(
         (name, _object(name, field, types, predicates, names)) for name, field in objects_field.items()
     )
-    skills = frozen_mapping((name, skill(name, field, types, predicates)) for name, field in top["skills"].items())
+    libraries = _skill_libraries(top, path)
+    skills = frozen_mapping((name, _skill(name, field, types, predicates, path))
+                            for name, field in skill_fields(top, [root for _, root in libraries]))
     if not skills:
-        top["skills"].fail("the skill library is empty")
+        (top["skills"] if "skills" in top else root).fail("the skill library is empty (skills: or skill_library:)")
     object_names = set(objects)
     objectives = top["objectives"].strings()
     _no_duplicates(top["objectives"], objectives, "objective")
@@ -88,6 +90,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     scn = Scenario(
         name=name,
         source=str(path),
+        libraries=tuple(str(p) for p, _ in libraries),
         scene=str((path.parent / top["scene"].string()).resolve()),
         gravity=top["gravity"].boolean(),
         episode_seconds=top["episode_seconds"].number(positive=True, maximum=MAX_EPISODE_SECONDS),
@@ -120,6 +123,33 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
 
     build_model(scn)
     return scn
+
+
+def _skill(name: str, field: Field, types, predicates, path: Path):
+    """A skill; one of a library is checked against the including scenario's vocabulary, and
+    its errors say so (the library is right for another scenario)."""
+    try:
+        return skill(name, field, types, predicates)
+    except ScenarioError as err:
+        if field.source == str(path):
+            raise
+        raise ScenarioError(f"{err} (as included by {path}, whose types and predicates it uses)") from None
+
+
+def _skill_libraries(top, path: Path) -> list[tuple[Path, Field]]:
+    """(path, root Field) of each file ``skill_library`` names (one path or a list, relative to
+    the scenario file), read like the scenario."""
+    if "skill_library" not in top:
+        return []
+    field = top["skill_library"]
+    items = field.seq() if field.node.tag.endswith(":seq") else [field]
+    libraries = []
+    for item in items:
+        library = (path.parent / item.string()).resolve()
+        if not library.is_file():
+            item.fail(f"the skill library {str(library)!r} is not a file (paths are relative to the scenario file)")
+        libraries.append((library, compose_file(library, what="skill library")))
+    return libraries
 
 
 def _scene_fields(top, robot: Field, objects: Field) -> dict[str, Field]:
