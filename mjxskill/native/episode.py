@@ -198,7 +198,8 @@ class NativeEpisode:
         raw = [term.raw(obs) for term in self.engine.terms]
         self.totals += raw
         if self.record:
-            self.records.append(TickRecord(self.data.qpos.copy(), tool_pos, obs.ref_pos, int(root),
+            self.records.append(TickRecord(self.data.qpos.copy(), self.data.mocap_pos.copy(), self.data.mocap_quat.copy(),
+                                           tool_pos, obs.ref_pos, int(root),
                                            np.array(self.active), np.array(raw)))
         self.peak_commanded_force = max(self.peak_commanded_force, float(np.linalg.norm(self.cstate.wrench[:3])))
         return True

@@ -178,7 +178,7 @@ def run_episode(
         )
         raw = raw_rewards(spec.terms, obs) if n_terms else jnp.zeros(0, jnp.float32)
         totals = c.totals + raw
-        trace = TickRecord(data.qpos, tool_pos, obs.ref_pos, root, active, raw) if record else None
+        trace = TickRecord(data.qpos, data.mocap_pos, data.mocap_quat, tool_pos, obs.ref_pos, root, active, raw) if record else None
         return (
             _Carry(
                 data=data,

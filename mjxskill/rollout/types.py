@@ -137,12 +137,15 @@ class EpisodeResult(NamedTuple):
 class TickRecord(NamedTuple):
     """Per-tick trace of one world (only when asked for: it grows with the episode).
 
-    qpos (nq,): joint and object positions at the end of the tick (for rendering).
-    tool_pos (3,), ref_pos (3,): tool and reference positions. root: root status this tick.
-    active (L,) bool: the leaves ticked. rewards (R,): raw reward values of the tick.
+    qpos (nq,): joint and object positions at the end of the tick; mocap_pos (M, 3), mocap_quat
+    (M, 4): the mocap bodies (the world's goal, fixtures) as the world placed them (for
+    rendering). tool_pos (3,), ref_pos (3,): tool and reference positions. root: root status
+    this tick. active (L,) bool: the leaves ticked. rewards (R,): raw reward values of the tick.
     """
 
     qpos: np.ndarray
+    mocap_pos: np.ndarray
+    mocap_quat: np.ndarray
     tool_pos: np.ndarray
     ref_pos: np.ndarray
     root: np.ndarray
