@@ -259,30 +259,32 @@ LIBRARY_MUTATIONS = {
 }
 
 
-@pytest.mark.parametrize("kind", list(MUTATIONS))
-def test_invalid_file_fails_naming_file_key_and_line(kind, tmp_path):
-    old, new, key_path, message, *anchor = MUTATIONS[kind]
-    text = PUSH_TEXT
-    assert text.count(old) == 1, f"mutation anchor for {kind!r} must occur once"
-    mutated = text.replace(old, new)
-    path = tmp_path / "push.yaml"
-    path.write_text(mutated)
-    with pytest.raises(ScenarioError) as info:
-        plan_task(load_scenario(path))  # most fail to load; a goal no plan reaches fails to plan
-    error = str(info.value)
-    assert error.startswith(f"{path}: "), error
+def assert_located(error: str, file, key_path: str, message: str, mutated: str, anchor: str) -> None:
+    """``error`` is one line naming ``file``, ``key_path`` and the line of the last ``anchor`` in
+    ``mutated`` (no anchor: the document's first line), and says ``message``."""
+    assert error.startswith(f"{file}: ") and "\n" not in error, error
     assert re.search(rf": {key_path} \(line (\d+)\): ", error), error
     assert re.search(message, error), error
     line = int(re.search(r"\(line (\d+)\)", error).group(1))
-    anchor = anchor[0] if anchor else new.strip()
     if anchor:
         assert line == mutated[: mutated.rindex(anchor)].count("\n") + 1, error
     else:  # a missing top-level key is reported at the document's start
         assert line == 1 + next(i for i, l in enumerate(mutated.splitlines()) if l and not l.startswith("#")), error
-    assert "\n" not in error
 
 
-@pytest.mark.parametrize("kind", [k for k, v in LIBRARY_MUTATIONS.items() if v[2] is not None])
+@pytest.mark.parametrize("kind", list(MUTATIONS))
+def test_invalid_file_fails_naming_file_key_and_line(kind, tmp_path):
+    old, new, key_path, message, *anchor = MUTATIONS[kind]
+    assert PUSH_TEXT.count(old) == 1, f"mutation anchor for {kind!r} must occur once"
+    mutated = PUSH_TEXT.replace(old, new)
+    path = tmp_path / "push.yaml"
+    path.write_text(mutated)
+    with pytest.raises(ScenarioError) as info:
+        plan_task(load_scenario(path))  # most fail to load; a goal no plan reaches fails to plan
+    assert_located(str(info.value), path, key_path, message, mutated, anchor[0] if anchor else new.strip())
+
+
+@pytest.mark.parametrize("kind", list(LIBRARY_MUTATIONS))
 def test_an_invalid_skill_library_fails_naming_its_file_key_and_line(kind, tmp_path):
     old, new, key_path, message, *anchor = LIBRARY_MUTATIONS[kind]
     text = library_text()
@@ -291,13 +293,7 @@ def test_an_invalid_skill_library_fails_naming_its_file_key_and_line(kind, tmp_p
     path = write_library_copy(tmp_path, "push", mutated)
     with pytest.raises(ScenarioError) as info:
         load_scenario(path)
-    error = str(info.value)
-    assert error.startswith(f"{tmp_path / 'library.yaml'}: "), error
-    assert re.search(rf": {key_path} \(line (\d+)\): ", error), error
-    assert re.search(message, error), error
-    line = int(re.search(r"\(line (\d+)\)", error).group(1))
-    anchor = anchor[0] if anchor else new.strip()
-    assert line == mutated[: mutated.rindex(anchor)].count("\n") + 1, error
+    assert_located(str(info.value), tmp_path / "library.yaml", key_path, message, mutated, anchor[0] if anchor else new.strip())
 
 
 def test_a_skill_in_the_scenario_and_in_its_library_is_named_twice(tmp_path):

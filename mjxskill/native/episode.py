@@ -232,4 +232,5 @@ class NativeEpisode:
 
     def _success(self):
         slot_pos, slot_quat = self.slot_poses()
-        return success(self.engine.spec.success, self.data.site_xpos[self.engine.spec.ctrl.site_id].copy(), slot_pos, slot_quat)
+        spec = self.engine.spec
+        return success(spec.success, self.data.site_xpos[spec.ctrl.site_id].copy(), slot_pos, slot_quat)

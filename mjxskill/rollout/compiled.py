@@ -175,7 +175,8 @@ def compile_rollout(
     episode_seconds: overrides the scenario's episode length.
     batching: "vmap", "map" or "chunked" (default: the backend's fastest, see sim.batching).
     start_configs: (C, 7) start configurations to draw from (default: the training ones).
-    mj_model: the model to simulate (default: ``mjxskill.build_model(scn)``: the MJCF with the world model's physics).
+    mj_model: the model to simulate (default: ``mjxskill.build_model(scn)``, the MJCF with the world
+    model's physics).
     """
     from mjxskill._runtime import enable_compilation_cache
 

@@ -178,7 +178,8 @@ def run_episode(
         )
         raw = raw_rewards(spec.terms, obs) if n_terms else jnp.zeros(0, jnp.float32)
         totals = c.totals + raw
-        trace = TickRecord(data.qpos, data.mocap_pos, data.mocap_quat, tool_pos, obs.ref_pos, root, active, raw) if record else None
+        trace = (TickRecord(data.qpos, data.mocap_pos, data.mocap_quat, tool_pos, obs.ref_pos, root, active, raw)
+                 if record else None)
         return (
             _Carry(
                 data=data,
@@ -227,7 +228,8 @@ def run_episode(
         peak_commanded_force=c.peak_commanded_force,
         # a diverged world's forces are not known: NaN, which meets no force limit
         peak_contact_force=jnp.where(c.diverged, jnp.nan, c.peak_contact_force),
-        mean_contact_force=jnp.where(c.diverged, jnp.nan, c.contact_force_sum / (spec.setup.ticks * spec.setup.steps_per_tick)),
+        mean_contact_force=jnp.where(c.diverged, jnp.nan,
+                                     c.contact_force_sum / (spec.setup.ticks * spec.setup.steps_per_tick)),
     )
     return (result, trace) if record else result
 

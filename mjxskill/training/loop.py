@@ -64,7 +64,8 @@ def rollout_evaluator(rollout, batch_size: int, seed: int) -> BatchEvaluator:
         out = rollout(padded, rollout_key(seed, iteration))
         success = np.asarray(out.success, np.float64)[:n]
         forces = {name: np.asarray(out.metrics[name], np.float64)[:n].mean(axis=1) for name in FORCE_COLUMNS}
-        return BatchResult(objectives=np.asarray(out.objectives, np.float64)[:n], success_rate=success.mean(axis=1), **forces)
+        return BatchResult(objectives=np.asarray(out.objectives, np.float64)[:n], success_rate=success.mean(axis=1),
+                           **forces)
 
     return evaluate
 
