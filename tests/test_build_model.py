@@ -30,7 +30,7 @@ def edited(tmp_path, name: str, *replacements) -> object:
     return load_scenario(write_copy(tmp_path, name, text))
 
 
-@pytest.mark.parametrize("name", ["push", "peg"])
+@pytest.mark.parametrize("name", ["push", "peg", "slide"])
 def test_the_shipped_yaml_and_mjcf_agree(name):
     # Building the shipped scenarios changes nothing the MJCF already said: same masses, centres
     # of mass, geometry and pair frictions. The prism's inertia is the closed form; the MJCF held
