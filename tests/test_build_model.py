@@ -39,11 +39,24 @@ def test_the_shipped_yaml_and_mjcf_agree(name):
     built, raw = build_model(scn), mujoco.MjModel.from_xml_path(scn.scene)
     for field in ("body_mass", "body_ipos", "body_pos", "geom_size", "geom_pos", "pair_friction", "mesh_vert"):
         np.testing.assert_allclose(getattr(built, field), getattr(raw, field), atol=2e-6, err_msg=field)
-    np.testing.assert_allclose(built.body_inertia, raw.body_inertia, rtol=1e-4, atol=1e-12)
+    # the inertia as a tensor in the body frame: a written inertia may list the same principal
+    # moments in another order (body_iquat turned to match)
+    np.testing.assert_allclose(_body_tensors(built), _body_tensors(raw), rtol=1e-4, atol=1e-12)
     np.testing.assert_allclose(np.abs(np.sum(built.body_quat * raw.body_quat, axis=1)), 1.0, atol=1e-9)
     np.testing.assert_array_equal(built.site_pos[built.site("tool").id], raw.site_pos[raw.site("tool").id])
     assert built.opt.timestep == 1.0 / scn.control_hz
     assert np.any(built.opt.gravity) == scn.gravity
+
+
+def _body_tensors(model) -> np.ndarray:
+    """(nbody, 3, 3) each body's inertia tensor about its centre of mass, in the body frame."""
+    out = np.zeros((model.nbody, 3, 3))
+    for b in range(model.nbody):
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, model.body_iquat[b])
+        rot = rot.reshape(3, 3)
+        out[b] = rot @ np.diag(model.body_inertia[b]) @ rot.T
+    return out
 
 
 def _principal(tensor):
