@@ -138,7 +138,7 @@ BAD_INPUT = (
     (["train", "peg", "--resume", "{run}"], "is a run of task 'push', not 'peg'"),
     (["train", "push", "--resume", "{run}", "--budget", "9"], "drop --budget 9 (the run has 6)"),
     (["train", "push", "--resume", "{run}", "--engine", "mjx"], "drop --engine mjx (the run has native)"),
-    (["train", "push", "--engine", "warp"], "argument --engine: invalid choice: 'warp'"),
+    (["train", "push", "--engine", "warp"], "argument --engine: expected one of mjx, native, auto, got 'warp'"),
     (["train", "{broken}"], "bt_hz"),
     (["train", "push", "--goal", "(skiros:at skiros:Nothing-1 skiros:ObjectGoalPose-1)"], "unknown object 'nothing-1'"),
     (["evaluate", "{tmp}"], "is not a run directory"),

@@ -73,8 +73,10 @@ def build_candidates(task, pareto_params: np.ndarray, n_random: int, seed: int) 
     return Candidates(tuple(names), tuple(groups), params)
 
 
-def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: int, batch_size: int) -> Evaluation:
-    """Runs every candidate in the same per-configuration worlds (known + unseen configs)."""
+def evaluation_worlds(rollout, per_config: int, seed: int):
+    """The worlds every candidate runs in: ``per_config`` from each known, then each unseen
+    start configuration (configuration-major, leading shape (C * per_config,)). Returns
+    (worlds, config_names (C,), known (C,) bool)."""
     import jax
 
     scn = rollout.scenario
@@ -84,7 +86,15 @@ def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: 
     if len(unseen_cfg):
         parts.append(rollout.worlds_per_config(key_unseen, per_config, unseen_cfg))
     worlds = jax.tree.map(lambda *xs: np.concatenate([np.asarray(x) for x in xs]), *parts)
-    n_cfg = len(known_cfg) + len(unseen_cfg)
+    names = tuple([f"known-{i}" for i in range(len(known_cfg))] + [f"unseen-{j}" for j in range(len(unseen_cfg))])
+    known = np.array([True] * len(known_cfg) + [False] * len(unseen_cfg))
+    return worlds, names, known
+
+
+def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: int, batch_size: int) -> Evaluation:
+    """Runs every candidate in the same per-configuration worlds (known + unseen configs)."""
+    worlds, names, known = evaluation_worlds(rollout, per_config, seed)
+    n_cfg = len(names)
     rows, metric_rows = [], {name: [] for name in METRICS}
     params = candidates.params
     for start in range(0, len(params), batch_size):
@@ -98,8 +108,6 @@ def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: 
             if name in metrics:
                 value = np.asarray(metrics[name], np.float64)[: len(chunk)]
                 metric_rows[name].append(value.reshape(len(chunk), n_cfg, per_config).mean(axis=2))
-    names = tuple([f"known-{i}" for i in range(len(known_cfg))] + [f"unseen-{j}" for j in range(len(unseen_cfg))])
-    known = np.array([True] * len(known_cfg) + [False] * len(unseen_cfg))
     per_metric = {name: np.concatenate(got) if len(got) == len(rows) else None for name, got in metric_rows.items()}
     return Evaluation(candidates, np.concatenate(rows), known, names, **per_metric)
 
