@@ -114,7 +114,8 @@ def test_a_rendered_episode_shows_the_worlds_randomized_poses(tmp_path):
     _, record = engine.trace(engine.task.defaults, world)
     goal = engine.mj_model.body("goal").mocapid[0]
     np.testing.assert_allclose(record.mocap_pos[0, goal], moved[slots["ObjectGoalPose-1"]], atol=1e-6)
-    images = frames_or_skip(engine.mj_model, record.qpos[:1], 160, 120, record.mocap_pos[:1], record.mocap_quat[:1])
+    images = frames_or_skip(engine.mj_model, record.qpos[:1], 160, 120, mocap_pos=record.mocap_pos[:1],
+                            mocap_quat=record.mocap_quat[:1])
     reference_model = engine.mj_model.__copy__()
     reference_model.body_pos[engine.mj_model.body("goal").id] = moved[slots["ObjectGoalPose-1"]]
     reference = frames_or_skip(reference_model, record.qpos[:1], 160, 120)

@@ -58,7 +58,7 @@ def _camera(model, data):
 FrameProgress = Callable[[int, int], None]
 
 
-def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progress: FrameProgress | None = None,
+def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progress: FrameProgress | None = None, *,
            mocap_pos: np.ndarray | None = None, mocap_quat: np.ndarray | None = None) -> np.ndarray:
     """(T, height, width, 3) uint8 images of the native ``model`` at each row of qpos (T, nq),
     with the mocap bodies at mocap_pos (T, M, 3) and mocap_quat (T, M, 4) (None: the model's)."""
@@ -145,7 +145,7 @@ def render_episode(rollout, params: np.ndarray, world, out: Path, fmt: str = "pn
     the written paths."""
     _, record = rollout.trace(params, world)
     images = frames(rollout.mj_model, np.asarray(record.qpos), width, height, progress,
-                    np.asarray(record.mocap_pos), np.asarray(record.mocap_quat))
+                    mocap_pos=np.asarray(record.mocap_pos), mocap_quat=np.asarray(record.mocap_quat))
     if fmt == "mp4":
         return [write_mp4(images, out.with_suffix(".mp4"), fps=rollout.scenario.bt_hz)]
     return write_png_frames(images, out)
