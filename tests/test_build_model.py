@@ -34,7 +34,9 @@ def edited(tmp_path, name: str, *replacements) -> object:
 def test_the_shipped_yaml_and_mjcf_agree(name):
     # Building the shipped scenarios changes nothing the MJCF already said: same masses, centres
     # of mass, geometry and pair frictions. The prism's inertia is the closed form; the MJCF held
-    # it rounded to 4 digits.
+    # it rounded to 4 digits. (Measured against the hand-written model's code on main: a short
+    # push run gives the same success rates and forces, its objectives differ by < 1e-10
+    # relative; peg rollouts agree to 10 digits.)
     scn = load_scenario(name)
     built, raw = build_model(scn), mujoco.MjModel.from_xml_path(scn.scene)
     for field in ("body_mass", "body_ipos", "body_pos", "geom_size", "geom_pos", "pair_friction", "mesh_vert"):
