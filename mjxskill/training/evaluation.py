@@ -33,16 +33,24 @@ class Candidates(NamedTuple):
     params: np.ndarray
 
 
+# Per-world metrics the evaluation averages per candidate and start configuration (N, C).
+METRICS = ("position_error", "peak_contact_force", "mean_contact_force")
+
+
 class Evaluation(NamedTuple):
     """success (N, C) success rate of each candidate from each start configuration; known (C,)
     bool: a training configuration (else unseen); config_names (C,); position_error (N, C)
-    mean final position error of the task's object, m (how close a failure came)."""
+    mean final position error of the task's object, m (how close a failure came);
+    peak_contact_force, mean_contact_force (N, C): the measured contact force of the tool, N,
+    its peak and mean in an episode, averaged over the worlds (NaN where a world diverged)."""
 
     candidates: Candidates
     success: np.ndarray
     known: np.ndarray
     config_names: tuple[str, ...]
     position_error: np.ndarray | None = None
+    peak_contact_force: np.ndarray | None = None
+    mean_contact_force: np.ndarray | None = None
 
     def mean(self, known: bool) -> np.ndarray:
         """(N,) mean success over the known (or the unseen) configurations."""
@@ -87,7 +95,7 @@ def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: 
     """Runs every candidate in the same per-configuration worlds (known + unseen configs)."""
     worlds, names, known = evaluation_worlds(rollout, per_config, seed)
     n_cfg = len(names)
-    rows, errors = [], []
+    rows, metric_rows = [], {name: [] for name in METRICS}
     params = candidates.params
     for start in range(0, len(params), batch_size):
         chunk = params[start : start + batch_size]
@@ -96,11 +104,12 @@ def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: 
         success = np.asarray(out.success, np.float64)[: len(chunk)]  # (b, n_cfg * per_config)
         rows.append(success.reshape(len(chunk), n_cfg, per_config).mean(axis=2))
         metrics = getattr(out, "metrics", None) or {}
-        if "position_error" in metrics:
-            error = np.asarray(metrics["position_error"], np.float64)[: len(chunk)]
-            errors.append(error.reshape(len(chunk), n_cfg, per_config).mean(axis=2))
-    position_error = np.concatenate(errors) if len(errors) == len(rows) else None
-    return Evaluation(candidates, np.concatenate(rows), known, names, position_error)
+        for name in METRICS:
+            if name in metrics:
+                value = np.asarray(metrics[name], np.float64)[: len(chunk)]
+                metric_rows[name].append(value.reshape(len(chunk), n_cfg, per_config).mean(axis=2))
+    per_metric = {name: np.concatenate(got) if len(got) == len(rows) else None for name, got in metric_rows.items()}
+    return Evaluation(candidates, np.concatenate(rows), known, names, **per_metric)
 
 
 def significance(a: np.ndarray, b: np.ndarray) -> tuple[float, str]:
@@ -152,16 +161,24 @@ def plot_boxes(ev: Evaluation, path: Path, title: str) -> dict:
     return tests
 
 
+# evaluation.csv's metric columns: (header, Evaluation field, unit suffix)
+CSV_METRICS = (("position_error", "position_error", "m"), ("peak_contact_force", "peak_contact_force", "N"),
+               ("mean_contact_force", "mean_contact_force", "N"))
+
+
 def write_csv(ev: Evaluation, parameter_names: Sequence[str], path: Path) -> None:
+    """One row per candidate: parameters, success known/unseen and per configuration, then each
+    metric's mean over the known and over the unseen configurations' worlds."""
+    present = [(head, getattr(ev, field), unit) for head, field, unit in CSV_METRICS if getattr(ev, field) is not None]
     with open(path, "w", newline="") as fh:
         writer = csv.writer(fh)
-        err = ev.position_error
         writer.writerow(["candidate", "group", *parameter_names, "success_known", "success_unseen",
                          *(f"success_{c}" for c in ev.config_names)]
-                        + ([] if err is None else ["position_error_known_m", "position_error_unseen_m"]))
+                        + [f"{head}_{side}_{unit}" for head, _, unit in present for side in ("known", "unseen")])
         known, unseen = ev.mean(True), ev.mean(False)
         for i, name in enumerate(ev.candidates.names):
-            extra = [] if err is None else [repr(float(err[i, ev.known].mean())), repr(float(err[i, ~ev.known].mean()) if (~ev.known).any() else "nan")]
+            extra = [repr(float(values[i, cols].mean())) if cols.any() else "nan"
+                     for _, values, _ in present for cols in (ev.known, ~ev.known)]
             writer.writerow([name, ev.candidates.groups[i], *map(repr, map(float, ev.candidates.params[i])),
                              repr(float(known[i])), repr(float(unseen[i])), *map(repr, map(float, ev.success[i]))] + extra)
 
@@ -176,6 +193,10 @@ def table(ev: Evaluation, tests: dict) -> str:
         head.append("pos.err [mm]")
         for i, row in enumerate(rows):
             row.append(f"{1000 * ev.position_error[i].mean():.0f}")
+    if ev.peak_contact_force is not None:  # the measured contact force of the tool, over all configurations
+        head.append("contact F peak [N]")
+        for i, row in enumerate(rows):
+            row.append(f"{ev.peak_contact_force[i].mean():.1f}")
     widths = [max(len(r[c]) for r in [head, *rows]) for c in range(len(head))]
     fmt = lambda r: "  ".join(x.ljust(w) if c < 2 else x.rjust(w) for c, (x, w) in enumerate(zip(r, widths)))  # noqa: E731
     lines = [fmt(head), *map(fmt, rows), "", "group              known  unseen  (mean success; Mann-Whitney U vs Pareto)"]
