@@ -16,7 +16,7 @@ from cli_helpers import ROOT, error_line, invoke, snapshot, subprocess_env
 from mjxskill.scenario import load_scenario
 from mjxskill.task import plan_task, planning_texts
 from mjxskill.training.run_dir import EVALUATIONS, PARETO, RUN_STATE, Evaluations, Run, RunConfig, write_csv
-from scenario_texts import shipped_text
+from scenario_texts import library_text, shipped_text, write_library_copy
 
 PUSH = shipped_text("push")
 
@@ -189,9 +189,6 @@ SCENARIO_EDITS = {
     "unit tag": ("mass: 2.5", "mass: !kg 2.5", "objects.ObjectToBePushed-1.mass", "the YAML tag !kg is not supported"),
     "float tag on text": ("mass: 2.5", "mass: !!float abc", "objects.ObjectToBePushed-1.mass", "cannot read 'abc' as float"),
     "episode length in YAML": ("episode_seconds: 12.0", "episode_seconds: 1e300", "episode_seconds", "expected a number <= 3600"),
-    "zero-width bounds": ("offset_x_start: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3]",
-                          "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [0, 0]",
-                          "skills.Push.parameters.offset_x_start.bounds", "bounds [0, 0] leave a learnable parameter nothing to learn"),
 }
 
 
@@ -204,6 +201,23 @@ def test_scenario_values_that_gave_tracebacks_are_one_located_error(tmp_path, ca
     path.write_text(text)
     code, stderr = invoke(capsys, command, path, *(["--out", tmp_path / "out"] if command == "train" else []))
     line = error_line(code, stderr, command, f"{path}: {key} (line {line_of(text, new)}): ", message)
+    assert "--optimizer-option" not in line
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("command", ["plan", "train"])
+def test_zero_width_bounds_in_the_skill_library_are_one_located_error(tmp_path, capsys, command):
+    # The skills' parameter bounds live in the skill library the scenario includes: the error
+    # names that file, the key and the line (and never blames --optimizer-option).
+    old = "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3]"
+    new = "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [0, 0]"
+    library = library_text()
+    assert library.count(old) == 1
+    edited = library.replace(old, new)
+    path = write_library_copy(tmp_path, "push", edited)
+    code, stderr = invoke(capsys, command, path, *(["--out", tmp_path / "out"] if command == "train" else []))
+    line = error_line(code, stderr, command, f"{tmp_path / 'library.yaml'}: skills.Push.parameters.offset_x_start.bounds "
+                      f"(line {line_of(edited, new)}): ", "bounds [0, 0] leave a learnable parameter nothing to learn")
     assert "--optimizer-option" not in line
     assert not (tmp_path / "out").exists()
 
