@@ -112,7 +112,7 @@ def pareto_mask_of(ev: Evaluations) -> np.ndarray:
 
 # -- the loop -------------------------------------------------------------------------------------
 def optimizer_config(config: RunConfig):
-    from mjxskill.gp import MOBOConfig
+    from mjxskill.gp import MOBOConfig, acquisition_settings
 
     return MOBOConfig(
         bounds=config.bounds,
@@ -120,7 +120,7 @@ def optimizer_config(config: RunConfig):
         batch_size=config.batch_size,
         n_init=config.n_init,
         seed=config.seed,
-        **config.optimizer_options,
+        acquisition=acquisition_settings(config.optimizer_options),
     )
 
 
@@ -216,31 +216,24 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue the run in RUN_DIR to its budget")
     parser.add_argument("--quiet", action="store_true", help="no progress bar: one log line per batch")
     parser.add_argument("--optimizer-option", action="append", type=optimizer_option, metavar="KEY=VALUE", default=None,
-                        help="a further mjxskill.gp.MOBOConfig setting, e.g. n_raw=256 (repeatable; stored with the run)")
+                        help="an acquisition setting of mjxskill.gp (AcquisitionSettings), e.g. n_raw=256 or "
+                             "model=scalarized (repeatable; stored with the run)")
     return parser
 
 
-RUN_DEFINED = ("bounds", "n_objectives", "batch_size", "n_init", "seed")  # set by the run, not by options
-
-
-def optimizer_option(text: str) -> tuple[str, int | float]:
-    """``KEY=VALUE`` for a numeric MOBOConfig field (argparse type)."""
-    import dataclasses
-
-    from mjxskill.gp import MOBOConfig
-
+def optimizer_option(text: str) -> tuple[str, int | float | str]:
+    """``KEY=VALUE`` for an acquisition setting of mjxskill.gp (argparse type): the value as a
+    number when it reads as one, else the string. Keys and values are checked together by
+    ``gp.acquisition_settings`` in ``resolve_config`` (one setting can bound another)."""
     key, sep, value = text.partition("=")
-    fields = [f.name for f in dataclasses.fields(MOBOConfig) if f.name not in RUN_DEFINED]
-    if not sep or key not in fields:
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE with KEY one of {', '.join(fields)}; got {text!r}")
-    try:
-        number = int(value)
-    except ValueError:
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+    for kind in (int, float):
         try:
-            number = float(value)
+            return key, kind(value)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{key}: expected a number, got {value!r}") from None
-    return key, number
+            pass
+    return key, value
 
 
 SETTING_FLAGS = {"budget": "budget", "batch_size": "batch_size", "init": "n_init", "worlds": "worlds",
@@ -270,7 +263,7 @@ def resolve_config(args: argparse.Namespace, scn) -> RunConfig:
     )
     try:
         optimizer_config(config)
-    except ValueError as err:  # MOBOConfig names the bad setting
+    except ValueError as err:  # gp names the bad setting
         raise cli.CommandError(f"--optimizer-option: {err}") from None
     if config.n_init > config.budget:
         raise cli.CommandError(f"--init {config.n_init} exceeds the budget of {config.budget} evaluations")

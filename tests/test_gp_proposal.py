@@ -7,7 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjxskill.gp import MOBOConfig, ask, init, tell
+from mjxskill.gp import AcquisitionSettings, MOBOConfig, ask, init, tell
 from mjxskill.gp import gp as gpm
 from mjxskill.gp.proposal import _believer_predictor
 
@@ -38,9 +38,9 @@ def test_believer_update_equals_conditioning_on_the_believed_points():
 
 
 def test_per_objective_model_with_moment_matching_proposes_distinct_points_in_bounds():
-    cfg = MOBOConfig(bounds=[[0.0, 0.0], [1.0, 1.0]], n_objectives=2, batch_size=3, n_init=6, seed=1, bucket=16,
-                     n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1, fit_steps=5, model="per_objective",
-                     ei="moments")
+    cfg = MOBOConfig(bounds=[[0.0, 0.0], [1.0, 1.0]], n_objectives=2, batch_size=3, n_init=6, seed=1,
+                     acquisition=AcquisitionSettings(bucket=16, n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1,
+                                                     fit_steps=5, model="per_objective", ei="moments"))
     x = np.random.default_rng(0).random((6, 2))
     state = tell(init(cfg), x, np.stack([x[:, 0], 1 - x[:, 0] + x[:, 1] ** 2], 1))
     batch = ask(state)

@@ -35,8 +35,6 @@ Everything here is pure and jitted with static shapes; run it with x64 enabled.
 from __future__ import annotations
 
 from functools import partial
-from typing import NamedTuple
-
 import jax
 import jax.numpy as jnp
 import optax
@@ -45,33 +43,7 @@ from mjxskill.gp import gp as gpm
 from mjxskill.gp.acquisition import chebyshev, log_ei, sample_simplex
 from mjxskill.gp.kernels import matern52
 from mjxskill.gp.scalarized_posterior import chebyshev_moments, log_ei_draws, normal_draws
-
-
-class ProposalSettings(NamedTuple):
-    """Static settings of the proposal (hashable: part of the compile cache key)."""
-
-    alpha: float = 0.05  # augmented Chebyshev coefficient
-    n_raw: int = 1024  # random candidates scored per batch element
-    n_restarts: int = 10  # best candidates refined by projected Adam
-    n_opt_steps: int = 100
-    learning_rate: float = 0.02  # unit-cube coordinates per step
-    fit_starts: int = 2
-    fit_steps: int = 50
-    # One GP fit per batch element while the padded training set has at most this many
-    # rows, one shared fit above (a fit costs O(n^3), q of them dominate the proposal time).
-    per_element_fit_max_rows: int = 128
-    # Hyperparameters are fitted on a random subset of at most this many real rows (the
-    # posterior still conditions on all of them): a fit on 448 rows took ~4 s on 2 cores.
-    fit_max_rows: int = 128
-    # Which model each batch element uses (see the module docstring): "scalarized" (a GP on
-    # the element's scalarization), "per_objective" (a GP per objective, scalarized draws),
-    # "hybrid" (the first ceil(q/2) elements scalarized, the rest per-objective).
-    model: str = "hybrid"
-    n_draws: int = 128  # quasi-random posterior draws per point (per-objective model)
-    # Per-objective acquisition: "draws" (quasi-MC log-EI) or "moments" (log-EI of the
-    # moment-matched Gaussian); tau is the softplus width of "draws" (normalized units).
-    ei: str = "draws"
-    tau: float = 1e-3
+from mjxskill.gp.settings import AcquisitionSettings
 
 
 def standardize(s: jnp.ndarray, mask: jnp.ndarray) -> jnp.ndarray:
@@ -153,7 +125,7 @@ def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, y_norm, mas
     return acq
 
 
-def _maximize(acq, key, d: int, settings: ProposalSettings) -> jnp.ndarray:
+def _maximize(acq, key, d: int, settings: AcquisitionSettings) -> jnp.ndarray:
     """Best point in [0, 1]^d: random candidates, then projected Adam from the best ones."""
     raw = jax.random.uniform(key, (settings.n_raw, d), jnp.float64)
     raw_vals = acq(raw)
@@ -178,7 +150,7 @@ def _maximize(acq, key, d: int, settings: ProposalSettings) -> jnp.ndarray:
 
 
 @partial(jax.jit, static_argnames=("q", "settings"))
-def propose_batch(x, y_norm, mask, key, *, q: int, settings: ProposalSettings = ProposalSettings()):
+def propose_batch(x, y_norm, mask, key, *, q: int, settings: AcquisitionSettings = AcquisitionSettings()):
     """q new points in the unit cube.
 
     Args:
