@@ -36,7 +36,7 @@ def objectives(x):
     return np.stack([(x[:, 0] + 0.5) ** 2 + (x[:, 1] - 1) ** 2, (x[:, 0] - 0.5) ** 2 + (x[:, 1] - 1) ** 2], 1)
 
 
-PROBLEM = ("bounds", "n_objectives", "batch_size", "n_init", "seed")
+PROBLEM = ("bounds", "n_objectives", "batch_size", "n_init", "seed", "ref_point")
 
 
 def config(**kw):
@@ -102,8 +102,9 @@ def test_state_file_of_format_1_with_a_flat_config_is_read(tmp_path):
 
     state = run(init(config()), 2)
     cfg = state.config
-    flat = {**{k: getattr(cfg, k) for k in PROBLEM}, **cfg.acquisition.to_dict()}
-    del flat["learning_rate"]  # format 1 could not set it
+    flat = {**{k: getattr(cfg, k) for k in PROBLEM if k != "ref_point"}, **cfg.acquisition.to_dict()}
+    for new in ("learning_rate", "scalarization", "ref_margin"):  # format 1 could not set them
+        del flat[new]
     path = tmp_path / "old.npz"
     np.savez(path, x=state.x, y=state.y,
              config_json=np.array(json.dumps({"format": "mjxskill.gp.MOBOState/1", "config": flat})))
@@ -167,7 +168,7 @@ def test_non_finite_objectives_are_kept_and_do_not_break_the_model():
         (dict(n_raw=0), "acquisition setting n_raw: expected a positive integer, got 0"),
         (dict(n_raw=2.5), "acquisition setting n_raw: expected an integer, got 2.5"),
         (dict(n_restarts=100), r"n_restarts \(100\) exceeds n_raw \(64\)"),
-        (dict(n_rwa=3), "unknown acquisition setting 'n_rwa'; valid settings: alpha, bucket, n_raw"),
+        (dict(n_rwa=3), "unknown acquisition setting 'n_rwa'; valid settings: scalarization, alpha, ref_margin, bucket"),
     ],
 )
 def test_bad_config_raises_clear_errors(kwargs, message):

@@ -29,6 +29,7 @@ from typing import Callable, Mapping, NamedTuple
 import jax
 import numpy as np
 
+from mjxskill.gp.hypervolume_scalarization import reference_point, warmup_reference
 from mjxskill.gp.pareto import pareto_mask
 from mjxskill.gp.proposal import propose_batch
 from mjxskill.gp.settings import AcquisitionSettings, acquisition_settings
@@ -44,6 +45,9 @@ class MOBOConfig:
     bounds: (2, d) lower and upper bounds (any nested sequence; stored as tuples).
     acquisition: the model and acquisition settings (validated by their own class); a
     mapping is accepted and read by :func:`acquisition_settings`.
+    ref_point: (m,) reference point of the hypervolume scalarizations in objective units
+    (minimized), e.g. the one the run's hypervolume is reported against; None infers it from
+    the observed front at each proposal.
     """
 
     bounds: tuple
@@ -52,6 +56,7 @@ class MOBOConfig:
     n_init: int = 40
     seed: int = 0
     acquisition: AcquisitionSettings = AcquisitionSettings()
+    ref_point: tuple | None = None
 
     def __post_init__(self):
         b = np.asarray(self.bounds, dtype=np.float64)
@@ -76,6 +81,11 @@ class MOBOConfig:
             object.__setattr__(self, "acquisition", acquisition_settings(self.acquisition))
         elif not isinstance(self.acquisition, AcquisitionSettings):
             raise ValueError(f"MOBOConfig.acquisition: expected AcquisitionSettings or a mapping, got {self.acquisition!r}")
+        if self.ref_point is not None:
+            r = np.asarray(self.ref_point, dtype=np.float64)
+            if r.shape != (self.n_objectives,) or not np.all(np.isfinite(r)):
+                raise ValueError(f"MOBOConfig.ref_point: expected {self.n_objectives} finite numbers, got {self.ref_point!r}")
+            object.__setattr__(self, "ref_point", tuple(float(v) for v in r))
 
     @property
     def dim(self) -> int:
@@ -127,18 +137,33 @@ def init(config: MOBOConfig) -> MOBOState:
     )
 
 
-def _normalized_objectives(y: np.ndarray) -> np.ndarray:
-    """(n, m) objectives scaled to [0, 1] by the observed finite min/max; non-finite -> 1."""
+def _normalization(y: np.ndarray):
+    """Per-objective (lo (m,), span (m,)) of the finite values: y_norm = (y - lo) / span."""
     finite = np.isfinite(y)
-    out = np.ones_like(y)
+    lo, span = np.zeros(y.shape[1]), np.ones(y.shape[1])
     for i in range(y.shape[1]):
         col = y[finite[:, i], i]
-        if col.size == 0:
-            continue
-        lo, hi = col.min(), col.max()
-        span = hi - lo if hi > lo else 1.0
-        out[finite[:, i], i] = (col - lo) / span
-    return out
+        if col.size:
+            lo[i] = col.min()
+            span[i] = col.max() - lo[i] if col.max() > lo[i] else 1.0
+    return lo, span
+
+
+def _normalized_objectives(y: np.ndarray) -> np.ndarray:
+    """(n, m) objectives scaled to [0, 1] by the observed finite min/max; non-finite -> 1."""
+    lo, span = _normalization(y)
+    return np.where(np.isfinite(y), (y - lo) / span, 1.0)
+
+
+def reference_of(state: MOBOState) -> np.ndarray:
+    """(m,) the hypervolume scalarizations' reference point, in objective units: the config's,
+    or inferred as ``acquisition.reference`` says (from the warm-up rows or the current front)."""
+    cfg = state.config
+    if cfg.ref_point is not None:
+        return np.asarray(cfg.ref_point, np.float64)
+    if cfg.acquisition.reference == "warmup":
+        return warmup_reference(state.y[: cfg.n_init], cfg.acquisition.ref_margin)
+    return reference_point(state.y, cfg.acquisition.ref_margin)
 
 
 def _padded_training_set(state: MOBOState):
@@ -152,7 +177,11 @@ def _padded_training_set(state: MOBOState):
     x[:n] = (state.x - lo) / (hi - lo)
     y[:n] = _normalized_objectives(state.y)
     mask[:n] = True
-    return x, y, mask
+    y_lo, y_span = _normalization(state.y)
+    ref = (reference_of(state) - y_lo) / y_span
+    # No finite value to place it by: just beyond the worst observed (normalized 1).
+    ref = np.where(np.isfinite(ref), ref, 1.0 + cfg.acquisition.ref_margin)
+    return x, y, mask, ref
 
 
 def proposal_key(seed: int, n_observations: int):
@@ -177,9 +206,9 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
         q = min(q, cfg.n_init - n)
         u = np.random.default_rng([cfg.seed, n]).random((q, cfg.dim))
         return lo + u * (hi - lo)
-    x, y, mask = _padded_training_set(state)
+    x, y, mask, ref = _padded_training_set(state)
     with jax.enable_x64(True):
-        points, _, _ = propose_batch(x, y, mask, proposal_key(cfg.seed, n), q=q, settings=cfg.acquisition)
+        points, _ = propose_batch(x, y, mask, proposal_key(cfg.seed, n), ref, q=q, settings=cfg.acquisition)
         u = np.asarray(points, np.float64)
     return np.clip(lo + u * (hi - lo), lo, hi)
 
@@ -258,6 +287,7 @@ def minimize(
     seed: int = 0,
     callback: Callable[[MOBOState], None] | None = None,
     acquisition: AcquisitionSettings | Mapping | None = None,
+    ref_point=None,
     **options,
 ) -> MOBOResult:
     """Minimizes the vector objective f over a box with ``budget`` evaluations.
@@ -267,6 +297,7 @@ def minimize(
       bounds: (2, d) lower and upper bounds.
       budget: total number of evaluations (the last batch is cut to fit).
       acquisition: the acquisition settings (default ``AcquisitionSettings()``).
+      ref_point: (m,) reference point of the hypervolume scalarizations (MOBOConfig.ref_point).
       options: acquisition settings by name, applied over ``acquisition`` (as
         :func:`acquisition_settings` reads them, e.g. ``n_raw=256``).
     """
@@ -287,7 +318,7 @@ def minimize(
                        acquisition=settings)
     x0 = ask(init(probe))
     y0 = evaluate(x0)
-    cfg = dataclasses.replace(probe, n_objectives=y0.shape[1])
+    cfg = dataclasses.replace(probe, n_objectives=y0.shape[1], ref_point=ref_point)
     state = tell(init(cfg), x0, y0)
     if callback:
         callback(state)

@@ -18,6 +18,12 @@ from typing import Mapping
 
 # Allowed values of the string settings (first: what each choice means is in proposal.py).
 CHOICES = {
+    "scalarization": ("chebyshev", "hypervolume"),
+    "reference": ("warmup", "front"),
+    "beyond_reference": ("log", "linear"),
+    "prior": ("gamma", "lognormal"),
+    "pending": ("variance", "values"),
+    "variance": ("latent", "deflated"),
     "model": ("hybrid", "scalarized", "per_objective"),
     "ei": ("draws", "moments"),
 }
@@ -27,13 +33,36 @@ CHOICES = {
 class AcquisitionSettings:
     """Settings of the model-based proposal (hashable: part of the compile cache key)."""
 
+    # The random scalarization of each batch element: "chebyshev" (augmented Chebyshev of
+    # objectives normalized by their observed range, flat Dirichlet weights; ParEGO) or
+    # "hypervolume" (Golovin and Zhang's hypervolume scalarization about a reference point,
+    # uniform directions; hypervolume_scalarization.py).
+    scalarization: str = "chebyshev"
     alpha: float = 0.05  # augmented Chebyshev coefficient
+    # Where the reference point comes from when MOBOConfig.ref_point is None: "warmup" (the
+    # worst of the n_init warm-up values plus ref_margin times their range, fixed for the run:
+    # the reference mjxskill.train reports the hypervolume against) or "front" (the observed
+    # front's nadir plus ref_margin times its extent at each proposal, as BoTorch's
+    # infer_reference_point).
+    reference: str = "warmup"
+    ref_margin: float = 0.1
+    # Directions averaged per batch element by the per-objective model's hypervolume
+    # scalarization (1: one random scalarization per element; more: a Monte Carlo estimate of
+    # the expected hypervolume improvement over that many random directions).
+    n_directions: int = 1
+    # Objective values beyond the reference point: "log" compressed (1 + log u in reference
+    # units; a heavy tail of bad values no longer sets the GP's mean and scale) or "linear".
+    beyond_reference: str = "log"
     bucket: int = 64  # training sets are padded to a multiple of this many rows (one compile per bucket)
     n_raw: int = 1024  # random candidates scored per batch element
     n_restarts: int = 10  # best candidates refined by projected Adam
     n_opt_steps: int = 100
     learning_rate: float = 0.02  # unit-cube coordinates per Adam step
+    final_learning_rate: float = 0.02  # cosine-decayed to this by the last step (equal: constant)
     fit_starts: int = 2
+    # GP hyperparameter prior (gp.log_prior): "gamma" (Matern 5/2 with BoTorch's former Gamma
+    # priors) or "lognormal" (the dimension-scaled LogNormal lengthscale prior).
+    prior: str = "gamma"
     fit_steps: int = 50
     # One GP fit per batch element while the padded training set has at most this many
     # rows, one shared fit above (a fit costs O(n^3), q of them dominate the proposal time).
@@ -46,6 +75,16 @@ class AcquisitionSettings:
     # "hybrid" (the first ceil(q/2) elements scalarized, the rest per-objective).
     model: str = "hybrid"
     n_draws: int = 128  # quasi-random posterior draws per point (per-objective model)
+    # What the points already chosen for the batch change for the later elements of the
+    # per-objective model (Kriging believer): "variance" (only the posterior variance shrinks
+    # around them) or "values" (also the incumbent counts them at their believed values, so
+    # a gap in the front that an earlier element fills offers no improvement again).
+    pending: str = "variance"
+    # The per-objective posterior variance the acquisition sees: "latent" (noise excluded)
+    # or "deflated" (minus the fitted noise variance as well: ~0 at observed points of a
+    # noiseless objective, where the latent variance stays ~noise and gives a re-evaluation
+    # of the incumbent a spurious EI).
+    variance: str = "latent"
     # Per-objective acquisition: "draws" (quasi-MC log-EI) or "moments" (log-EI of the
     # moment-matched Gaussian); tau is the softplus width of "draws" (normalized units).
     ei: str = "draws"
@@ -67,9 +106,12 @@ class AcquisitionSettings:
                 raise ValueError(
                     f"acquisition setting {f.name}: expected one of {', '.join(map(repr, CHOICES[f.name]))}, got {v!r}"
                 )
-        if self.alpha < 0.0:
-            raise ValueError(f"acquisition setting alpha: must be >= 0, got {self.alpha!r}")
-        for name in ("tau", "learning_rate"):
+        for name in ("alpha", "ref_margin"):
+            if getattr(self, name) < 0.0:
+                raise ValueError(f"acquisition setting {name}: must be >= 0, got {getattr(self, name)!r}")
+        if self.scalarization == "hypervolume" and self.ei != "draws":
+            raise ValueError("acquisition setting ei: the hypervolume scalarization has only the 'draws' estimate")
+        for name in ("tau", "learning_rate", "final_learning_rate"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"acquisition setting {name}: must be > 0, got {getattr(self, name)!r}")
         if self.n_restarts > self.n_raw:
