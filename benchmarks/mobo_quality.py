@@ -168,6 +168,8 @@ def main(argv=None):
     ap.add_argument("--first-seed", type=int, default=0, help="seeds first-seed .. first-seed + seeds - 1")
     ap.add_argument("--botorch-seeds", type=int, default=5, help="BoTorch columns on the first N seeds only (slow)")
     ap.add_argument("--columns", default=",".join(COLUMNS), help=f"comma-separated subset of {', '.join(COLUMNS)}")
+    ap.add_argument("--torch-threads", type=int, default=1,
+                    help="torch intra-op threads for the BoTorch columns (1: leaves the other core to the machine's other jobs)")
     ap.add_argument("--write", help="append the table to this markdown file")
     ap.add_argument("--save", help="append one JSON line per run (problem, column, seed, hv, seconds) to this file")
     ap.add_argument("--problems", nargs="*", default=list(PROBLEMS))
@@ -181,6 +183,10 @@ def main(argv=None):
     if any(c.startswith("qLog") for c in wanted) and not botorch_available():
         wanted = [c for c in wanted if not c.startswith("qLog")]
         notes.append("BoTorch is not installed: its columns are skipped (pip install torch==2.13.0 (CPU), then botorch).")
+    elif any(c.startswith("qLog") for c in wanted):
+        import torch
+
+        torch.set_num_threads(args.torch_threads)
     runners = {
         "mjxskill.gp": lambda p, s: run_ours(p, s, args.given_ref, **options),
         "random": run_random,
