@@ -1,27 +1,29 @@
-"""Throughput of the compiled push rollout against the native-MuJoCo baseline, in one run.
+"""Throughput of both physics engines on the training workload, against a plain native loop, in
+one run.
 
-    python benchmarks/throughput.py                      # full sweep
-    python benchmarks/throughput.py --quick --json out.json
-    python benchmarks/throughput.py --cache-check        # compile-cache check only
+    python benchmarks/throughput.py                          # push, 12 s episodes, 6 sets x 7 worlds
+    python benchmarks/throughput.py --task peg               # 18 s peg episodes
+    python benchmarks/throughput.py --quick --json out.json  # 2 s episodes: a smoke test, not a figure
+    python benchmarks/throughput.py --cache-check            # MJX's compile caches only
 
-Measures, and prints as a table:
-* the compiled rollout (full BT + impedance controller + contacts, ``compile_rollout``) at
-  several batch sizes B x W on 1 and on all host devices (``mjxskill/rollout/sharding.py``):
-  control steps per second, compile time, peak memory (process RSS and XLA's buffers);
-* the native-MuJoCo baseline (``mjxskill/native``: numpy controller, reference BT interpreter,
-  ``mujoco.mj_step`` in a Python loop) on the same worlds and parameters, and whether it reaches
-  the same success / BT outcome as the compiled rollout there;
-* bare ``mj_step`` in a Python loop with a constant control (the native physics ceiling).
+Measures on the same parameter sets and worlds (the operators' sets first, then random ones;
+worlds from key 0), and prints as a table with the load average of each row:
+* ``loop``: the plain single-process loop over native MuJoCo (``NativeRollout.run_episode``:
+  the numpy controller, the reference BT interpreter and ``mj_step`` one control step at a
+  time): the baseline, measured before and after everything else (ratios use the mean);
+* ``native``: the native engine (episodes in lockstep, ``--workers`` processes);
+* ``mjx``: the compiled MJX rollout on 1 and on ``--devices`` host devices (a fresh process
+  each: the device count is fixed when jax starts), at ``--batches`` parameter sets per call;
+  compile time and XLA's buffers;
+* ``bare``: ``mj_step`` alone with a constant control (the physics ceiling of one core);
+* agreement: per parameter set, the success rate on MJX and on the native engine in the same
+  worlds, and in how many worlds the two agree;
+* memory per episode: XLA's buffers over the batch's episodes (MJX); an episode's model copy
+  and MjData, arena used included (native).
 
-Episodes last 2 s by default (approach and the first second of pushing) so that a sweep fits in
-half an hour on two cores; ``--seconds 12`` runs the scenario's full episodes, where MJX's
-per-step cost is about twice as high in the contact-rich push phase (benchmarks/NOTES.md).
-
-Every device count runs in a fresh subprocess (the host device count is fixed when jax starts);
-the native baseline is measured before and after each of them (load on a shared machine drifts),
-and ratios use the mean. ``--json`` writes the best configuration (``mjx_steps_per_s``,
-``native_steps_per_s``, ``native_bare_steps_per_s``, ``compile_s``, ``batch``, ``device``) and
-the whole sweep; ``--plot`` draws throughput against batch size for each backend.
+The default is the real workload: the scenario's full episode length at the training batch
+(6 parameter sets x 7 worlds). ``--json`` writes ``mjx_steps_per_s``, ``native_steps_per_s``,
+``loop_steps_per_s``, ``best_engine``, ``best_steps_per_s``, ``best_x_loop`` and the rows.
 """
 
 from __future__ import annotations
@@ -30,7 +32,6 @@ import argparse
 import json
 import os
 import platform
-import resource
 import subprocess
 import sys
 import tempfile
@@ -42,12 +43,11 @@ ROOT = HERE.parent
 if str(ROOT) not in sys.path:  # run from a checkout: this worktree's mjxskill first
     sys.path.insert(0, str(ROOT))
 
-SCENARIO = "push"
-WORLDS = 7  # W per parameter set (the scenario's n_worlds)
+HAND_FOUND_PUSH = (-0.05, -0.15, 0.07, -0.10)  # the push into the goal corner (tests/test_rollout_push.py)
 
 
-def _device_flag_env(devices: int) -> dict:
-    """Environment for a worker with ``devices`` host devices (mjxskill appends its own flag)."""
+def _env(devices: int) -> dict:
+    """Environment for an MJX worker with ``devices`` host devices (mjxskill appends its flag)."""
     env = dict(os.environ)
     flags = [f for f in env.get("XLA_FLAGS", "").split() if "xla_force_host_platform_device_count" not in f]
     flags.append(f"--xla_force_host_platform_device_count={devices}")
@@ -56,281 +56,173 @@ def _device_flag_env(devices: int) -> dict:
     return env
 
 
-# --------------------------------------------------------------------------------------------
-# Shared set-up: the rollout, parameters and worlds (identical in every process)
-# --------------------------------------------------------------------------------------------
-
-
-def _model_options(text: str | None) -> dict:
-    """"iterations=2,ls_iterations=4" -> {"iterations": 2, "ls_iterations": 4} (MjOption fields)."""
-    options = {}
-    for item in filter(None, (text or "").split(",")):
-        name, _, value = item.partition("=")
-        options[name.strip()] = float(value) if "." in value else int(value)
-    return options
-
-
-def _setup(seconds: float, batch_sets: int, options: dict | None = None):
-    """(rollout, params (batch_sets, P), worlds (batch_sets, W)); prefixes are shared across
-    batch sizes, so the first episodes are the same in every configuration. ``options`` override
-    fields of the model's MjOption (a lever experiment; the native baseline takes the same)."""
-    import dataclasses
-
+def workload(task_name: str, seconds: float | None, sets: int, worlds: int | None):
+    """(scenario, task, params (sets, P), worlds (sets, W)): identical in every process."""
     import jax
     import numpy as np
-    from mujoco import mjx
 
-    from mjxskill import compile_rollout, load_scenario
-    from mjxskill.rollout.compiled import load_model
+    from mjxskill import load_scenario, plan_task
+    from mjxskill.native.rollout import NativeRollout
 
-    scn = load_scenario(SCENARIO)
-    rollout = compile_rollout(scn, worlds=WORLDS, episode_seconds=seconds)
-    if options:
-        model = load_model(scn)
-        for name, value in options.items():
-            setattr(model.opt, name, value)
-        rollout = dataclasses.replace(rollout, model=mjx.put_model(model))
+    scn = load_scenario(task_name)
+    task = plan_task(scn)
     rng = np.random.default_rng(0)
-    lo, hi = scn.bounds  # (2, P)
-    params = rng.uniform(lo, hi, size=(batch_sets, len(lo))).astype(np.float32)
-    manual = list(scn.manual_parameters.values())  # (P,) each, in parameter_names order
-    for i, values in enumerate(manual[:batch_sets]):  # operators' settings first: some succeed
+    params = rng.uniform(*task.bounds, size=(sets, len(task.parameter_names)))
+    known = list(task.manual_parameters.values()) + ([np.array(HAND_FOUND_PUSH)] if scn.name == "push" else [])
+    for i, values in enumerate(known[:sets]):  # sets known to succeed (sometimes) first
         params[i] = values
-    worlds = rollout.sample_worlds(jax.random.key(0), batch_sets)
-    return rollout, params, worlds
+    sampler = NativeRollout(scn, task, worlds=worlds, episode_seconds=seconds, workers=1)
+    return scn, task, params, sampler.sample_worlds(jax.random.key(0), sets), sampler
 
 
-# --------------------------------------------------------------------------------------------
-# Worker: the compiled rollout at each batch size, in a process with a fixed device count
-# --------------------------------------------------------------------------------------------
-
-
-def _worker(args) -> None:
+# -- MJX, in a process of its own per device count -------------------------------------------------
+def _mjx_worker(args) -> None:
     import mjxskill  # noqa: F401  (XLA flags before jax runs anything)
 
     import jax
-    import jax.monitoring
     import numpy as np
 
-    from mjxskill.rollout.compiled import _run_worlds
+    from mjxskill import compile_rollout
 
-    hits = []
-    jax.monitoring.register_event_listener(
-        lambda event, **kw: hits.append(event) if event == "/jax/compilation_cache/cache_hits" else None
-    )
-    sets = [int(b) for b in args.batches.split(",")]
-    rollout, params, worlds = _setup(args.seconds, max(sets), _model_options(args.options))
-    steps = rollout.control_steps_per_episode
+    batches = [int(b) for b in args.batches.split(",")]
+    scn, task, params, worlds, _ = workload(args.task, args.seconds, max(batches), args.worlds)
+    rollout = compile_rollout(scn, task, worlds=worlds.config_index.shape[1], episode_seconds=args.seconds)
     records = []
-    for b in sets:
-        p = jax.numpy.asarray(params[:b])
-        wd = jax.tree.map(lambda x: x[:b], worlds)
-        n_hits = len(hits)
-        # Getting the lowered program (traced, or read from the program cache on one device)
-        # and XLA's compile (what the persistent compilation cache saves) are timed apart;
-        # their sum is what a first call pays.
+    for b in batches:
+        p = jax.numpy.asarray(params[:b], jax.numpy.float32)
+        wd = jax.tree.map(lambda x: jax.numpy.asarray(x[:b]), worlds)
         t0 = time.perf_counter()
         program = rollout.program(p, wd)
-        lowered = _run_worlds.lower(rollout, p, wd) if program.origin == "jit" else program.fn.lower(p, wd)
-        lower_s = time.perf_counter() - t0
-        compiled = lowered.compile()
-        xla_compile_s = time.perf_counter() - t0 - lower_s
-        compile_s = lower_s + xla_compile_s
+        compiled = program.fn.lower(p, wd).compile()
+        compile_s = time.perf_counter() - t0
         memory = compiled.memory_analysis()
         runs = []
         for _ in range(args.reps):
             t0 = time.perf_counter()
             out = jax.block_until_ready(compiled(p, wd))
             runs.append(time.perf_counter() - t0)
-        run_s = min(runs)
-        records.append(
-            dict(
-                backend="mjx",
-                devices=jax.local_device_count(),
-                device=str(jax.devices()[0].device_kind),
-                params=b,
-                worlds=WORLDS,
-                batch=b * WORLDS,
-                seconds=args.seconds,
-                options=args.options or "",
-                compile_s=compile_s,
-                trace_lower_s=lower_s,
-                program_origin=program.origin,
-                xla_compile_s=xla_compile_s,
-                cache_hit=len(hits) > n_hits,
-                run_s=run_s,
-                run_all_s=runs,
-                steps_per_s=b * WORLDS * steps / run_s,
-                peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                xla_buffers_mb=None
-                if memory is None
-                else (memory.temp_size_in_bytes + memory.argument_size_in_bytes + memory.output_size_in_bytes) / 2**20,
-                objectives=np.asarray(out.objectives).tolist(),
-                success=np.asarray(out.success).tolist(),
-                bt_status=np.asarray(out.metrics["bt_status"]).tolist(),
-                load_avg=os.getloadavg()[0],
-            )
-        )
-        print(f"  [worker d={records[-1]['devices']}] batch {b * WORLDS}: compile {compile_s:.1f} s, "
+        episodes = int(np.prod(wd.config_index.shape))
+        xla = None if memory is None else memory.temp_size_in_bytes + memory.argument_size_in_bytes + memory.output_size_in_bytes
+        records.append(dict(
+            engine="mjx", devices=jax.local_device_count(), sets=b, episodes=episodes, compile_s=compile_s,
+            run_s=min(runs), steps_per_s=episodes * rollout.control_steps_per_episode / min(runs),
+            memory_per_episode_mb=None if xla is None else xla / episodes / 2**20, load_avg=os.getloadavg()[0],
+            success=np.asarray(out.success).tolist(), objectives=np.asarray(out.objectives).tolist(),
+        ))
+        print(f"  [mjx, {records[-1]['devices']} device(s)] {episodes} episodes: compile {compile_s:.0f} s, "
               f"{records[-1]['steps_per_s']:.0f} steps/s", file=sys.stderr, flush=True)
     Path(args.out).write_text(json.dumps(records))
 
 
-def _run_worker(devices: int, batches: list[int], seconds: float, reps: int, extra_env=None, options=None) -> list[dict]:
+def mjx(devices: int, args) -> list[dict]:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "records.json"
-        cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", "--batches", ",".join(map(str, batches)),
-               "--seconds", str(seconds), "--reps", str(reps), "--out", str(out)]
-        if options:
-            cmd += ["--options", options]
-        env = _device_flag_env(devices)
-        env.update(extra_env or {})
-        subprocess.run(cmd, env=env, check=True)
+        cmd = [sys.executable, str(Path(__file__).resolve()), "--mjx-worker", "--task", args.task,
+               "--batches", args.batches, "--reps", str(args.reps), "--out", str(out)]
+        cmd += ["--seconds", str(args.seconds)] if args.seconds else []
+        cmd += ["--worlds", str(args.worlds)] if args.worlds else []
+        subprocess.run(cmd, env=_env(devices), check=True)
         return json.loads(out.read_text())
 
 
-# --------------------------------------------------------------------------------------------
-# Native baseline (in the parent process)
-# --------------------------------------------------------------------------------------------
-
-
-def _native(rollout, params, worlds, episodes: int, options: dict | None = None) -> dict:
-    """Native steps/s over the first ``episodes`` episodes (param set-major), and their outcomes."""
+# -- native ------------------------------------------------------------------------------------------
+def loop(engine, params, worlds) -> dict:
+    """The plain single-process loop over every episode of the batch."""
     import jax
     import numpy as np
 
-    from mjxskill.native import NativeRollout
-
-    native = NativeRollout(rollout)
-    for name, value in (options or {}).items():
-        setattr(native.model.opt, name, value)
-    worlds = jax.tree.map(np.asarray, worlds)
-    n_sets = -(-episodes // WORLDS)
+    b, w = worlds.config_index.shape
     t0 = time.perf_counter()
-    done, outcomes = 0, []
-    for i in range(n_sets):
-        for j in range(WORLDS):
-            if done == episodes:
-                break
-            res = native.run_episode(params[i], jax.tree.map(lambda x: x[i, j], worlds))
-            outcomes.append((bool(res.success), int(res.bt_status)))
-            done += 1
-    elapsed = time.perf_counter() - t0
-    return dict(backend="native", episodes=done, run_s=elapsed,
-                steps_per_s=done * native.control_steps_per_episode / elapsed, outcomes=outcomes,
-                load_avg=os.getloadavg()[0])
+    for i in range(b):
+        for j in range(w):
+            engine.run_episode(params[i], jax.tree.map(lambda x: np.asarray(x)[i, j], worlds))
+    run_s = time.perf_counter() - t0
+    return dict(engine="loop", workers=1, episodes=b * w, run_s=run_s,
+                steps_per_s=b * w * engine.control_steps_per_episode / run_s, load_avg=os.getloadavg()[0])
 
 
-def _native_bare(rollout, worlds, steps: int, options: dict | None = None) -> dict:
-    """Bare mj_step in a Python loop, the arm held by a constant gravity-compensation torque."""
+def native(scn, task, params, worlds, workers: int, seconds) -> dict:
+    """The native engine with ``workers`` processes (their start-up timed apart)."""
+    import numpy as np
+
+    from mjxskill.native.rollout import NativeRollout
+
+    engine = NativeRollout(scn, task, worlds=worlds.config_index.shape[1], episode_seconds=seconds, workers=workers)
+    b, w = worlds.config_index.shape
+    t0 = time.perf_counter()
+    engine.start_workers()
+    start_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    out = engine.run_worlds(params, worlds)
+    run_s = time.perf_counter() - t0
+    engine.close()
+    return dict(engine="native", workers=workers, episodes=b * w, start_s=start_s, run_s=run_s,
+                steps_per_s=b * w * engine.control_steps_per_episode / run_s,
+                memory_per_episode_mb=engine.memory_per_episode() / 2**20, load_avg=os.getloadavg()[0],
+                success=np.asarray(out.success).tolist(), objectives=np.asarray(out.objectives).tolist())
+
+
+def bare(engine, worlds, steps: int) -> dict:
+    """``mj_step`` alone in a Python loop, the arm held by a constant gravity-compensation torque."""
     import mujoco
     import numpy as np
 
-    from mjxskill.native import NativeRollout
+    from mjxskill.native.episode import initial_data
 
-    native = NativeRollout(rollout)
-    for name, value in (options or {}).items():
-        setattr(native.model.opt, name, value)
-    world = __import__("jax").tree.map(lambda x: np.asarray(x)[0, 0], worlds)
-    model = native.model
-    data = native._initial_data(world)
+    world = type(worlds)(*(np.asarray(x)[0, 0] for x in worlds))
+    data = initial_data(engine, engine.model, world)
     data.ctrl[:7] = data.qfrc_bias[:7]
-    mujoco.mj_step(model, data)
     t0 = time.perf_counter()
     for _ in range(steps):
-        mujoco.mj_step(model, data)
-    elapsed = time.perf_counter() - t0
-    return dict(backend="native_bare", steps=steps, run_s=elapsed, steps_per_s=steps / elapsed)
+        mujoco.mj_step(engine.model, data)
+    run_s = time.perf_counter() - t0
+    return dict(engine="bare", steps=steps, run_s=run_s, steps_per_s=steps / run_s, load_avg=os.getloadavg()[0])
 
 
-# --------------------------------------------------------------------------------------------
-# Compile-cache check: two fresh processes, one temporary cache
-# --------------------------------------------------------------------------------------------
-
-
-def cache_check(seconds: float) -> dict:
-    with tempfile.TemporaryDirectory() as cache:
-        env = {"MJXSKILL_CACHE_DIR": cache, "JAX_COMPILATION_CACHE_DIR": cache}
-        first = _run_worker(1, [1], seconds, 1, env)[0]
-        files = len(os.listdir(cache))
-        second = _run_worker(1, [1], seconds, 1, env)[0]
-    result = dict(first_compile_s=first["compile_s"], second_compile_s=second["compile_s"],
-                  ratio=second["compile_s"] / first["compile_s"],
-                  first_xla_compile_s=first["xla_compile_s"], second_xla_compile_s=second["xla_compile_s"],
-                  xla_ratio=second["xla_compile_s"] / first["xla_compile_s"],
-                  first_trace_lower_s=first["trace_lower_s"], second_trace_lower_s=second["trace_lower_s"],
-                  first_program=first["program_origin"], second_program=second["program_origin"],
-                  cache_files=files, first_cache_hit=first["cache_hit"], second_cache_hit=second["cache_hit"])
-    print(f"compile cache, first process: program {first['program_origin']} in {first['trace_lower_s']:.1f} s + XLA compile "
-          f"{first['xla_compile_s']:.1f} s (cache hit: {first['cache_hit']})")
-    print(f"compile cache, second process: program {second['program_origin']} in {second['trace_lower_s']:.2f} s + XLA compile "
-          f"{second['xla_compile_s']:.2f} s (cache hit: {second['cache_hit']})")
-    print(f"XLA compile ratio {result['xla_ratio']:.3f}; first-call ratio (tracing included) {result['ratio']:.3f}; "
-          f"{files} cache files")
-    return result
-
-
-# --------------------------------------------------------------------------------------------
-# Report
-# --------------------------------------------------------------------------------------------
-
-
-def _same_outputs(a: dict, b: dict) -> float:
-    """Max |difference| of objectives between two records of the same batch (inf: outcomes differ)."""
+# -- report ----------------------------------------------------------------------------------------
+def agreement(a: dict, b: dict) -> list[dict]:
+    """Per parameter set: success rates on two engines in the same worlds and worlds agreeing."""
     import numpy as np
 
-    if a["success"] != b["success"] or a["bt_status"] != b["bt_status"]:
-        return float("inf")
-    return float(np.max(np.abs(np.asarray(a["objectives"]) - np.asarray(b["objectives"]))))
+    sa, sb = np.asarray(a["success"], bool), np.asarray(b["success"], bool)
+    return [dict(set=i, **{f"{a['engine']}_success_rate": float(sa[i].mean()), f"{b['engine']}_success_rate": float(sb[i].mean())},
+                 worlds_agreeing=int((sa[i] == sb[i]).sum()), worlds=int(sa.shape[1])) for i in range(len(sa))]
 
 
-def plot(sweep: list[dict], native: float, bare: float, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for d in sorted({r["devices"] for r in sweep}):
-        rows = sorted((r for r in sweep if r["devices"] == d), key=lambda r: r["batch"])
-        ax.plot([r["batch"] for r in rows], [r["steps_per_s"] for r in rows], "o-",
-                label=f"MJX compiled rollout, {d} host device{'s' * (d > 1)}")
-    ax.axhline(native, color="k", ls="--", label="native MuJoCo + numpy controller + BT (1 process)")
-    ax.axhline(bare, color="gray", ls=":", label="bare mj_step loop (no control)")
-    ax.set_xscale("log", base=2)
-    ax.set_yscale("log")
-    ax.set_xlabel("batch B x W (episodes per call)")
-    ax.set_ylabel("control steps / s")
-    ax.set_title(f"push rollout throughput ({platform.processor() or platform.machine()}, {os.cpu_count()} cores)")
-    ax.legend(fontsize=7)
-    ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
+def cache_check(args) -> dict:
+    """MJX only: a second process reads the lowered program and XLA's compile from the caches."""
+    with tempfile.TemporaryDirectory() as cache:
+        os.environ.update(MJXSKILL_CACHE_DIR=cache, JAX_COMPILATION_CACHE_DIR=cache)
+        first, second = mjx(1, args)[0], mjx(1, args)[0]
+    result = dict(first_compile_s=first["compile_s"], second_compile_s=second["compile_s"],
+                  ratio=second["compile_s"] / first["compile_s"])
+    print(f"first process: program + compile {first['compile_s']:.1f} s; second {second['compile_s']:.2f} s "
+          f"({result['ratio']:.1%})")
+    return result
 
 
 def main(argv=None) -> dict | None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--quick", action="store_true", help="two batch sizes, short episodes")
+    parser.add_argument("--task", default="push", help="scenario (push, peg or a YAML path)")
+    parser.add_argument("--seconds", type=float, default=None, help="episode length, s (default: the scenario's)")
+    parser.add_argument("--batches", default="6", help="parameter sets per MJX call, e.g. 6,24 (the first is also "
+                        "the native engine's and the loop's batch; default 6, the training batch)")
+    parser.add_argument("--worlds", type=int, default=None, help="worlds per parameter set (default: the scenario's)")
+    parser.add_argument("--devices", default=None, help="MJX host device counts, e.g. 1,2 (default 1,cores; 0: no MJX)")
+    parser.add_argument("--workers", default=None, help="native engine worker processes, e.g. 1,2 (default 1,cores)")
+    parser.add_argument("--reps", type=int, default=1, help="timed MJX calls per configuration (the fastest counts)")
+    parser.add_argument("--quick", action="store_true", help="2 s episodes (a smoke test; not the workload)")
+    parser.add_argument("--cache-check", action="store_true", help="only MJX's compile-cache check")
     parser.add_argument("--json", type=Path, help="write the results here")
-    parser.add_argument("--plot", type=Path, default=HERE / "throughput.png", help="scaling figure (PNG)")
-    parser.add_argument("--cache-check", action="store_true", help="only the compile-cache check")
-    parser.add_argument("--devices", default=None, help="host device counts to sweep, e.g. 1,2 (default 1,cpu_count)")
-    parser.add_argument("--batches", default=None, help="parameter sets per call (x W=7 episodes), e.g. 1,4,8")
-    parser.add_argument("--seconds", type=float, default=None, help="episode length, s")
-    parser.add_argument("--reps", type=int, default=2, help="timed calls per configuration (the fastest counts)")
-    parser.add_argument("--native-episodes", type=int, default=None)
-    parser.add_argument("--options", default=None,
-                        help="MjOption overrides for a lever experiment, e.g. iterations=2,ls_iterations=4 "
-                             "(applied to the compiled rollout and the native baseline alike)")
-    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--mjx-worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--out", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    if args.worker:
-        return _worker(args)
-
-    seconds = args.seconds or 2.0
+    if args.quick and args.seconds is None:
+        args.seconds = 2.0
+    if args.mjx_worker:
+        return _mjx_worker(args)
     if args.cache_check:
-        result = dict(cache_check=cache_check(seconds))
+        result = cache_check(args)
         if args.json:
             args.json.write_text(json.dumps(result, indent=2))
         return result
@@ -339,87 +231,59 @@ def main(argv=None) -> dict | None:
     import jax
     import mujoco
 
-    batches = [int(b) for b in (args.batches or ("1,4" if args.quick else "1,2,4,8,16")).split(",")]
-    devices = [int(d) for d in (args.devices or f"1,{os.cpu_count()}").split(",")]
-    devices = sorted(set(devices))
-    native_episodes = args.native_episodes or (WORLDS if args.quick else 2 * WORLDS)
-    options = _model_options(args.options)
-    rollout, params, worlds = _setup(seconds, max(batches), options)
-    print(f"# throughput: {SCENARIO}, W={WORLDS}, {seconds:g} s episodes "
-          f"({rollout.control_steps_per_episode} control steps), {os.cpu_count()} cores, "
-          f"jax {jax.__version__}, mujoco {mujoco.__version__}, load average {os.getloadavg()[0]:.1f}", flush=True)
+    from mjxskill.native.rollout import default_workers
 
-    natives, sweep = [_native(rollout, params, worlds, native_episodes, options)], []
+    cores = default_workers()
+    sets = int(args.batches.split(",")[0])
+    devices = sorted({int(d) for d in (args.devices or f"1,{cores}").split(",")} - {0})
+    workers = sorted({int(w) for w in (args.workers or f"1,{cores}").split(",")})
+    scn, task, params, worlds, engine = workload(args.task, args.seconds, sets, args.worlds)
+    b, w = worlds.config_index.shape
+    print(f"# throughput: {scn.name}, {b} parameter sets x {w} worlds, {engine.episode_seconds:g} s episodes "
+          f"({engine.control_steps_per_episode} control steps), {cores} cores ({platform.processor() or platform.machine()}), "
+          f"jax {jax.__version__}, mujoco {mujoco.__version__}, load average {os.getloadavg()[0]:.2f}", flush=True)
+    rows = [loop(engine, params, worlds)]
+    rows += [native(scn, task, params, worlds, n, args.seconds) for n in workers]
     for d in devices:
-        sweep += _run_worker(d, batches, seconds, args.reps, options=args.options)
-        natives.append(_native(rollout, params, worlds, native_episodes, options))
-    bare = _native_bare(rollout, worlds, 20000 if args.quick else 50000, options)
-    native_rate = sum(n["steps_per_s"] for n in natives) / len(natives)
+        rows += mjx(d, args)
+    rows.append(loop(engine, params, worlds))
+    rows.append(bare(engine, worlds, 50000))
+    loops = [r for r in rows if r["engine"] == "loop"]
+    loop_rate = sum(r["steps_per_s"] for r in loops) / len(loops)
 
-    # Outcome agreement: native vs MJX (first episodes), and every device count vs 1 device.
-    first = max(sweep, key=lambda r: (r["batch"], -r["devices"]))  # most episodes, fewest devices
-    mjx_outcomes = [(s, st) for s_row, st_row in zip(first["success"], first["bt_status"]) for s, st in zip(s_row, st_row)]
-    native_outcomes = [tuple(o) for o in natives[0]["outcomes"]]
-    agree = sum(a == b for a, b in zip(native_outcomes, mjx_outcomes))
-    agree_success = sum(a[0] == b[0] for a, b in zip(native_outcomes, mjx_outcomes))
-    agree_status = sum(a[1] == b[1] for a, b in zip(native_outcomes, mjx_outcomes))
-    for r in sweep:
-        base = next(x for x in sweep if x["batch"] == r["batch"] and x["devices"] == min(devices))
-        r["max_objective_diff_vs_1_device"] = _same_outputs(r, base)
-        # XLA's CPU code (and its float32 rounding) depends on the batch size, so the exact
-        # check is against one device running the batch one shard holds: the first shard's
-        # parameter sets must come out bit for bit the same.
-        shard = -(-r["batch"] // r["devices"])
-        same_shard = [x for x in sweep if x["devices"] == 1 and x["batch"] == shard]
-        r["first_shard_bitwise_equal_to_1_device"] = None
-        if r["devices"] > 1 and same_shard and shard % WORLDS == 0:
-            n = shard // WORLDS
-            r["first_shard_bitwise_equal_to_1_device"] = (
-                r["objectives"][:n] == same_shard[0]["objectives"][:n] and r["success"][:n] == same_shard[0]["success"][:n]
-            )
+    print(f"\n{'engine':<8}{'procs/dev':>10}{'episodes':>9}{'steps/s':>10}{'x loop':>8}{'start/compile s':>16}"
+          f"{'MB/episode':>11}{'load':>6}")
+    for r in rows:
+        procs = r.get("workers", r.get("devices", 1))
+        setup = r.get("start_s", r.get("compile_s"))
+        mem = r.get("memory_per_episode_mb")
+        print(f"{r['engine']:<8}{procs:>10}{r.get('episodes', '-'):>9}{r['steps_per_s']:>10.0f}"
+              f"{r['steps_per_s'] / loop_rate:>8.2f}{'-' if setup is None else f'{setup:.1f}':>16}"
+              f"{'-' if mem is None else f'{mem:.2f}':>11}{r['load_avg']:>6.2f}")
 
-    print(f"\n{'backend':<10}{'devices':>8}{'batch':>7}{'steps/s':>11}{'x native':>10}{'compile s':>11}"
-          f"{'peak RSS MB':>13}{'XLA MB':>8}{'load':>6}  vs 1 device: max |objective diff| (outcomes), shard bitwise")
-    for r in sweep:
-        xla = "-" if r["xla_buffers_mb"] is None else f"{r['xla_buffers_mb']:.2f}"
-        diff = r["max_objective_diff_vs_1_device"]
-        same = "same" if diff != float("inf") else "DIFFERENT"
-        bitwise = {None: "-", True: "equal", False: "NOT equal"}[r["first_shard_bitwise_equal_to_1_device"]]
-        print(f"{'mjx':<10}{r['devices']:>8}{r['batch']:>7}{r['steps_per_s']:>11.0f}{r['steps_per_s'] / native_rate:>10.2f}"
-              f"{r['compile_s']:>11.1f}{r['peak_rss_mb']:>13.0f}{xla:>8}{r['load_avg']:>6.1f}"
-              f"  {diff:.2g} ({same}), {bitwise}")
-    for i, n in enumerate(natives):
-        print(f"{'native':<10}{1:>8}{1:>7}{n['steps_per_s']:>11.0f}{n['steps_per_s'] / native_rate:>10.2f}"
-              f"{'-':>11}{'-':>13}{'-':>8}{n['load_avg']:>6.1f}  (run {i + 1} of {len(natives)}, {n['episodes']} episodes)")
-    print(f"{'bare':<10}{1:>8}{1:>7}{bare['steps_per_s']:>11.0f}{bare['steps_per_s'] / native_rate:>10.2f}")
-    n = len(native_outcomes)
-    print(f"\nnative vs MJX on the first {n} episodes: success equal in {agree_success}/{n}, "
-          f"BT status equal in {agree_status}/{n}, both in {agree}/{n}")
-
-    best = max(sweep, key=lambda r: r["steps_per_s"])
+    fast = [r for r in rows if r["engine"] in ("native", "mjx")]
+    best = max(fast, key=lambda r: r["steps_per_s"])
+    best_of = {e: max((r for r in fast if r["engine"] == e), key=lambda r: r["steps_per_s"], default=None)
+               for e in ("mjx", "native")}
     result = dict(
-        mjx_steps_per_s=best["steps_per_s"],
-        native_steps_per_s=native_rate,
-        native_bare_steps_per_s=bare["steps_per_s"],
-        ratio_mjx_to_native=best["steps_per_s"] / native_rate,
-        compile_s=best["compile_s"],
-        batch=best["batch"],
-        device=f"{best['device']} x {best['devices']} host devices",
-        devices=best["devices"],
-        episode_seconds=seconds,
-        model_options=options,
-        cpu_count=os.cpu_count(),
-        load_avg_start_end=[natives[0]["load_avg"], natives[-1]["load_avg"]],
-        outcome_agreement=dict(success=agree_success, bt_status=agree_status, both=agree, episodes=len(native_outcomes)),
-        sweep=sweep,
-        native_runs=natives,
-        native_bare=bare,
+        task=scn.name, episode_seconds=engine.episode_seconds, parameter_sets=b, worlds=w, cores=cores,
+        loop_steps_per_s=loop_rate,
+        native_steps_per_s=best_of["native"]["steps_per_s"] if best_of["native"] else None,
+        mjx_steps_per_s=best_of["mjx"]["steps_per_s"] if best_of["mjx"] else None,
+        best_engine=best["engine"], best_steps_per_s=best["steps_per_s"], best_x_loop=best["steps_per_s"] / loop_rate,
+        bare_mj_step_steps_per_s=rows[-1]["steps_per_s"],
+        load_avg=[r["load_avg"] for r in rows],
+        rows=rows,
     )
-    print(f"best: {best['steps_per_s']:.0f} steps/s at batch {best['batch']} on {best['devices']} device(s) = "
-          f"{result['ratio_mjx_to_native']:.2f} x native ({native_rate:.0f}); bare mj_step {bare['steps_per_s']:.0f}")
-    if args.plot:
-        plot(sweep, native_rate, bare["steps_per_s"], args.plot)
-        print(f"figure: {args.plot}")
+    mjx_at_batch = next((r for r in rows if r["engine"] == "mjx" and r["sets"] == b and r["devices"] == 1), None)
+    if mjx_at_batch and best_of["native"]:
+        result["agreement"] = agreement(mjx_at_batch, best_of["native"])
+        print("\nsuccess rate per parameter set, MJX vs native in the same worlds (worlds agreeing):")
+        for a in result["agreement"]:
+            print(f"  set {a['set']}: {a['mjx_success_rate']:.0%} vs {a['native_success_rate']:.0%} "
+                  f"({a['worlds_agreeing']}/{a['worlds']})")
+    print(f"\nbest: {best['engine']} at {best['steps_per_s']:.0f} control steps/s = {result['best_x_loop']:.2f} x the "
+          f"plain loop ({loop_rate:.0f}); bare mj_step {result['bare_mj_step_steps_per_s']:.0f}")
     if args.json:
         args.json.write_text(json.dumps(result, indent=2))
     return result

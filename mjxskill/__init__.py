@@ -1,30 +1,36 @@
 """mjxskill: learn the free parameters of robot skills in MuJoCo MJX.
 
-Data flow (one subpackage per stage): scenario YAML -> PDDL -> plan (``planner``) -> eBT
-(``ebt``) -> compiled BT (``bt_compiled``) -> rollout -> objectives -> GP optimizer (``gp``).
+Data flow, one package per stage (``docs/architecture.md``): scenario YAML (``scenario``) ->
+PDDL, plan (``planner``) -> eBT (``ebt``), joined in ``task.plan_task`` -> compiled BT
+(``bt_compiled``) -> rollout over MJX (``rollout``, with ``sim``; ``native`` is the native
+MuJoCo engine) -> objectives -> GP optimizer (``gp``) -> next batch, driven by ``training`` and
+the command line (``cli``).
+
+    from mjxskill import load_scenario, plan_task, compile_rollout
 """
 
 from mjxskill._runtime import configure_xla_flags as _configure_xla_flags
 
-# Must run before anything creates a JAX backend (see mjxskill/_runtime.py).
+# Must run before anything creates a JAX backend (see mjxskill/_runtime.py). Importing the
+# package creates no directory: the compile caches are switched on by compile_rollout and the
+# commands (mjxskill._runtime.enable_compilation_cache).
 _configure_xla_flags()
 
-from mjxskill._runtime import enable_compilation_cache as _enable_compilation_cache  # noqa: E402
-
-_enable_compilation_cache()
-
 __version__ = "0.1.0"
-__all__ = ["load_scenario", "compile_rollout", "__version__"]
+
+# Lazy, so that `python -m mjxskill.plan` does not pay for importing MJX.
+_EXPORTS = {
+    "load_scenario": "mjxskill.scenario",
+    "plan_task": "mjxskill.task",
+    "compile_rollout": "mjxskill.rollout.compiled",
+}
+
+__all__ = ["__version__", *_EXPORTS]
 
 
 def __getattr__(name):
-    # Lazy so that `python -m mjxskill.plan` does not pay for importing MJX.
-    if name == "load_scenario":
-        from mjxskill.scenario import load_scenario
+    if name in _EXPORTS:
+        import importlib
 
-        return load_scenario
-    if name == "compile_rollout":
-        from mjxskill.rollout import compile_rollout
-
-        return compile_rollout
+        return getattr(importlib.import_module(_EXPORTS[name]), name)
     raise AttributeError(f"module 'mjxskill' has no attribute {name!r}")

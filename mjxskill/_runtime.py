@@ -9,7 +9,8 @@ anything imports jax.
 
 Compiling MJX code costs tens of seconds on a 2-core CPU, so the persistent compilation
 cache is on by default (``MJXSKILL_CACHE_DIR`` moves it, ``MJXSKILL_CACHE_DIR=off`` turns it
-off).
+off). It is switched on where compiling starts (``compile_rollout``) and by the commands
+(``mjxskill.cli.run``), not by importing the package, which creates no directory.
 """
 
 from __future__ import annotations
@@ -59,6 +60,18 @@ def configure_xla_flags(environ: "os._Environ[str] | dict[str, str]" = os.enviro
     return flags
 
 
+_warned: set[str] = set()
+
+
+def _warn_once(message: str) -> None:
+    """A ``Notice`` (the command line prints it as one warning line), once per process."""
+    if message not in _warned:
+        _warned.add(message)
+        from mjxskill.errors import Notice
+
+        warnings.warn(message, Notice, stacklevel=3)
+
+
 def default_cache_dir() -> Path | None:
     """Where compiled XLA executables are kept between processes (None: cache off)."""
     setting = os.environ.get("MJXSKILL_CACHE_DIR")
@@ -69,19 +82,23 @@ def default_cache_dir() -> Path | None:
 
 
 def enable_compilation_cache(path: Path | None = None) -> Path | None:
-    """Turns on JAX's persistent compilation cache (called at import of the package).
+    """Turns on JAX's persistent compilation cache (idempotent; called by ``compile_rollout``
+    and the commands).
 
     Done through JAX's own environment variables when jax is not imported yet, so that
-    importing mjxskill stays cheap for commands that never touch JAX (``mjxskill.plan``), and
-    a user's own ``JAX_COMPILATION_CACHE_DIR`` wins.
+    commands that never touch JAX (``mjxskill.plan``) stay cheap, and a user's own
+    ``JAX_COMPILATION_CACHE_DIR`` wins.
     """
     path = default_cache_dir() if path is None else path
     if path is None:
         return None
     try:
         path.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return None  # read-only home: run without a cache rather than fail
+    except OSError as err:  # read-only home, or the setting names a file: run without a cache
+        why = "it is a file" if path.exists() and not path.is_dir() else err.strerror
+        _warn_once(f"the compile cache {str(path)!r} is not a usable directory ({why}); compile caches "
+                   f"are off, so every run compiles from scratch (set MJXSKILL_CACHE_DIR to a directory, or off)")
+        return None
     settings = {
         "JAX_COMPILATION_CACHE_DIR": (str(path), str),
         # Cache everything that took noticeable time; MJX steps take seconds to compile.
@@ -93,6 +110,13 @@ def enable_compilation_cache(path: Path | None = None) -> Path | None:
     if "jax" in sys.modules:  # jax read its environment already: tell it directly
         import jax
 
-        for name, (_, parse) in settings.items():
-            jax.config.update(name.lower(), parse(os.environ[name]))
+        if jax.config.jax_compilation_cache_dir != os.environ["JAX_COMPILATION_CACHE_DIR"]:
+            for name, (_, parse) in settings.items():
+                jax.config.update(name.lower(), parse(os.environ[name]))
+            try:  # a compile before this point decided "no cache" once and for all: decide again
+                from jax._src import compilation_cache
+
+                compilation_cache.reset_cache()
+            except (ImportError, AttributeError):  # private API moved: the cache may stay off
+                pass
     return Path(os.environ["JAX_COMPILATION_CACHE_DIR"])

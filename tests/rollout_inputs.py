@@ -10,19 +10,28 @@ from mjxskill.rollout import Worlds
 from mjxskill.rollout.bindings import nominal_poses
 
 
-def params_of(scn, *rows) -> np.ndarray:
-    """(len(rows), P) float32: the skill defaults with each row's {parameter name: value} set."""
-    out = np.tile(scn.parameter_defaults, (len(rows), 1)).astype(np.float32)
+def params_of(task, *rows) -> np.ndarray:
+    """(len(rows), P) float32: the skill defaults of ``task`` (a PlannedTask or a rollout's)
+    with each row's {parameter name: value} set."""
+    task = getattr(task, "task", task)
+    out = np.tile(task.defaults, (len(rows), 1)).astype(np.float32)
     for i, row in enumerate(rows):
         for name, value in row.items():
-            out[i, scn.parameter_names.index(name)] = value
+            out[i, task.parameter_names.index(name)] = value
     return out
+
+
+def native_like(rollout):
+    """The native engine with the compiled ``rollout``'s task and settings."""
+    from mjxskill.native import NativeRollout
+
+    return NativeRollout(rollout.scenario, rollout.task, worlds=rollout.worlds, episode_seconds=rollout.episode_seconds)
 
 
 def placed_worlds(rollout, cases) -> Worlds:
     """Worlds (W,) from cases (start configuration, {object: (dx, dy) m from its nominal pose},
     friction or None to keep the sampled one); objects not named stay at their nominal poses."""
-    bindings = rollout.spec.bindings
+    bindings = rollout.spec.setup.bindings
     nominal = nominal_poses(bindings)[0]
     worlds = []
     for config, offsets, friction in cases:

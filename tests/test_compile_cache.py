@@ -13,6 +13,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = """
 import json, mjxskill, jax, jax.numpy as jnp
 import jax.monitoring
+from mjxskill._runtime import enable_compilation_cache
+enable_compilation_cache()  # as compile_rollout and the commands do
 hits = []
 jax.monitoring.register_event_listener(
     lambda event, **kw: hits.append(event) if event == "/jax/compilation_cache/cache_hits" else None)

@@ -17,7 +17,7 @@ from mujoco import mjx
 from mjxskill.sim import load_scene
 from mjxskill.sim.controller import (
     COMMAND_SIZE, ControllerConfig, ControllerState, impedance_control, make_command, split_command)
-from mjxskill.sim.native_controller import NativeControllerState, native_impedance_control
+from mjxskill.native.controller import NativeControllerState, native_impedance_control
 from mjxskill.sim.rotations import quat_conj, quat_mul, quat_to_rotvec, rotvec_to_quat
 
 N_STATES = 100
@@ -129,7 +129,13 @@ def test_quaternion_helpers_match_mujoco(a, b):
     np.testing.assert_allclose(quat_conj(jnp.asarray(a)), neg, atol=1e-7)
     rotvec = np.zeros(3)
     mujoco.mju_quat2Vel(rotvec, a, 1.0)
-    np.testing.assert_allclose(quat_to_rotvec(jnp.asarray(a)), rotvec, atol=2e-5)
+    ours = np.asarray(quat_to_rotvec(jnp.asarray(a)))
+    if abs(np.linalg.norm(rotvec) - np.pi) < 1e-4:
+        # A half turn about n is also one about -n: the sign of the axis is a free choice there
+        # (hypothesis found w = -3e-36, where the two pick opposite ones).
+        assert min(np.abs(ours - rotvec).max(), np.abs(ours + rotvec).max()) < 2e-5
+    else:
+        np.testing.assert_allclose(ours, rotvec, atol=2e-5)
     back = np.asarray(rotvec_to_quat(jnp.asarray(rotvec)))
     assert min(np.abs(back - a).max(), np.abs(back + a).max()) < 2e-5
 

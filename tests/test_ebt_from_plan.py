@@ -7,10 +7,13 @@ from types import MappingProxyType
 
 import pytest
 
-from mjxskill.ebt.from_plan import PRIMITIVES, PlanError, ground_plan, plan_to_tree
+from mjxskill.ebt.from_plan import ground_plan, plan_to_tree
+from mjxskill.ebt.primitives import PRIMITIVES
+from mjxskill.errors import PlanError
 from mjxskill.ebt.interpreter import Interpreter
 from mjxskill.ebt.nodes import SYMBOLS, Node, Status
 from mjxskill.scenario import load_scenario
+from mjxskill.task import plan_task
 
 
 @pytest.fixture(scope="module")
@@ -38,29 +41,29 @@ def test_push_tree_is_gotolinear_then_serial_star_of_two_parallel_fs_blocks(push
         return ("->", f"GoToLinearOffset.{which}", "set_goal_from_object",
                 ("||FS", f"Push.{which}.move", "goal_pose", "ee_pose_distance"))
 
-    assert shape(push.task.tree) == (
+    assert shape(plan_task(push).tree) == (
         "->*", "plan",
         GOTO,
         ("->*", "Push",
          ("||FS", "Push.start", offset_move("start"), "change_stiffness"),
          ("||FS", "Push.goal", offset_move("goal"), "change_stiffness", "apply_force")),
     )
-    leaves = {(n.name, n.args.get("object")): n for n in push.task.tree.leaves() if n.primitive == "change_stiffness"}
+    leaves = {(n.name, n.args.get("object")): n for n in plan_task(push).tree.leaves() if n.primitive == "change_stiffness"}
     for leaf in leaves.values():
         assert leaf.args["stiffness"] == (700, 700, 700, 50, 50, 50)
-    force = next(n for n in push.task.tree.leaves() if n.primitive == "apply_force")
+    force = next(n for n in plan_task(push).tree.leaves() if n.primitive == "apply_force")
     assert force.args["wrench"] == (0, 0, -7, 0, 0, 0)
 
 
 def test_peg_tree_matches_skireil(peg):
-    assert shape(peg.task.tree) == (
+    assert shape(plan_task(peg).tree) == (
         "->*", "plan",
         GOTO,
         ("->", "PegInsertion", "set_goal_from_object",
          ("||FS", "PegInsertion.insert", "goal_pose", "change_stiffness", "apply_force", "overlay_spiral",
           "ee_pose_distance")),
     )
-    leaves = {n.primitive: n for n in peg.task.tree.leaves()[2:]}
+    leaves = {n.primitive: n for n in plan_task(peg).tree.leaves()[2:]}
     assert leaves["change_stiffness"].args["stiffness"] == (500, 500, 0, 50, 50, 50)
     assert leaves["ee_pose_distance"].args["threshold"] == 0.04
     assert dict(leaves["apply_force"].params) == {"force_z": "PegInsertion.force"}
@@ -79,10 +82,10 @@ def test_peg_tree_matches_skireil(peg):
 @pytest.mark.parametrize("name", ["push", "peg"])
 def test_leaves_use_the_vocabulary_and_every_learnable_parameter(request, name):
     scn = request.getfixturevalue(name)
-    leaves = scn.task.tree.leaves()
+    leaves = plan_task(scn).tree.leaves()
     assert {leaf.primitive for leaf in leaves} <= set(PRIMITIVES)
     used = [p for leaf in leaves for p in leaf.params.values()]
-    assert sorted(used) == sorted(scn.parameter_names)  # each exactly once, nothing unknown
+    assert sorted(used) == sorted(plan_task(scn).parameter_names)  # each exactly once, nothing unknown
 
 
 def _run(tree: Node, successes_after, ticks: int):
@@ -113,7 +116,7 @@ def _run(tree: Node, successes_after, ticks: int):
 
 
 def test_push_tree_runs_its_phases_in_order(push):
-    trace = _run(push.task.tree, successes_after=3, ticks=7)
+    trace = _run(plan_task(push).tree, successes_after=3, ticks=7)
     assert [status for status, _ in trace] == [Status.RUNNING] * 6 + [Status.SUCCESS]
 
     def goals(leaves):
@@ -139,7 +142,7 @@ def test_push_tree_runs_its_phases_in_order(push):
 def test_peg_tree_keeps_searching_while_not_inserted(peg):
     # The approach is reached on the 2nd tick; the insertion's distance check never succeeds.
     never = 10**9
-    trace = _run(peg.task.tree, lambda leaf: 2 if leaf.args["threshold"] == 0.05 else never, ticks=6)
+    trace = _run(plan_task(peg).tree, lambda leaf: 2 if leaf.args["threshold"] == 0.05 else never, ticks=6)
     assert all(status == Status.RUNNING for status, _ in trace)
     insertion = ["set_goal_from_object", "goal_pose", "change_stiffness", "apply_force", "overlay_spiral", "ee_pose_distance"]
     assert [[n.primitive for n in leaves] for _, leaves in trace] == [
@@ -149,7 +152,7 @@ def test_peg_tree_keeps_searching_while_not_inserted(peg):
 
 
 def test_peg_tree_succeeds_once_inserted(peg):
-    trace = _run(peg.task.tree, successes_after=2, ticks=3)
+    trace = _run(plan_task(peg).tree, successes_after=2, ticks=3)
     assert [status for status, _ in trace] == [Status.RUNNING, Status.RUNNING, Status.SUCCESS]
 
 
@@ -164,7 +167,7 @@ def test_a_skill_used_twice_gets_numbered_parameters(push):
     assert dict(steps[2].arguments) == {"robot": "iiwa-1", "workpiece": "ObjectToBePushed-1", "goal": "Home-1"}
     tree, parameters = plan_to_tree(push, steps)
     names = [p.name for p in parameters]
-    assert names == list(push.parameter_names) + [n.replace("Push.", "Push#2.") for n in push.parameter_names]
+    assert names == list(plan_task(push).parameter_names) + [n.replace("Push.", "Push#2.") for n in plan_task(push).parameter_names]
     assert sorted(p for leaf in tree.leaves() for p in leaf.params.values()) == sorted(names)
 
 
@@ -173,7 +176,7 @@ def test_a_parameter_not_marked_learnable_becomes_a_fixed_argument(peg):
     fixed = tuple(dataclasses.replace(p, learnable=False) if p.name == "radius" else p for p in skill.parameters)
     skills = MappingProxyType({**peg.skills, "PegInsertion": dataclasses.replace(skill, parameters=fixed)})
     scn = dataclasses.replace(peg, skills=skills)
-    tree, parameters = plan_to_tree(scn, peg.task.steps)
+    tree, parameters = plan_to_tree(scn, plan_task(peg).steps)
     assert [p.name for p in parameters] == ["PegInsertion.force", "PegInsertion.path_velocity", "PegInsertion.pitch"]
     spiral = next(n for n in tree.leaves() if n.primitive == "overlay_spiral")
     assert spiral.args == {"radius": 0.0} and "radius" not in spiral.params
@@ -203,6 +206,6 @@ def test_the_push_starts_turned_to_the_workpiece_and_goes_straight(push, peg):
     def orientations(tree):
         return [(n.name, n.args["object"], n.args["orientation"]) for n in tree.leaves() if n.primitive == "set_goal_from_object"]
 
-    assert [o for _, _, o in orientations(push.task.tree)] == ["tool_down_aligned", "tool_down_aligned", "tool_down"]
-    assert orientations(push.task.tree)[2][1] == "ObjectGoalPose-1"
-    assert {o for _, _, o in orientations(peg.task.tree)} == {"tool_down_aligned"}
+    assert [o for _, _, o in orientations(plan_task(push).tree)] == ["tool_down_aligned", "tool_down_aligned", "tool_down"]
+    assert orientations(plan_task(push).tree)[2][1] == "ObjectGoalPose-1"
+    assert {o for _, _, o in orientations(plan_task(peg).tree)} == {"tool_down_aligned"}

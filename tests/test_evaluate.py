@@ -7,7 +7,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from mjxskill.evaluate import (
+from mjxskill.task import plan_task
+from mjxskill.training.evaluation import (
     Candidates,
     build_candidates,
     evaluate_candidates,
@@ -27,18 +28,19 @@ def push():
 
 def test_candidates_are_pareto_planner_random_and_manual(push):
     front = np.array([[0.1, 0.1, -0.1, 0.0], [0.0, 0.2, 0.0, -0.2]])
-    c = build_candidates(push, front, n_random=10, seed=0)
+    task = plan_task(push)
+    c = build_candidates(task, front, n_random=10, seed=0)
     assert c.names[:3] == ("pareto-0", "pareto-1", "planner")
     assert c.groups.count("pareto") == 2 and c.groups.count("random") == 10
-    assert c.groups.count("manual") == len(push.manual_parameters) == 3
+    assert c.groups.count("manual") == len(task.manual_parameters) == len(push.manual_parameters) == 3
     np.testing.assert_array_equal(c.params[:2], front)
-    np.testing.assert_array_equal(c.params[2], push.parameter_defaults)
-    for name, values in push.manual_parameters.items():
-        np.testing.assert_array_equal(c.params[c.names.index(name)], values)
-    lo, hi = push.bounds
+    np.testing.assert_array_equal(c.params[2], task.defaults)
+    for name, manual in push.manual_parameters.items():
+        np.testing.assert_array_equal(c.params[c.names.index(name)], [manual.values[n] for n in task.parameter_names])
+    lo, hi = task.bounds
     random = c.params[[g == "random" for g in c.groups]]
     assert np.all((random >= lo) & (random <= hi)) and len(np.unique(random, axis=0)) == 10
-    np.testing.assert_array_equal(build_candidates(push, front, 10, seed=0).params, c.params)  # reproducible
+    np.testing.assert_array_equal(build_candidates(task, front, 10, seed=0).params, c.params)  # reproducible
 
 
 class ScriptedRollout:
@@ -98,7 +100,7 @@ def test_significance_stars_against_exact_mann_whitney():
 
 
 def test_csv_table_and_box_plot(tmp_path):
-    from mjxskill.evaluate import Evaluation
+    from mjxskill.training.evaluation import Evaluation
 
     names = ("pareto-0", "pareto-1", "planner", "random-0", "random-1", "operator_a")
     groups = ("pareto", "pareto", "planner", "random", "random", "manual")

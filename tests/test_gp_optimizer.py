@@ -168,7 +168,7 @@ def test_non_finite_objectives_are_kept_and_do_not_break_the_model():
         (dict(n_raw=0), "acquisition setting n_raw: expected a positive integer, got 0"),
         (dict(n_raw=2.5), "acquisition setting n_raw: expected an integer, got 2.5"),
         (dict(n_restarts=100), r"n_restarts \(100\) exceeds n_raw \(64\)"),
-        (dict(n_rwa=3), "unknown acquisition setting 'n_rwa'; valid settings: scalarization, alpha, ref_margin, bucket"),
+        (dict(n_rwa=3), "unknown acquisition setting 'n_rwa'; valid settings: scalarization, alpha, reference, ref_margin"),
     ],
 )
 def test_bad_config_raises_clear_errors(kwargs, message):

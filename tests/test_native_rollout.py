@@ -26,19 +26,20 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from mjxskill import compile_rollout, load_scenario
-from mjxskill.native import NativeRollout
+from rollout_inputs import native_like
 from mjxskill.native.leaves import tool_down_aligned
 from mjxskill.native.motion import LinearMotion, plane_basis, spiral_step
 from mjxskill.rollout.leaves import tool_down_aligned as jax_tool_down_aligned
 from mjxskill.sim import motion as jax_motion
+from mjxskill.task import plan_task
 
 @pytest.fixture(scope="module")
 def rollouts(push_rollout):
     scn, rollout = push_rollout
-    params = np.array([[-0.05, -0.15, 0.07, -0.10], scn.parameter_defaults], np.float32)
+    params = np.array([[-0.05, -0.15, 0.07, -0.10], plan_task(scn).defaults], np.float32)
     worlds = rollout.sample_worlds(jax.random.key(2), 2)
     compiled = jax.tree.map(np.asarray, rollout.run_worlds(params, worlds))
-    native = NativeRollout(rollout).run_worlds(params, worlds)
+    native = native_like(rollout).run_worlds(params, worlds)
     return compiled, native
 
 
@@ -110,7 +111,7 @@ def test_worlds_of_the_wrong_batch_are_rejected(rollouts):
     rollout = compile_rollout(scn, worlds=2, episode_seconds=0.1)
     worlds = rollout.sample_worlds(jax.random.key(0), 3)
     with pytest.raises(ValueError, match=r"leading shape \(W,\) or \(2, W\)"):
-        NativeRollout(rollout).run_worlds(np.zeros((2, 4)), worlds)
+        native_like(rollout).run_worlds(np.zeros((2, 4)), worlds)
 
 
 @settings(max_examples=25, deadline=None)

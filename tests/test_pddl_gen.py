@@ -9,8 +9,9 @@ from pddl.logic.base import And, Not
 from pddl.parser.domain import DomainParser
 from pddl.parser.problem import ProblemParser
 
-from mjxskill.pddl_gen import GoalError, domain_pddl, goal_literals, goal_pddl, problem_pddl
-from mjxskill.plan import plan_task
+from mjxskill.errors import GoalError
+from mjxskill.planner.world_pddl import domain_pddl, goal_literals, goal_pddl, problem_pddl
+from mjxskill.task import plan_task
 from mjxskill.scenario import load_scenario
 
 
@@ -30,7 +31,7 @@ def _atoms(formula):
 
 @pytest.mark.parametrize("name", ["push", "peg"])
 def test_fast_downward_finds_the_same_optimal_plan(scenarios, name):
-    task = scenarios[name].task
+    task = plan_task(scenarios[name])
     assert fast_downward_plan(task.domain_pddl, task.problem_pddl) == list(task.plan)
     assert [step.skill for step in task.steps] == ["GoToLinear", {"push": "Push", "peg": "PegInsertion"}[name]]
 
@@ -38,7 +39,7 @@ def test_fast_downward_finds_the_same_optimal_plan(scenarios, name):
 @pytest.mark.parametrize("name", ["push", "peg"])
 def test_domain_has_one_action_per_skill_with_its_conditions(scenarios, name):
     scn = scenarios[name]
-    domain = DomainParser()(scn.task.domain_pddl)
+    domain = DomainParser()(plan_task(scn).domain_pddl)
     actions = {a.name: a for a in domain.actions}
     assert set(actions) == {s.lower() for s in scn.skills}
     for skill in scn.skills.values():
@@ -61,7 +62,7 @@ def _literal(text):
 @pytest.mark.parametrize("name", ["push", "peg"])
 def test_problem_holds_every_object_and_relation(scenarios, name):
     scn = scenarios[name]
-    problem = ProblemParser()(scn.task.problem_pddl)
+    problem = ProblemParser()(plan_task(scn).problem_pddl)
     assert {o.name for o in problem.objects} == {o.lower() for o in (*scn.objects, scn.robot.name)}
     relations = {_literal(r.lower()) for r in (*scn.robot.relations, *(r for o in scn.objects.values() for r in o.relations))}
     assert {(a.name, *(t.name for t in a.terms)) for a in problem.init} == relations
@@ -70,7 +71,7 @@ def test_problem_holds_every_object_and_relation(scenarios, name):
 def test_pyperplan_reads_the_exported_files(scenarios, tmp_path):
     from pyperplan.planner import _parse
 
-    task = scenarios["peg"].task
+    task = plan_task(scenarios["peg"])
     (tmp_path / "d.pddl").write_text(task.domain_pddl)
     (tmp_path / "p.pddl").write_text(task.problem_pddl)
     parsed = _parse(str(tmp_path / "d.pddl"), str(tmp_path / "p.pddl"))
@@ -105,7 +106,7 @@ def test_goal_reading_ignores_case_namespaces_and_spacing(scenarios, data):
 def test_negated_goal_needs_negative_preconditions_and_fast_downward_solves_it(scenarios):
     peg = scenarios["peg"]
     goal = "(and (skiros:at skiros:Peg-1 skiros:BoxWithHole-1) (not (ee-at iiwa-1 home-1)))"
-    assert ":negative-preconditions" not in peg.task.domain_pddl
+    assert ":negative-preconditions" not in plan_task(peg).domain_pddl
     domain = domain_pddl(peg, negative_goal=True)
     assert ":negative-preconditions" in domain
     assert "(not (ee-at iiwa-1 home-1))" in problem_pddl(peg, goal)

@@ -1,23 +1,17 @@
 """The ``plan`` and ``train`` commands through the real CLI (subprocesses): what they print, the
 exported PDDL, and bad input as one line on stderr with exit code 2 and no traceback."""
 
-import os
 import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 from fast_downward import fast_downward_plan
 
+from cli_helpers import run_cli
 from mjxskill.scenario import SCENARIO_DIR
 
-ROOT = Path(__file__).resolve().parent.parent
 
-
-def cli(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])  # this checkout first
-    return subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, cwd=cwd, env=env, timeout=120)
+def cli(module: str, *args: str) -> subprocess.CompletedProcess:
+    return run_cli(module.removeprefix("mjxskill."), *args, timeout=120)
 
 
 def assert_bad_input(run: subprocess.CompletedProcess, *fragments: str) -> None:

@@ -12,19 +12,21 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from mjxskill import compile_rollout, load_scenario
-from mjxskill.rollout.compiled import load_model
 from mjxskill.rollout.program_cache import program_key
+from scenario_texts import shipped_text
 
 ROOT = Path(__file__).resolve().parents[1]
 
 SCRIPT = """
 import json, sys, mjxskill, jax, numpy as np
 from mjxskill import compile_rollout, load_scenario
+from mjxskill.task import plan_task
 scn = load_scenario("peg")
 r = compile_rollout(scn, worlds=2, episode_seconds=0.3)
-params = np.tile(scn.parameter_defaults, (2, 1)).astype(np.float32)
+params = np.tile(plan_task(scn).defaults, (2, 1)).astype(np.float32)
 params[1, 0] = -8.0
 worlds = r.sample_worlds(jax.random.key(0), 2)
 out = r.run_worlds(params, worlds)
@@ -59,9 +61,9 @@ def test_a_second_process_reads_the_program_and_a_damaged_one_is_traced_again(tm
 
 def _key(scn, seconds=0.3, batch=2, worlds=2):
     r = compile_rollout(scn, worlds=worlds, episode_seconds=seconds)
-    params = jnp.zeros((batch, len(scn.parameter_names)), jnp.float32)
+    params = jnp.zeros((batch, len(r.parameter_names)), jnp.float32)
     w = r.sample_worlds(jax.random.key(0), batch)
-    return program_key(r, load_model(scn), (params, w))
+    return program_key(r.identity(), r.mj_model, (params, w))
 
 
 def test_the_key_names_everything_the_program_depends_on():
@@ -72,7 +74,7 @@ def test_the_key_names_everything_the_program_depends_on():
     others = [_key(peg, seconds=0.4), _key(peg, batch=3), _key(peg, worlds=3), _key(load_scenario("push"))]
     assert len({base, *others}) == 5
     # The scenario's content counts: the same file with another goal threshold gets another key.
-    text = Path(peg.source).read_text().replace("scene: ../peg.xml", f"scene: {Path(peg.scene)}")
+    text = shipped_text("peg")
     assert "threshold: {type: float, unit: m, default: 0.04}" in text
     copy = Path(os.environ.get("TMPDIR", "/tmp")) / f"peg-key-{os.getpid()}.yaml"
     try:
@@ -83,3 +85,51 @@ def test_the_key_names_everything_the_program_depends_on():
     finally:
         copy.unlink(missing_ok=True)
     np.testing.assert_equal(len(base), 64)
+
+
+def _tiny_program(cache: Path, monkeypatch):
+    """load_or_trace of a two-line program (no MJX: the cache's bookkeeping, not a rollout)."""
+    import mujoco
+
+    from mjxskill.rollout.program_cache import load_or_trace
+    from mjxskill.rollout.worlds import Worlds
+
+    monkeypatch.setenv("MJXSKILL_CACHE_DIR", str(cache))
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>")
+    worlds = Worlds(*(jnp.full((2, 1), v, jnp.float32) for v in range(5)))
+    params = jnp.arange(6, dtype=jnp.float32).reshape(2, 3)
+
+    def body(p, w):
+        return p * 2.0 + w.arm_qpos
+
+    program = load_or_trace("tiny", model, body, params, worlds)
+    return program, np.asarray(program.fn(params, worlds)), (model, body, params, worlds)
+
+
+def test_a_changed_or_misplaced_program_is_detected_traced_again_and_rewritten(tmp_path, monkeypatch):
+    import warnings
+
+    from mjxskill.errors import Notice
+    from mjxskill.rollout.program_cache import load_or_trace
+
+    first, expected, (model, body, params, worlds) = _tiny_program(tmp_path, monkeypatch)
+    stored = tmp_path / "programs" / f"{first.key}.stablehlo"
+    assert first.origin == "traced" and stored.is_file()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Notice)  # an intact file is read without a word
+        assert load_or_trace("tiny", model, body, params, worlds).origin == "disk"
+    good = stored.read_bytes()
+    changed = bytearray(good)
+    changed[-20] ^= 0x01  # one bit of the program: it may still deserialize, and run wrong
+    stored.write_bytes(bytes(changed))
+    with pytest.warns(Notice, match=r"cannot be used \(its content does not match its digest"):
+        again = load_or_trace("tiny", model, body, params, worlds)
+    assert again.origin == "traced" and stored.read_bytes() == good  # rewritten
+    np.testing.assert_array_equal(np.asarray(again.fn(params, worlds)), expected)
+    # Another scenario's program stored under this key (a copy, a rename): never run it.
+    other = load_or_trace("another scenario", model, lambda p, w: p - 1.0, params, worlds)
+    stored.write_bytes((tmp_path / "programs" / f"{other.key}.stablehlo").read_bytes())
+    with pytest.warns(Notice, match="it is stored for another key"):
+        third = load_or_trace("tiny", model, body, params, worlds)
+    assert third.origin == "traced" and stored.read_bytes() == good
+    np.testing.assert_array_equal(np.asarray(third.fn(params, worlds)), expected)

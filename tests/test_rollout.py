@@ -13,6 +13,7 @@ import pytest
 
 import mjxskill  # noqa: F401
 from mjxskill import compile_rollout, load_scenario
+from mjxskill.task import plan_task
 from rollout_inputs import params_of, placed_worlds
 
 B, W = 3, 2
@@ -33,9 +34,9 @@ def box_worlds(rollout, offsets):
 
 def test_output_shapes_and_names(peg):
     scn, rollout = peg
-    assert rollout.parameter_names == scn.parameter_names
+    assert rollout.parameter_names == plan_task(scn).parameter_names
     assert rollout.objective_names == ("insertion", "applied_force")
-    out = rollout(params_of(scn, {}, SPIRAL, {}), jax.random.key(0))
+    out = rollout(params_of(rollout, {}, SPIRAL, {}), jax.random.key(0))
     assert out.objectives.shape == (B, 2) and out.success.shape == (B, W)
     for name, value in out.metrics.items():
         # Per-world totals only: nothing grows with the episode length.
@@ -45,7 +46,7 @@ def test_output_shapes_and_names(peg):
 
 def test_objectives_are_world_means_of_weighted_reward_totals(peg):
     scn, rollout = peg
-    out = rollout(params_of(scn, {}, SPIRAL, {}), jax.random.key(0))
+    out = rollout(params_of(rollout, {}, SPIRAL, {}), jax.random.key(0))
     expected = np.zeros((B, len(scn.objective_names)))
     for reward in scn.rewards:
         col = scn.objective_names.index(reward.objective)
@@ -55,7 +56,7 @@ def test_objectives_are_world_means_of_weighted_reward_totals(peg):
 
 def test_same_key_is_bit_identical_and_another_key_draws_other_worlds(peg):
     scn, rollout = peg
-    params = params_of(scn, {}, SPIRAL, {})
+    params = params_of(rollout, {}, SPIRAL, {})
     a = rollout(params, jax.random.key(7))
     b = rollout(params, jax.random.key(7))
     for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b)):
@@ -69,7 +70,7 @@ def test_planner_parameters_need_an_aligned_hole_and_the_spiral_finds_an_offset_
     the peg only when the world model is exact; a spiral search copes with a 5 mm error."""
     scn, rollout = peg
     worlds = box_worlds(rollout, [(0.0, 0.0), (0.004, -0.003)])
-    out = rollout.run_worlds(params_of(scn, {}, SPIRAL, SPIRAL), worlds)
+    out = rollout.run_worlds(params_of(rollout, {}, SPIRAL, SPIRAL), worlds)
     success = np.asarray(out.success)
     assert success[0].tolist() == [True, False]
     assert success[1].tolist() == [True, True]
@@ -85,14 +86,14 @@ def test_a_diverging_world_is_contained(peg):
     """A world whose state is not finite is marked failed with the worst rewards and leaves the
     other worlds and parameter sets untouched."""
     scn, rollout = peg
-    params = params_of(scn, {}, SPIRAL, SPIRAL)
+    params = params_of(rollout, {}, SPIRAL, SPIRAL)
     worlds = rollout.sample_worlds(jax.random.key(3), B)
     broken = worlds._replace(arm_qpos=worlds.arm_qpos.at[2, 1].set(jnp.nan))
     clean, bad = rollout.run_worlds(params, worlds), rollout.run_worlds(params, broken)
     assert bool(bad.metrics["diverged"][2, 1]) and not bool(np.asarray(bad.metrics["diverged"])[:2].any())
     assert not bool(bad.success[2, 1])
     for r, term in enumerate(rollout.spec.terms):
-        assert float(bad.metrics[f"reward_{term.name}"][2, 1]) == pytest.approx(term.worst_raw * rollout.spec.ticks)
+        assert float(bad.metrics[f"reward_{term.name}"][2, 1]) == pytest.approx(term.worst_raw * rollout.spec.setup.ticks)
     assert np.isfinite(np.asarray(bad.objectives)).all()
     for x, y in zip(jax.tree.leaves(clean.metrics), jax.tree.leaves(bad.metrics)):
         np.testing.assert_array_equal(np.asarray(x)[:2], np.asarray(y)[:2])
@@ -104,7 +105,7 @@ def test_absurd_parameters_stay_finite(peg):
     keep the physics finite; whatever happens, outputs are finite and the world is failed."""
     scn, rollout = peg
     absurd = {"PegInsertion.force": -1e6, "PegInsertion.radius": 1e3, "PegInsertion.path_velocity": 1e6, "PegInsertion.pitch": 1e3}
-    out = rollout(params_of(scn, absurd, SPIRAL, absurd), jax.random.key(5))
+    out = rollout(params_of(rollout, absurd, SPIRAL, absurd), jax.random.key(5))
     for leaf in jax.tree.leaves(out):
         assert np.isfinite(np.asarray(leaf, dtype=float)).all()
     assert not np.asarray(out.success)[[0, 2]].any()

@@ -30,7 +30,7 @@ def extreme_worlds(scn, rollout, cases):
 
 def test_planner_offsets_fail_and_a_straight_push_into_the_corner_succeeds(push_rollout):
     scn, rollout = push_rollout
-    params = params_of(scn, {}, HAND_FOUND)
+    params = params_of(rollout, {}, HAND_FOUND)
     cases = [
         [(0, (1, -1), (-1, 1), 0.25), (1, (-1, 1), (1, -1), 0.2)],
         [(2, (-1, -1), (1, 1), 0.2), (3, (1, 1), (-1, -1), 0.25)],

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 import mjxskill  # noqa: F401
-from mjxskill.rollout.rewards import Observation, _raw_term, build_terms, exp_reward, objective_matrix
+from mjxskill.rollout.rewards import Observation, _raw_term, build_terms, exp_reward
+from mjxskill.rollout.types import objective_matrix
 from mjxskill.scenario import load_scenario
-from mjxskill.scenario_schema import Reward
+from mjxskill.scenario.schema import Reward
 
 # Two bound objects: slot 0 an object at (1, 0, 0) turned 90 deg about z, slot 1 a target at
 # the origin with identity orientation.

@@ -6,16 +6,18 @@ import pytest
 
 import mjxskill  # noqa: F401
 from mjxskill.rollout.bindings import FREE, MOCAP, NOMINAL, bind_scene, referenced_objects
-from mjxskill.rollout.compiled import _leaf_objects, load_model
+from mjxskill.rollout.types import leaf_objects
+from mjxskill.sim.model import load_model
 from mjxskill.rollout.worlds import make_sampler, sample_worlds, worlds_per_config
 from mjxskill.scenario import load_scenario
+from mjxskill.task import plan_task
 
 
 @pytest.fixture(scope="module", params=["push", "peg"])
 def setup(request):
     scn = load_scenario(request.param)
     model = load_model(scn)
-    bindings = bind_scene(scn, model, referenced_objects(scn, _leaf_objects(scn.task.tree)))
+    bindings = bind_scene(scn, model, referenced_objects(scn, leaf_objects(plan_task(scn).tree)))
     return scn, bindings, make_sampler(scn, bindings)
 
 

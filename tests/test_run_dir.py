@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mjxskill.cli import CommandError
-from mjxskill.run_dir import (
+from mjxskill.errors import RunError
+from mjxskill.training.run_dir import (
     EVALUATIONS,
     Evaluations,
     Run,
@@ -84,7 +84,7 @@ def test_csv_round_trips_float64_exactly(tmp_path_factory, values):
     v = np.array(values, np.float64)
     ev = Evaluations(np.arange(len(v)), v[:, :2], v[:, 2:4], v[:, 4], v[:, 5])
     cols = evaluation_columns(("a", "b"), ("o1", "o2"))
-    from mjxskill.run_dir import write_csv
+    from mjxskill.training.run_dir import write_csv
 
     write_csv(path, cols, ev)
     back = read_csv(path, cols)
@@ -106,15 +106,18 @@ def test_append_then_read_and_a_torn_last_line_is_ignored(tmp_path):
     assert_same(read_csv(run.path / EVALUATIONS, cfg.columns()), first.concat(second))
 
 
-def test_incomplete_batches_are_dropped_and_repair_rewrites_the_file(tmp_path):
+def test_incomplete_batches_are_not_counted_and_reading_changes_nothing(tmp_path):
     run = make_run(tmp_path)
     cfg = run.config()  # batches of 4, 2, 4
     done = rows([0, 0, 0, 0, 1, 1])
     run.append(done)
     run.append(rows([2, 2], seed=3))  # 2 of the 4 rows of batch 2
+    before = (run.path / EVALUATIONS).read_bytes()
     assert_same(run.evaluations(cfg), done)
-    assert_same(run.repair(cfg), done)
-    assert_same(read_csv(run.path / EVALUATIONS, cfg.columns()), done)
+    batches = run.batches(cfg)
+    assert sorted(batches.complete) == [0, 1] and [r.line for r in batches.rejected] == [8, 9]
+    assert all("batch 2 is incomplete (2 of 4 rows)" in r.reason for r in batches.rejected)
+    assert (run.path / EVALUATIONS).read_bytes() == before
 
 
 def test_config_round_trips_and_identifies_the_run(tmp_path):
@@ -129,31 +132,31 @@ def test_config_round_trips_and_identifies_the_run(tmp_path):
 
 def test_refuses_to_overwrite_a_run(tmp_path):
     make_run(tmp_path)
-    with pytest.raises(CommandError, match="already holds a run; continue it with --resume"):
+    with pytest.raises(RunError, match="already holds a run; continue it with --resume"):
         make_run(tmp_path)
 
 
 @pytest.mark.parametrize(
     "text, message",
     [("format: other\n", "not an mjxskill run configuration"), ("[unclosed\n", "not valid YAML"),
-     ("format: mjxskill.run/1\ntask: x\n", "missing or has a bad field")],
+     ("format: mjxskill.run/1\ntask: x\n", "missing key 'scenario'")],
 )
 def test_bad_config_files_name_the_file(tmp_path, text, message):
     (tmp_path / "config.yaml").write_text(text)
-    with pytest.raises(CommandError, match=message) as err:
+    with pytest.raises(RunError, match=message) as err:
         Run(tmp_path).config()
     assert "config.yaml" in str(err.value)
 
 
 def test_not_a_run_directory(tmp_path):
-    with pytest.raises(CommandError, match="is not a run directory"):
+    with pytest.raises(RunError, match="is not a run directory"):
         Run(tmp_path).config()
 
 
 def test_csv_with_other_columns_is_refused(tmp_path):
     path = tmp_path / "e.csv"
     path.write_text("iteration,x\n0,1\n")
-    with pytest.raises(CommandError, match="does not have the columns"):
+    with pytest.raises(RunError, match="does not have the columns"):
         read_csv(path, evaluation_columns(("a",), ("o",)))
 
 
@@ -164,3 +167,14 @@ def test_nan_objectives_survive(tmp_path):
     run.append(ev)
     back = run.evaluations()
     assert math.isnan(back.objectives[1, 0]) and back.objectives[0, 0] == ev.objectives[0, 0]
+
+
+def test_config_bounds_that_leave_nothing_to_learn_are_named_not_blamed_on_options(tmp_path):
+    text = make_config().to_yaml().replace("bounds:\n- - 0.0\n  - -1.0\n- - 1.0", "bounds:\n- - 0.0\n  - -1.0\n- - 0.0")
+    assert "- - 0.0\n  - 1.0" in text  # the upper bounds are now (0.0, 1.0): S.x has [0, 0]
+    (tmp_path / "config.yaml").write_text(text)
+    with pytest.raises(RunError) as err:
+        Run(tmp_path).config()
+    line = text[: text.index("bounds:")].count("\n") + 1
+    assert str(err.value) == (f"{tmp_path / 'config.yaml'}: bounds (line {line}): S.x: lower bound 0 is not below "
+                              f"the upper bound 0")

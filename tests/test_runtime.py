@@ -31,19 +31,41 @@ def _run(code: str, **extra_env) -> str:
     return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
 
 
-def test_flag_in_effect_in_a_fresh_process(tmp_path):
-    # The flag must reach XLA's CPU client: the debug options dump shows what XLA parsed.
+def test_flag_in_effect_in_a_fresh_process_and_importing_creates_nothing(tmp_path):
+    cache = tmp_path / "cache"
     out = _run(
         "import mjxskill, os, jax, jax.numpy as jnp\n"
         "jnp.ones(3).block_until_ready()\n"
         "print(os.environ['XLA_FLAGS']); print(jax.config.jax_compilation_cache_dir)",
-        MJXSKILL_CACHE_DIR=str(tmp_path),
+        MJXSKILL_CACHE_DIR=str(cache), XDG_CACHE_HOME=str(tmp_path / "xdg"),
     )
-    flags, cache = out.split("\n")[:2]
+    flags, cache_dir = out.split("\n")[:2]
     assert CPU_FUSION_SETTING in flags
-    assert cache == str(tmp_path)
+    assert cache_dir == "None"  # the import switched no cache on
+    assert not cache.exists() and not (tmp_path / "xdg").exists()  # and created no directory
+
+
+def test_the_cache_is_switched_on_where_compiling_starts_even_after_a_compile(tmp_path):
+    # A jit compile before the cache is enabled makes jax decide "no cache"; enabling it later
+    # (as compile_rollout does) must still make the next compiles persistent.
+    out = _run(
+        "import mjxskill, jax, jax.numpy as jnp\n"
+        "jax.jit(lambda x: x + 1)(jnp.ones(3)).block_until_ready()\n"
+        "from mjxskill._runtime import enable_compilation_cache\n"
+        "print(enable_compilation_cache()); print(enable_compilation_cache())\n"
+        "jax.jit(lambda x: jnp.sin(x) * 2)(jnp.ones(300)).block_until_ready()\n"
+        "print(jax.config.jax_compilation_cache_dir)",
+        MJXSKILL_CACHE_DIR=str(tmp_path), JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS="0",
+    )
+    first, second, cache_dir = out.split("\n")[:3]
+    assert first == second == cache_dir == str(tmp_path)
+    assert any(tmp_path.iterdir()), "nothing was written to the persistent cache"
 
 
 def test_cache_can_be_turned_off():
-    out = _run("import mjxskill, jax; print(jax.config.jax_compilation_cache_dir)", MJXSKILL_CACHE_DIR="off")
-    assert out.strip() == "None"
+    out = _run(
+        "import mjxskill, jax\nfrom mjxskill._runtime import enable_compilation_cache\n"
+        "print(enable_compilation_cache()); print(jax.config.jax_compilation_cache_dir)",
+        MJXSKILL_CACHE_DIR="off",
+    )
+    assert out.split() == ["None", "None"]

@@ -15,8 +15,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mjxskill.scenario import SCENARIO_DIR, ScenarioError, load_scenario
+from mjxskill.task import plan_task
+from scenario_texts import shipped_text
 
 PUSH_YAML = SCENARIO_DIR / "push.yaml"
+PUSH_TEXT = shipped_text("push")  # the scene path absolute: edited copies load from tmp_path
 
 
 @pytest.fixture(scope="module")
@@ -73,23 +76,25 @@ def test_peg_world_model_has_the_papers_numbers(peg):
 
 
 def test_learnable_parameters_come_from_the_plan(push, peg):
-    assert push.parameter_names == (
+    assert plan_task(push).parameter_names == (
         "Push.offset_x_start", "Push.offset_y_start", "Push.offset_x_goal", "Push.offset_y_goal",
     )
-    np.testing.assert_array_equal(push.bounds, [[-0.3] * 4, [0.3] * 4])
-    assert push.parameter_units == ("m",) * 4
-    np.testing.assert_array_equal(push.parameter_defaults, np.zeros(4))
-    assert peg.parameter_names == (
+    np.testing.assert_array_equal(plan_task(push).bounds, [[-0.3] * 4, [0.3] * 4])
+    assert plan_task(push).parameter_units == ("m",) * 4
+    np.testing.assert_array_equal(plan_task(push).defaults, np.zeros(4))
+    assert plan_task(peg).parameter_names == (
         "PegInsertion.force", "PegInsertion.radius", "PegInsertion.path_velocity", "PegInsertion.pitch",
     )
-    np.testing.assert_array_equal(peg.bounds, [[-10, 0, 0, 0], [0, 0.07, 0.3, 0.03]])
-    assert peg.parameter_units == ("N", "m", "m/s", "m")
-    assert peg.parameter_defaults[1:].tolist() == [0, 0, 0]  # no search motion
+    np.testing.assert_array_equal(plan_task(peg).bounds, [[-10, 0, 0, 0], [0, 0.07, 0.3, 0.03]])
+    assert plan_task(peg).parameter_units == ("N", "m", "m/s", "m")
+    assert plan_task(peg).defaults[1:].tolist() == [0, 0, 0]  # no search motion
     for scn in (push, peg):
         assert len(scn.manual_parameters) >= 3
-        for values in scn.manual_parameters.values():
-            assert values.shape == (len(scn.parameter_names),)
-            assert np.all(scn.bounds[0] <= values) and np.all(values <= scn.bounds[1])
+        task = plan_task(scn)
+        assert set(task.manual_parameters) == set(scn.manual_parameters)  # every set fits the plan
+        for values in task.manual_parameters.values():
+            assert values.shape == (len(task.parameter_names),)
+            assert np.all(task.bounds[0] <= values) and np.all(values <= task.bounds[1])
 
 
 def test_start_configurations_respect_the_iiwa_joint_limits(push, peg):
@@ -117,7 +122,7 @@ def test_scenario_is_immutable(push):
     with pytest.raises(ValueError):
         push.robot.start_configs[0, 0] = 1.0
     with pytest.raises(ValueError):
-        push.bounds[0, 0] = 1.0
+        plan_task(push).bounds[0, 0] = 1.0
     with pytest.raises(TypeError):
         push.skills["Push"].parameters[0] = None
 
@@ -129,7 +134,7 @@ def test_scenario_is_hashable_for_use_as_a_static_jit_argument(push):
 
 def test_load_by_path_equals_load_by_name(push):
     again = load_scenario(PUSH_YAML)
-    assert again.parameter_names == push.parameter_names and again.source == push.source
+    assert plan_task(again).parameter_names == plan_task(push).parameter_names and again.source == push.source
 
 
 def test_unknown_task_name_lists_the_available_ones():
@@ -222,13 +227,13 @@ MUTATIONS = {
 @pytest.mark.parametrize("kind", list(MUTATIONS))
 def test_invalid_file_fails_naming_file_key_and_line(kind, tmp_path):
     old, new, key_path, message, *anchor = MUTATIONS[kind]
-    text = PUSH_YAML.read_text()
+    text = PUSH_TEXT
     assert text.count(old) == 1, f"mutation anchor for {kind!r} must occur once"
     mutated = text.replace(old, new)
     path = tmp_path / "push.yaml"
     path.write_text(mutated)
     with pytest.raises(ScenarioError) as info:
-        load_scenario(path)
+        plan_task(load_scenario(path))  # most fail to load; a goal no plan reaches fails to plan
     error = str(info.value)
     assert error.startswith(f"{path}: "), error
     assert re.search(rf": {key_path} \(line (\d+)\): ", error), error
@@ -272,7 +277,7 @@ def _paths(tree, prefix=()):
         yield from _paths(value, (*prefix, key))
 
 
-PUSH_TREE = yaml.safe_load(PUSH_YAML.read_text())
+PUSH_TREE = yaml.safe_load(PUSH_TEXT)
 PUSH_PATHS = list(_paths(PUSH_TREE))
 
 

@@ -1,15 +1,15 @@
 """select: choosing a Pareto point by constraint, the export document, offscreen rendering."""
 
-from mjxskill.render import default_gl
+from mjxskill.training.render import default_gl
 
 default_gl()  # MUJOCO_GL=egl when headless; must precede the first import of mujoco
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from mjxskill.cli import CommandError  # noqa: E402
-from mjxskill.run_dir import Evaluations  # noqa: E402
-from mjxskill.select import choose, export_document  # noqa: E402
+from mjxskill.errors import CommandError  # noqa: E402
+from mjxskill.training.run_dir import Evaluations  # noqa: E402
+from mjxskill.training.selection import choose, export_document  # noqa: E402
 from test_run_dir import make_config  # noqa: E402
 
 FRONT = Evaluations(
@@ -34,7 +34,7 @@ FRONT = Evaluations(
 )
 def test_choose_by_constraint(max_force, min_success, expected):
     if expected is None:
-        with pytest.raises(CommandError, match="no Pareto solution meets the limits"):
+        with pytest.raises(CommandError, match="no Pareto solution meets --max-force 8, --min-success 0.7"):
             choose(FRONT, max_force, min_success)
     else:
         assert choose(FRONT, max_force, min_success) == expected
@@ -52,7 +52,7 @@ def test_frames_match_the_scene_or_explain_how_to_get_gl():
     GL backend the error says how to get one."""
     import mujoco
 
-    from mjxskill.render import RenderUnavailable, frames
+    from mjxskill.training.render import RenderUnavailable, frames
 
     model = mujoco.MjModel.from_xml_string(
         '<mujoco><worldbody><light pos="0 0 3"/><geom type="plane" size="2 2 .1"/>'

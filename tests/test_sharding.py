@@ -96,10 +96,12 @@ def test_the_rollout_routes_its_batch_through_shard_map():
         """
         import mjxskill, jax, numpy as np
         from mjxskill import load_scenario, compile_rollout
-        from mjxskill.rollout.compiled import _run_worlds
         r = compile_rollout(load_scenario("push"), worlds=3, episode_seconds=0.1)
         worlds = r.sample_worlds(jax.random.key(0), 1)
-        text = _run_worlds.lower(r, jax.numpy.zeros((1, 4)), worlds).as_text()
+        params = jax.numpy.zeros((1, 4))
+        program = r.program(params, worlds)
+        assert program.origin == "jit"
+        text = program.fn.lower(params, worlds).as_text()
         print("sdy.manual_computation" in text)  # the shard_map region
         """,
         devices=2,

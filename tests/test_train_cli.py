@@ -5,7 +5,6 @@ repeats, a run killed after its first batch and resumed, select's export, and ba
 import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -13,23 +12,14 @@ import numpy as np
 import pytest
 import yaml
 
-from mjxskill.run_dir import EVALUATIONS, PARETO, Run, read_csv
+from cli_helpers import ROOT, command, invoke, run_cli
+from mjxskill.training.run_dir import EVALUATIONS, PARETO, Run
+from mjxskill.task import plan_task
 
 # Tiny episodes and a cheap acquisition search: the commands' behaviour, not the physics or the GP.
 QUICK_GP = ["n_raw=64", "n_restarts=2", "n_opt_steps=10", "fit_starts=1", "fit_steps=10"]
 TINY = ["--budget", "6", "--batch-size", "3", "--init", "3", "--worlds", "1", "--episode-seconds", "0.2", "--quiet",
         *(arg for option in QUICK_GP for arg in ("--optimizer-option", option))]
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def command(module, *args):
-    return [sys.executable, "-m", f"mjxskill.{module}", *map(str, args)]
-
-
-def run_cli(module, *args, timeout=600):
-    return subprocess.run(command(module, *args), cwd=ROOT, capture_output=True, text=True, timeout=timeout)
-
-
 @pytest.fixture(scope="session")
 def repeated_run(tmp_path_factory):
     """``train push --repeats 2 --seed 1`` on a tiny budget: sub-runs seed-1 and seed-2."""
@@ -47,7 +37,7 @@ def test_train_prints_the_pipeline_and_writes_the_run_directory(repeated_run):
     from mjxskill import load_scenario
 
     scn = load_scenario("push")
-    for name, lo, hi, unit in zip(scn.parameter_names, *scn.bounds, scn.parameter_units):
+    for name, lo, hi, unit in zip(plan_task(scn).parameter_names, *plan_task(scn).bounds, plan_task(scn).parameter_units):
         line = next(line for line in stdout.splitlines() if line.strip().startswith(name + " "))
         assert f"[{lo:g}, {hi:g}] {unit}" in line
     assert (out / "pareto_runs.png").is_file()
@@ -95,6 +85,22 @@ def test_killed_run_resumes_to_the_same_results(repeated_run, tmp_path):
     assert (cut / PARETO).read_text() == (reference / PARETO).read_text()
 
 
+def test_the_engine_is_a_run_setting(repeated_run, tmp_path):
+    out, stdout = repeated_run
+    assert "engine: native (auto: the native engine on the CPU" in stdout  # what auto picks here
+    assert yaml.safe_load((out / "seed-1" / "config.yaml").read_text())["engine"] == "native"
+    mjx = tmp_path / "mjx"
+    done = run_cli("train", "push", *TINY, "--budget", "3", "--seed", "1", "--engine", "mjx", "--out", mjx)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "engine: mjx (as asked)" in done.stdout
+    assert yaml.safe_load((mjx / "config.yaml").read_text())["engine"] == "mjx"
+    # the same worlds and parameters on the other engine: the warm-up rows agree on what is discrete
+    native, compiled = Run(out / "seed-1").evaluations(), Run(mjx).evaluations()
+    np.testing.assert_array_equal(native.params[:3], compiled.params[:3])
+    np.testing.assert_array_equal(native.success_rate[:3], compiled.success_rate[:3])
+    np.testing.assert_allclose(native.objectives[:3], compiled.objectives[:3], rtol=2e-3)
+
+
 def test_select_exports_the_picked_solution(repeated_run, tmp_path):
     out, _ = repeated_run
     sub = out / "seed-1"
@@ -126,11 +132,13 @@ BAD_INPUT = (
     (["train", "push", "--worlds", "many"], "argument --worlds: expected an integer, got 'many'"),
     (["train", "push", "--episode-seconds", "nan"], "argument --episode-seconds: must be a positive finite number"),
     (["train", "push", "--budget", "6", "--init", "10"], "--init 10 exceeds the budget of 6 evaluations"),
-    (["train", "push", "--optimizer-option", "n_rwa=3"], "--optimizer-option: unknown acquisition setting 'n_rwa'; valid settings: alpha,"),
+    (["train", "push", "--optimizer-option", "n_rwa=3"], "--optimizer-option: unknown acquisition setting 'n_rwa'; valid settings: scalarization, alpha,"),
     (["train", "push", "--optimizer-option", "n_raw=0"], "--optimizer-option: acquisition setting n_raw: expected a positive integer"),
     (["train", "push", "--resume", "{tmp}"], "is not a run directory"),
     (["train", "peg", "--resume", "{run}"], "is a run of task 'push', not 'peg'"),
     (["train", "push", "--resume", "{run}", "--budget", "9"], "drop --budget 9 (the run has 6)"),
+    (["train", "push", "--resume", "{run}", "--engine", "mjx"], "drop --engine mjx (the run has native)"),
+    (["train", "push", "--engine", "warp"], "argument --engine: expected one of mjx, native, auto, got 'warp'"),
     (["train", "{broken}"], "bt_hz"),
     (["train", "push", "--goal", "(skiros:at skiros:Nothing-1 skiros:ObjectGoalPose-1)"], "unknown object 'nothing-1'"),
     (["evaluate", "{tmp}"], "is not a run directory"),
@@ -139,19 +147,9 @@ BAD_INPUT = (
     (["select", "{run}", "--max-force", "-1"], "argument --max-force: must be a finite number >= 0"),
     (["select", "{run}", "--min-success", "2"], "--min-success is a rate between 0 and 1"),
     (["train", "push", "--optimizer-option", "model=single"], "--optimizer-option: acquisition setting model: expected one of"),
+    (["train", "push", "--optimizer-option", "n_raw=4", "--optimizer-option", "n_restarts=5"],
+     "--optimizer-option: acquisition setting n_restarts (5) exceeds n_raw (4)"),
 )
-
-
-def invoke(capsys, module, *args):
-    """The command's entry point in this process (what ``python -m`` runs): (exit code, stderr)."""
-    import importlib
-
-    main = importlib.import_module(f"mjxskill.{module}").main
-    try:
-        code = main(list(args))
-    except SystemExit as exit_:  # argparse's own errors
-        code = exit_.code
-    return code, capsys.readouterr().err
 
 
 # A few cases go through a real subprocess; the rest call the same entry point in-process

@@ -4,15 +4,12 @@ flush-before-propose, interrupt/resume equivalence, Pareto file, hypervolume ref
 import numpy as np
 import pytest
 
+from mjxskill.errors import Notice
 from mjxskill.gp import hypervolume
-from mjxskill.run_dir import EVALUATIONS, OPTIMIZER_STATE, PARETO, Run, read_csv
-from mjxskill.train import (
-    BatchResult,
-    Progress,
-    hypervolume_history,
-    hypervolume_reference,
-    train,
-)
+from mjxskill.training.run_dir import EVALUATIONS, OPTIMIZER_STATE, PARETO, Run, read_csv
+from mjxskill.cli.train import Progress
+from mjxskill.training.front import hypervolume_history, hypervolume_reference
+from mjxskill.training.loop import BatchResult, train
 from test_run_dir import make_config
 
 # A cheap acquisition search: these tests pin the loop's bookkeeping, not the GP's quality.
@@ -114,7 +111,8 @@ def test_a_torn_batch_is_evaluated_again_on_resume(tmp_path, uninterrupted):
     with open(run.path / EVALUATIONS, "a") as fh:  # a kill while batch 2 was being written
         fh.write("".join(text[7:9]) + text[9][:12])
     second = Recorder()
-    train(run, CONFIG, second)
+    with pytest.warns(Notice, match="set aside"):  # the torn rows are kept beside the file, and said
+        train(run, CONFIG, second)
     assert [it for it, _ in second.calls] == [2]
     assert (run.path / EVALUATIONS).read_text() == (full_run.path / EVALUATIONS).read_text()
 

@@ -12,29 +12,7 @@ Subtrees (after SkiREIL's skills; ``||FS`` = ParallelFs, ``->`` = Sequence):
 * PegInsertion(peg, box) = ``-> [ElementToBBPose(box pose), ||FS [MGSetGoalPose,
   ChangeStiffness, ApplyForce(z = force), OverlayMotion(spiral), EEPoseDistance(threshold)]]``.
 
-Leaf vocabulary (``Node.primitive``; the compiled rollout implements one leaf program each).
-"Holds" leaves keep their effect in force while they are ticked and return RUNNING; a ParallelFs
-ends when its distance check succeeds, which halts them.
-
-``set_goal_from_object`` (SUCCESS at once): writes the motion goal = position of ``args.object``
-    (scenario object name; ``args.mjcf_body`` its MJCF body or None for a pose without one, whose
-    position comes from the scenario) + ``args.offset`` (3,) m world frame + the values of
-    ``params.offset_x`` / ``params.offset_y``; orientation (tool z along world -z):
-    ``args.orientation`` = "tool_down_aligned" (the square tool's faces turned to the element's
-    yaw) or "tool_down" (the tool's yaw kept, so the move is a pure translation).
-``goal_pose`` (holds, RUNNING): the motion generator drives the reference toward the goal.
-``change_stiffness`` (holds, RUNNING): ``args.stiffness`` (6,) N/m x3, Nm/rad x3.
-``apply_force`` (holds, RUNNING): ``args.wrench`` (6,) N, Nm in the world frame; a component named
-    in ``params`` (``force_x``, ``force_y``, ``force_z``) is replaced by that parameter's value.
-``overlay_spiral`` (holds, RUNNING): Archimedes spiral on the reference in the xy plane;
-    ``params.radius`` (m, cap), ``params.path_velocity`` (m/s), ``params.pitch`` (m per turn).
-``ee_pose_distance``: RUNNING until the tool is within ``args.threshold`` m of the goal, then
-    SUCCESS.
-``wait``: RUNNING until ``args.seconds`` have passed since its first tick, then SUCCESS.
-
-A leaf input comes from ``params`` (the name of a learnable parameter, looked up in the parameter
-vector) when named there, otherwise from ``args`` (a fixed value): a skill parameter the world
-model does not mark learnable is written into ``args`` under the input's name.
+Leaves are primitives of ``mjxskill.ebt.primitives`` (its docstring says what each does).
 
 Parameter names: ``"<Skill>.<parameter>"``, e.g. ``"Push.offset_x_start"``; the k-th use (k >= 2)
 of a skill in one plan is ``"<Skill>#k.<parameter>"``. The learnable parameters are those of the
@@ -49,24 +27,10 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 from mjxskill.ebt.nodes import Node, action, parallel_fs, sequence, serial_star
+from mjxskill.errors import PlanError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from mjxskill.scenario_schema import Scenario, WorldObject
-
-PRIMITIVES = (
-    "set_goal_from_object",
-    "goal_pose",
-    "change_stiffness",
-    "apply_force",
-    "overlay_spiral",
-    "ee_pose_distance",
-    "wait",
-)
-
-
-class PlanError(ValueError):
-    """A plan that does not fit the skill library (unknown action, wrong arguments)."""
-
+    from mjxskill.scenario.schema import Scenario, WorldObject
 
 @dataclass(frozen=True)
 class PlanStep:

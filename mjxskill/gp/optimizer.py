@@ -111,7 +111,7 @@ class MOBOResult(NamedTuple):
     pareto_y: np.ndarray  # (p, m)
     state: MOBOState
 
-    # Upper-case aliases used in the examples (res.X, res.pareto_Y).
+    # Upper-case aliases (res.X, res.pareto_Y), the names of the usual MOBO notation.
     @property
     def X(self):
         return self.x

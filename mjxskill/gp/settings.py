@@ -92,28 +92,13 @@ class AcquisitionSettings:
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if f.type == "int":
-                if not isinstance(v, int) or isinstance(v, bool):
-                    raise ValueError(f"acquisition setting {f.name}: expected an integer, got {v!r}")
-                if v < 1:
-                    raise ValueError(f"acquisition setting {f.name}: expected a positive integer, got {v!r}")
-            elif f.type == "float":
-                if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-                    raise ValueError(f"acquisition setting {f.name}: expected a finite number, got {v!r}")
-                object.__setattr__(self, f.name, float(v))
-            elif f.name in CHOICES and v not in CHOICES[f.name]:
-                raise ValueError(
-                    f"acquisition setting {f.name}: expected one of {', '.join(map(repr, CHOICES[f.name]))}, got {v!r}"
-                )
-        for name in ("alpha", "ref_margin"):
-            if getattr(self, name) < 0.0:
-                raise ValueError(f"acquisition setting {name}: must be >= 0, got {getattr(self, name)!r}")
+            problem = _field_problem(f.name, f.type, getattr(self, f.name))
+            if problem:
+                raise ValueError(f"acquisition setting {f.name}: {problem}")
+            if f.type == "float":
+                object.__setattr__(self, f.name, float(getattr(self, f.name)))
         if self.scalarization == "hypervolume" and self.ei != "draws":
             raise ValueError("acquisition setting ei: the hypervolume scalarization has only the 'draws' estimate")
-        for name in ("tau", "learning_rate", "final_learning_rate"):
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"acquisition setting {name}: must be > 0, got {getattr(self, name)!r}")
         if self.n_restarts > self.n_raw:
             raise ValueError(f"acquisition setting n_restarts ({self.n_restarts}) exceeds n_raw ({self.n_raw})")
 
@@ -122,6 +107,29 @@ class AcquisitionSettings:
 
 
 NAMES = tuple(f.name for f in dataclasses.fields(AcquisitionSettings))
+_KINDS = {f.name: f.type for f in dataclasses.fields(AcquisitionSettings)}
+_NONNEGATIVE = ("alpha", "ref_margin")
+_POSITIVE = ("tau", "learning_rate", "final_learning_rate")
+
+
+def _field_problem(name: str, kind: str, v) -> str | None:
+    """Why ``v`` is no value of the one setting ``name`` (None: it is one); the checks that
+    involve several settings are ``AcquisitionSettings.__post_init__``'s."""
+    if kind == "int":
+        if not isinstance(v, int) or isinstance(v, bool):
+            return f"expected an integer, got {v!r}"
+        if v < 1:
+            return f"expected a positive integer, got {v!r}"
+    elif kind == "float":
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+            return f"expected a finite number, got {v!r}"
+        if name in _NONNEGATIVE and v < 0.0:
+            return f"must be >= 0, got {v!r}"
+        if name in _POSITIVE and not v > 0.0:
+            return f"must be > 0, got {v!r}"
+    elif name in CHOICES and v not in CHOICES[name]:
+        return f"expected one of {', '.join(map(repr, CHOICES[name]))}, got {v!r}"
+    return None
 
 
 def _coerce(name: str, kind: str, value):
@@ -140,6 +148,20 @@ def _coerce(name: str, kind: str, value):
     return value
 
 
+def setting_value(name: str, value):
+    """The checked value of the one setting ``name`` from a number or a string (the text of
+    ``--optimizer-option KEY=VALUE`` or a YAML/JSON scalar), as the field's type. Raises
+    ValueError naming an unknown key (with the valid ones) or the setting and its bad value.
+    What several settings must satisfy together is checked by :func:`acquisition_settings`."""
+    if name not in _KINDS:
+        raise ValueError(f"unknown acquisition setting {name!r}; valid settings: {', '.join(NAMES)}")
+    value = _coerce(name, _KINDS[name], value)
+    problem = _field_problem(name, _KINDS[name], value)
+    if problem:
+        raise ValueError(f"acquisition setting {name}: {problem}")
+    return float(value) if _KINDS[name] == "float" else value
+
+
 def acquisition_settings(options: Mapping[str, object] | None = None, base: AcquisitionSettings | None = None
                          ) -> AcquisitionSettings:
     """Settings from a flat ``{name: number | string}`` mapping; unnamed fields keep ``base``'s.
@@ -148,9 +170,5 @@ def acquisition_settings(options: Mapping[str, object] | None = None, base: Acqu
     fields. Raises ValueError naming the bad key (and listing the valid ones) or value.
     """
     base = AcquisitionSettings() if base is None else base
-    options = dict(options or {})
-    kinds = {f.name: f.type for f in dataclasses.fields(AcquisitionSettings)}
-    for key in options:
-        if key not in kinds:
-            raise ValueError(f"unknown acquisition setting {key!r}; valid settings: {', '.join(NAMES)}")
-    return dataclasses.replace(base, **{k: _coerce(k, kinds[k], v) for k, v in options.items()})
+    values = {key: setting_value(key, value) for key, value in dict(options or {}).items()}
+    return dataclasses.replace(base, **values)

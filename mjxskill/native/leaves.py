@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import copy
 import math
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
 from mjxskill.ebt.nodes import Node, Status
 from mjxskill.native.motion import LinearMotion, plane_basis, quat_mul, spiral_step
-from mjxskill.rollout.leaves import SPIRAL_NORMAL, goal_orientation
+from mjxskill.ebt.primitives import SPIRAL_NORMAL, LeafRegistry, goal_orientation
 
 _E1, _E2 = plane_basis(SPIRAL_NORMAL)
 TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # rotation by pi about y: the tool's z along world -z
@@ -52,6 +52,23 @@ class NativeBlackboard:
         if self.spiral_on:
             r, th = self.spiral_radius, self.spiral_theta
             pos = pos + r * (math.cos(th) * _E1 + math.sin(th) * _E2)
+        return pos, quat
+
+    def references(self, n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The references of the next ``n`` control periods, positions (n, 3) and quaternions
+        (n, 4), and the blackboard advanced past them: what ``n`` rounds of ``reference()`` and
+        ``advance(dt)`` give, with the motion evaluated for all ``n`` times at once."""
+        times = np.cumsum(np.concatenate([[self.mg_time], np.full(n, dt)]))  # sequential sums, as += dt
+        pos, quat = self.motion.at_times(times[:-1])
+        self.mg_time = float(times[-1])
+        if self.spiral_on:
+            radius_max, velocity, pitch = self.spiral_params
+            offsets = np.empty((n, 3))
+            for k in range(n):
+                r, th = self.spiral_radius, self.spiral_theta
+                offsets[k] = r * (math.cos(th) * _E1 + math.sin(th) * _E2)
+                self.spiral_theta, self.spiral_radius = spiral_step(th, r, radius_max, velocity, pitch, dt)
+            pos = pos + offsets
         return pos, quat
 
     def advance(self, dt: float) -> None:
@@ -107,81 +124,114 @@ def build_native_leaves(leaves: list[Node], parameter_names, slot_of: dict, nomi
                         nominal_quat: np.ndarray, tick_seconds: float) -> list[tuple[StatusFn, EffectFn]]:
     """(status, effect) per leaf, in pre-order. nominal_pos (K, 3), nominal_quat (K, 4): the
     world model's object poses (the skills see the YAML, not the randomized world)."""
-    index = {name: i for i, name in enumerate(parameter_names)}
-    return [_program(i, leaf, index, slot_of, nominal_pos, nominal_quat, tick_seconds) for i, leaf in enumerate(leaves)]
+    ctx = _Context({name: i for i, name in enumerate(parameter_names)}, slot_of, nominal_pos, nominal_quat, tick_seconds)
+    return [LEAF_PROGRAMS.build(i, leaf, ctx) for i, leaf in enumerate(leaves)]
 
 
-def _program(i: int, leaf: Node, index: dict, slot_of: dict, nominal_pos: np.ndarray, nominal_quat: np.ndarray,
-             tick_seconds: float):
-    """(status, effect) of leaf number ``i``."""
-    primitive = leaf.primitive
-    if primitive == "set_goal_from_object":
-        obj = leaf.args.get("object")
-        if obj not in slot_of:
-            raise ValueError(f"leaf {leaf.name!r}: object {obj!r} is not bound to the scene")
-        base = np.asarray(nominal_pos[slot_of[obj]], float) + np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), float)
-        dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
-        w, x, y, z = nominal_quat[slot_of[obj]]
-        object_yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-        aligned = goal_orientation(leaf) == "tool_down_aligned"
+class _Context(NamedTuple):
+    """What leaf programs are built from: parameter name -> index, object name -> slot, the
+    world model's slot poses (K, 3), (K, 4) and the BT tick period (s)."""
 
-        def set_goal(bb, fresh, params):
-            bb.goal_pos = base + np.array([dx(params), dy(params), 0.0])
-            current = bb.reference()[1]
-            bb.goal_quat = tool_down_aligned(current, object_yaw if aligned else tool_yaw(current))
+    index: dict
+    slot_of: dict
+    nominal_pos: np.ndarray
+    nominal_quat: np.ndarray
+    tick_seconds: float
 
-        return (lambda bb, tool_pos, live: Status.SUCCESS), set_goal
-    if primitive == "goal_pose":
 
-        def start_motion(bb, fresh, params):
-            if fresh:
-                pos, quat = bb.reference()
-                bb.motion = LinearMotion(pos, quat, bb.goal_pos, bb.goal_quat)
-                bb.mg_time = 0.0
+# primitive -> (leaf number, leaf, _Context) -> (status, effect): every mjxskill.ebt.primitives.PRIMITIVES
+LEAF_PROGRAMS = LeafRegistry()
 
-        return _running, start_motion
-    if primitive == "change_stiffness":
-        stiffness = np.asarray(leaf.args["stiffness"], float)
 
-        def set_stiffness(bb, fresh, params):
-            bb.stiffness = stiffness
+@LEAF_PROGRAMS.register
+def _set_goal_from_object(i: int, leaf, ctx: _Context):
+    index, slot_of, nominal_pos, nominal_quat = ctx.index, ctx.slot_of, ctx.nominal_pos, ctx.nominal_quat
+    obj = leaf.args.get("object")
+    if obj not in slot_of:
+        raise ValueError(f"leaf {leaf.name!r}: object {obj!r} is not bound to the scene")
+    base = np.asarray(nominal_pos[slot_of[obj]], float) + np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), float)
+    dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
+    w, x, y, z = nominal_quat[slot_of[obj]]
+    object_yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    aligned = goal_orientation(leaf) == "tool_down_aligned"
 
-        return _running, set_stiffness
-    if primitive == "apply_force":
-        base = np.asarray(leaf.args.get("wrench", (0.0,) * 6), float)
-        overrides = [(axis, _input(leaf, f"force_{c}", index)) for axis, c in enumerate("xyz")
-                     if f"force_{c}" in leaf.params or f"force_{c}" in leaf.args]
+    def set_goal(bb, fresh, params):
+        bb.goal_pos = base + np.array([dx(params), dy(params), 0.0])
+        current = bb.reference()[1]
+        bb.goal_quat = tool_down_aligned(current, object_yaw if aligned else tool_yaw(current))
 
-        def apply_force(bb, fresh, params):
-            wrench = base.copy()
-            for axis, value in overrides:
-                wrench[axis] = value(params)
-            bb.wrench = wrench
+    return (lambda bb, tool_pos, live: Status.SUCCESS), set_goal
 
-        return _running, apply_force
-    if primitive == "overlay_spiral":
-        radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
 
-        def overlay(bb, fresh, params):
-            if fresh:
-                bb.spiral_theta, bb.spiral_radius = 0.0, 0.0
-            bb.spiral_on = True
-            bb.spiral_params = (radius(params), velocity(params), pitch(params))
+@LEAF_PROGRAMS.register
+def _goal_pose(i: int, leaf, ctx: _Context):
 
-        return _running, overlay
-    if primitive == "ee_pose_distance":
-        threshold = float(leaf.args["threshold"])
+    def start_motion(bb, fresh, params):
+        if fresh:
+            pos, quat = bb.reference()
+            bb.motion = LinearMotion(pos, quat, bb.goal_pos, bb.goal_quat)
+            bb.mg_time = 0.0
 
-        def reached(bb, tool_pos, live):
-            close = np.linalg.norm(tool_pos - bb.motion.goal_pos) < threshold
-            return Status.SUCCESS if live and close else Status.RUNNING
+    return _running, start_motion
 
-        return reached, _keep
-    if primitive == "wait":
-        ticks = int(np.ceil(float(leaf.args["seconds"]) / tick_seconds - 1e-9))
 
-        def waited(bb, tool_pos, live):
-            return Status.SUCCESS if live and bb.leaf_ticks[i] >= ticks else Status.RUNNING
+@LEAF_PROGRAMS.register
+def _change_stiffness(i: int, leaf, ctx: _Context):
+    stiffness = np.asarray(leaf.args["stiffness"], float)
 
-        return waited, _keep
-    raise ValueError(f"leaf {leaf.name!r}: no leaf program for primitive {primitive!r}")
+    def set_stiffness(bb, fresh, params):
+        bb.stiffness = stiffness
+
+    return _running, set_stiffness
+
+
+@LEAF_PROGRAMS.register
+def _apply_force(i: int, leaf, ctx: _Context):
+    index = ctx.index
+    base = np.asarray(leaf.args.get("wrench", (0.0,) * 6), float)
+    overrides = [(axis, _input(leaf, f"force_{c}", index)) for axis, c in enumerate("xyz")
+                 if f"force_{c}" in leaf.params or f"force_{c}" in leaf.args]
+
+    def apply_force(bb, fresh, params):
+        wrench = base.copy()
+        for axis, value in overrides:
+            wrench[axis] = value(params)
+        bb.wrench = wrench
+
+    return _running, apply_force
+
+
+@LEAF_PROGRAMS.register
+def _overlay_spiral(i: int, leaf, ctx: _Context):
+    index = ctx.index
+    radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
+
+    def overlay(bb, fresh, params):
+        if fresh:
+            bb.spiral_theta, bb.spiral_radius = 0.0, 0.0
+        bb.spiral_on = True
+        bb.spiral_params = (radius(params), velocity(params), pitch(params))
+
+    return _running, overlay
+
+
+@LEAF_PROGRAMS.register
+def _ee_pose_distance(i: int, leaf, ctx: _Context):
+    threshold = float(leaf.args["threshold"])
+
+    def reached(bb, tool_pos, live):
+        close = np.linalg.norm(tool_pos - bb.motion.goal_pos) < threshold
+        return Status.SUCCESS if live and close else Status.RUNNING
+
+    return reached, _keep
+
+
+@LEAF_PROGRAMS.register
+def _wait(i: int, leaf, ctx: _Context):
+    tick_seconds = ctx.tick_seconds
+    ticks = int(np.ceil(float(leaf.args["seconds"]) / tick_seconds - 1e-9))
+
+    def waited(bb, tool_pos, live):
+        return Status.SUCCESS if live and bb.leaf_ticks[i] >= ticks else Status.RUNNING
+
+    return waited, _keep

@@ -84,6 +84,34 @@ def trapezoid_position(t: float, distance: float, duration: float, speed: float,
     return distance - 0.5 * lim.dec * (duration - t) ** 2
 
 
+def trapezoid_positions(t: np.ndarray, distance: float, duration: float, speed: float, lim: AxisLimits) -> np.ndarray:
+    """``trapezoid_position`` at every time of ``t`` (n,) at once."""
+    t_acc, t_dec = speed / lim.acc, speed / lim.dec
+    t = np.clip(t, 0.0, duration)
+    cruise = 0.5 * lim.acc * t_acc**2 + speed * (t - t_acc)
+    braking = distance - 0.5 * lim.dec * (duration - t) ** 2
+    return np.where(t < t_acc, 0.5 * lim.acc * t**2, np.where(t < duration - t_dec, cruise, braking))
+
+
+def rotvec_to_quat_rows(r: np.ndarray) -> np.ndarray:
+    """``rotvec_to_quat`` of every row of r (n, 3): (n, 4)."""
+    angle = np.sqrt(np.sum(r**2, axis=1))
+    scale = np.where(angle < 1e-9, 0.5, np.sin(0.5 * angle) / np.where(angle < 1e-9, 1.0, angle))
+    return np.concatenate([np.cos(0.5 * angle)[:, None], r * scale[:, None]], axis=1)
+
+
+def quat_mul_rows_by(a: np.ndarray, b) -> np.ndarray:
+    """Hamilton products a[i] * b of (n, 4) quaternions with one (4,) quaternion."""
+    aw, ax, ay, az = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
+    bw, bx, by, bz = b
+    return np.stack([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ], axis=1)
+
+
 class LinearMotion:
     """Straight-line, constant-axis motion from (start_pos (3,), start_quat (4,)) to
     (goal_pos, goal_quat); translation and rotation finish together at ``duration``."""
@@ -115,6 +143,21 @@ class LinearMotion:
             frac_rot = 1.0
         pos = self.start_pos + frac_pos * self.delta
         quat = quat_mul(rotvec_to_quat(frac_rot * self.rotvec), self.start_quat)
+        return pos, quat
+
+    def at_times(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``at`` for every time of ``t`` (n,) at once: positions (n, 3), quaternions (n, 4)."""
+        lim = self.limits
+        if self.length > 0:
+            frac_pos = trapezoid_positions(t, self.length, self.duration, self.speed_pos, lim.translation) / self.length
+        else:
+            frac_pos = np.ones_like(t)
+        if self.angle > 0:
+            frac_rot = trapezoid_positions(t, self.angle, self.duration, self.speed_rot, lim.rotation) / self.angle
+        else:
+            frac_rot = np.ones_like(t)
+        pos = self.start_pos + frac_pos[:, None] * self.delta
+        quat = quat_mul_rows_by(rotvec_to_quat_rows(frac_rot[:, None] * self.rotvec), self.start_quat)
         return pos, quat
 
 

@@ -1,6 +1,6 @@
 """The reward terms of ``mjxskill.rollout.rewards`` in numpy, for the native-MuJoCo baseline.
 
-Same kinds, constants and defaults; a term maps one :class:`NativeObservation` (end of a BT tick)
+Same kinds, constants and defaults (``mjxskill.scenario.schema.REWARD_KINDS``); a term maps one :class:`NativeObservation` (end of a BT tick)
 to a raw float, and knows the worst raw value a diverged world is charged per tick.
 """
 
@@ -12,7 +12,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from mjxskill.native.motion import quat_angle
-from mjxskill.scenario_schema import Reward, Scenario
+from mjxskill.scenario.schema import REWARD_KINDS, Reward, Scenario
 
 
 class NativeObservation(NamedTuple):
@@ -40,10 +40,6 @@ def _exp(d: float, sigma_w: float, d_o: float) -> float:
     return math.exp(-(d + d_o) / (2.0 * sigma_w**2))
 
 
-def _c(reward: Reward, key: str, default: float) -> float:
-    return float(reward.constants.get(key, default))
-
-
 def build_native_terms(scn: Scenario, slot_of: dict) -> tuple[NativeRewardTerm, ...]:
     """The scenario's reward terms in YAML order; ``slot_of`` maps object names to slots."""
     terms = []
@@ -59,29 +55,31 @@ def build_native_terms(scn: Scenario, slot_of: dict) -> tuple[NativeRewardTerm, 
 def _raw_term(reward: Reward, slot_of: dict):
     """(raw function, smallest raw value, largest raw value)."""
     kind = reward.kind
+    if kind not in REWARD_KINDS:
+        raise ValueError(f"reward {reward.name!r}: unknown kind {kind!r}; expected one of {sorted(REWARD_KINDS)}")
     target = None
     if reward.target is not None:
         slot = slot_of[reward.target]
         offset = np.zeros(3) if reward.target_offset is None else np.asarray(reward.target_offset, float)
         target = lambda obs: obs.slot_pos[slot] + offset  # noqa: E731
     if kind == "task_completion":
-        value = _c(reward, "value", 8.0)
+        value = reward.constant("value")
         return (lambda obs: value if obs.bt_succeeded else 0.0), min(value, 0.0), max(value, 0.0)
     if kind == "ee_distance_to_box":
-        w, d_o = _c(reward, "w", 2.0), _c(reward, "d_o", 0.006)
+        w, d_o = reward.constant("w"), reward.constant("d_o")
         largest = 1.0 / (w * d_o) if d_o > 0 else math.inf
         return (lambda obs: 1.0 / (w * (np.linalg.norm(obs.tool_pos - target(obs)) + d_o))), 0.0, largest
     if kind == "applied_wrench":
-        cap = _c(reward, "cap", 100.0)
+        cap = reward.constant("cap")
         return (lambda obs: min(float(np.sum(np.abs(obs.wrench[:3]))), cap)), 0.0, cap
-    sigma_w, d_o = _c(reward, "sigma_w", 0.4), _c(reward, "d_o", 0.0)
+    sigma_w, d_o = reward.constant("sigma_w"), reward.constant("d_o")
     best = math.exp(-d_o / (2.0 * sigma_w**2))
     if kind == "exp_ee_to_goal":
         return (lambda obs: _exp(float(np.linalg.norm(obs.tool_pos - target(obs))), sigma_w, d_o)), 0.0, best
     if kind == "exp_ee_to_reference":
         return (lambda obs: _exp(float(np.linalg.norm(obs.tool_pos - obs.ref_pos)), sigma_w, d_o)), 0.0, best
     if kind == "object_pose_divergence":
-        w_pos, w_rot = _c(reward, "position_weight", 1.0), _c(reward, "orientation_weight", 0.0)
+        w_pos, w_rot = reward.constant("position_weight"), reward.constant("orientation_weight")
         obj, tgt = slot_of[reward.object], slot_of[reward.target]
 
         def divergence(obs):
@@ -90,4 +88,3 @@ def _raw_term(reward: Reward, slot_of: dict):
             return w_pos * _exp(d_pos, sigma_w, d_o) + w_rot * _exp(d_rot, sigma_w, d_o)
 
         return divergence, 0.0, (w_pos + w_rot) * best
-    raise ValueError(f"reward {reward.name!r}: unknown kind {kind!r}")

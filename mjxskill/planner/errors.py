@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from mjxskill.errors import UserError
 
-class PDDLError(ValueError):
+
+class PDDLError(UserError, ValueError):
     """Malformed or unsupported PDDL.
 
     The message starts with where the problem is (``domain, line L, column C:``) and then says
@@ -23,5 +25,5 @@ class PDDLError(ValueError):
         super().__init__(f"PDDL {where}: {what}")
 
 
-class Unsolvable(Exception):
+class Unsolvable(UserError):
     """The problem is well formed but no sequence of actions reaches the goal."""

@@ -1,7 +1,25 @@
 """Rollouts: the compiled BT driving the impedance controller in domain-randomized MJX worlds,
-rewards grouped into objectives. ``compile_rollout`` is the entry point."""
+rewards grouped into objectives. ``compile_rollout`` is the entry point.
 
-from mjxskill.rollout.compiled import Rollout, RolloutOutput, compile_rollout, load_model
-from mjxskill.rollout.worlds import Worlds
+Engine-independent modules (``types``, ``bindings``, ``worlds``) import no MJX and are shared with
+the native engine (``mjxskill.native``); the compiled engine is ``episode``, ``leaves``,
+``rewards``, ``compiled``, ``program_cache`` and ``sharding``. The names below load lazily, so
+importing a shared module does not import MJX.
+"""
 
-__all__ = ["Rollout", "RolloutOutput", "Worlds", "compile_rollout", "load_model"]
+_EXPORTS = {
+    "Rollout": "mjxskill.rollout.compiled",
+    "compile_rollout": "mjxskill.rollout.compiled",
+    "RolloutOutput": "mjxskill.rollout.types",
+    "Worlds": "mjxskill.rollout.worlds",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name):
+    if name in _EXPORTS:
+        import importlib
+
+        return getattr(importlib.import_module(_EXPORTS[name]), name)
+    raise AttributeError(f"module 'mjxskill.rollout' has no attribute {name!r}")

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from mjxskill.scenario_schema import Scenario
+from mjxskill.scenario.schema import Scenario
 
 FREE, MOCAP, NOMINAL = 0, 1, 2
 

@@ -1,7 +1,7 @@
 """``compile_rollout``: every parameter set in every randomized world in one compiled call.
 
-    rollout = compile_rollout(load_scenario("push"), worlds=7)
-    out = rollout(params, key)       # params (B, P) in scn.parameter_names order
+    rollout = compile_rollout(load_scenario("push"), worlds=7)   # plans the scenario's goal
+    out = rollout(params, key)       # params (B, P) in rollout.parameter_names order
     out.objectives                   # (B, O), larger is better, mean over the W worlds
     out.success                      # (B, W) bool
     out.metrics                      # name -> (B, W) per-world values
@@ -10,14 +10,17 @@ The B x W episodes are flattened into one batch axis and mapped with the backend
 strategy (``mjxskill.sim.batching``); the same key gives the same worlds and bit-identical
 outputs. Worlds are drawn independently for every (parameter set, world) pair, as the paper
 draws them per evaluation.
+
+The jitted functions are closures over what they need (the episode spec, the MJX model and
+data template, the world sampler), built once here, Brax style: nothing mutable is passed to
+``jax.jit`` as a static argument.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import partial
-from typing import NamedTuple
+from typing import Callable
 
 import jax
 import jax.numpy as jnp
@@ -26,64 +29,47 @@ import numpy as np
 from mujoco import mjx
 
 from mjxskill.bt_compiled import compile_tree
-from mjxskill.ebt.nodes import Status
-from mjxskill.rollout.bindings import SceneBindings, bind_scene, referenced_objects
-from mjxskill.rollout.episode import EpisodeResult, EpisodeSpec, run_episode
+from mjxskill.rollout.episode import EpisodeSpec, run_episode
 from mjxskill.rollout.leaves import build_leaf_programs
 from mjxskill.rollout.program_cache import Program, load_or_trace
-from mjxskill.rollout.rewards import build_terms, objective_matrix
+from mjxskill.rollout.rewards import build_terms
 from mjxskill.rollout.sharding import shard_batch
+from mjxskill.rollout.types import EpisodeResult, RolloutOutput, episode_setup, objective_matrix, summarize
 from mjxskill.rollout.worlds import Worlds, WorldSampler, make_sampler, sample_worlds, worlds_per_config
-from mjxskill.scenario_schema import Scenario
+from mjxskill.scenario.schema import Scenario
 from mjxskill.sim.batching import STRATEGIES, default_strategy, over_worlds
-from mjxskill.sim.controller import ControllerConfig
-
-DEFAULT_HOLE_HALF_WIDTH = 0.02  # m: a peg tip inside this square around the hole axis is "in"
-
-
-class RolloutOutput(NamedTuple):
-    """objectives (B, O) float32; success (B, W) bool; metrics: name -> (B, W) array
-    (``reward_<name>`` totals per world, ``diverged``, ``bt_status``, ``bt_done_tick``,
-    ``position_error`` m, ``orientation_error_deg``, ``insertion_depth`` m, ``max_force`` N,
-    ``config_index``)."""
-
-    objectives: jax.Array
-    success: jax.Array
-    metrics: dict
-
-
-def load_model(scn: Scenario) -> mujoco.MjModel:
-    """The scenario's MJCF with its gravity and control period applied."""
-    model = mujoco.MjModel.from_xml_path(scn.scene)
-    model.opt.timestep = 1.0 / scn.control_hz
-    if not scn.gravity:
-        model.opt.gravity[:] = 0.0
-    return model
-
-
-def _leaf_objects(tree) -> list[str]:
-    return [leaf.args["object"] for leaf in tree.leaves() if leaf.primitive == "set_goal_from_object"]
 
 
 @dataclass(frozen=True, eq=False)
 class Rollout:
-    """A compiled rollout for one scenario and W worlds per parameter set (see module doc)."""
+    """A compiled rollout of one planned task and W worlds per parameter set (see module doc).
+
+    task: the ``mjxskill.task.PlannedTask`` it runs. mj_model: the native model it simulates
+    (``mjxskill.sim.model.load_model``). The callables are the jitted closures
+    ``compile_rollout`` built; ``program`` picks the batched-episode program per shape.
+    """
 
     scenario: Scenario
+    task: object
     worlds: int
     spec: EpisodeSpec
     sampler: WorldSampler
-    model: mjx.Model
-    template: mjx.Data
+    mj_model: mujoco.MjModel
     strategy: str
     chunk: int | None
-    _objective_matrix: np.ndarray = field(repr=False)
-    mj_model: mujoco.MjModel | None = field(default=None, repr=False)
+    _sample: Callable = field(repr=False)  # (key, batch) -> Worlds (batch, W)
+    _episodes: Callable = field(repr=False)  # (params (B, P), worlds (B, W)) -> RolloutOutput, unjitted
+    _trace: Callable = field(repr=False)  # jitted (params (P,), world) -> (EpisodeResult, TickRecord)
     _programs: dict = field(default_factory=dict, repr=False)
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
-        return self.scenario.parameter_names
+        return self.task.parameter_names
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, P) lower and upper bounds of the learnable parameters."""
+        return self.task.bounds
 
     @property
     def objective_names(self) -> tuple[str, ...]:
@@ -94,8 +80,12 @@ class Rollout:
         return tuple(t.name for t in self.spec.terms)
 
     @property
+    def episode_seconds(self) -> float:
+        return self.spec.setup.ticks / self.scenario.bt_hz
+
+    @property
     def control_steps_per_episode(self) -> int:
-        return self.spec.ticks * self.spec.steps_per_tick
+        return self.spec.setup.ticks * self.spec.setup.steps_per_tick
 
     def check_params(self, params) -> np.ndarray:
         params = np.asarray(params, np.float32)
@@ -138,21 +128,27 @@ class Rollout:
         devices the sharded ``jax.jit`` program, traced in each process."""
         shapes = tuple((np.shape(x), str(x.dtype)) for x in jax.tree.leaves((params, worlds)))
         if shapes not in self._programs:
-            if jax.local_device_count() > 1 or self.mj_model is None:
-                self._programs[shapes] = Program(partial(_run_worlds, self), "jit", "")
+            if jax.local_device_count() > 1:
+                self._programs[shapes] = Program(jax.jit(self._episodes), "jit", "")
             else:
-                self._programs[shapes] = load_or_trace(self, self.mj_model, partial(_batched_episodes, self), params, worlds)
+                self._programs[shapes] = load_or_trace(self.identity(), self.mj_model, self._episodes, params, worlds)
         return self._programs[shapes]
+
+    def identity(self) -> str:
+        """Everything besides the model and the argument shapes that shapes the program (part
+        of its cache key): the scenario's validated content, the plan, the episode settings."""
+        setup = self.spec.setup
+        return repr((self.scenario, self.task, setup.ticks, setup.steps_per_tick, self.strategy, self.chunk))
 
     def trace(self, params, world: Worlds):
         """Per-tick record of one parameter vector (P,) in one world (unbatched fields):
         (EpisodeResult, TickRecord with leading (T,)); for inspection and rendering."""
         params = self.check_params(params)[0]
-        return _trace(self, jnp.asarray(params), world)
+        return self._trace(jnp.asarray(params), world)
 
     def sample_worlds(self, key: jax.Array, batch: int) -> Worlds:
         """The (batch, W) worlds ``rollout(params, key)`` uses for ``batch`` parameter sets."""
-        return _sample(self, key, batch)
+        return self._sample(key, batch)
 
     def worlds_per_config(self, key: jax.Array, per_config: int, configs: np.ndarray | None = None) -> Worlds:
         """``per_config`` worlds from each start configuration (default: the training ones;
@@ -163,20 +159,31 @@ class Rollout:
 
 def compile_rollout(
     scn: Scenario,
-    worlds: int | None = None,
+    task=None,
     *,
+    worlds: int | None = None,
     episode_seconds: float | None = None,
     batching: str | None = None,
     chunk: int | None = None,
     start_configs: np.ndarray | None = None,
+    mj_model: mujoco.MjModel | None = None,
 ) -> Rollout:
-    """Builds the rollout of ``scn`` (compiled lazily on the first call per batch size).
+    """Builds the rollout of ``task`` in ``scn`` (compiled lazily on the first call per batch size).
 
+    task: a ``mjxskill.task.PlannedTask`` (default: ``plan_task(scn)``, the scenario's goal).
     worlds: W, randomized worlds per parameter set (default: the scenario's n_worlds).
     episode_seconds: overrides the scenario's episode length.
     batching: "vmap", "map" or "chunked" (default: the backend's fastest, see sim.batching).
     start_configs: (C, 7) start configurations to draw from (default: the training ones).
+    mj_model: the model to simulate (default: ``mjxskill.sim.model.load_model(scn)``).
     """
+    from mjxskill._runtime import enable_compilation_cache
+
+    enable_compilation_cache()
+    if task is None:
+        from mjxskill.task import plan_task
+
+        task = plan_task(scn)
     worlds = scn.randomization.n_worlds if worlds is None else int(worlds)
     if worlds < 1:
         raise ValueError(f"worlds must be >= 1, got {worlds}")
@@ -187,97 +194,53 @@ def compile_rollout(
     if strategy not in STRATEGIES:
         raise ValueError(f"unknown batching strategy {strategy!r}; expected one of {STRATEGIES}")
 
-    mj_model = load_model(scn)
-    tree = scn.task.tree
-    ct = compile_tree(tree)
-    bindings = bind_scene(scn, mj_model, referenced_objects(scn, _leaf_objects(tree)))
-    ctrl = ControllerConfig.from_model(mj_model, site=scn.robot.tool_site, nullspace_stiffness=scn.robot.nullspace_stiffness)
-    terms = build_terms(scn, bindings)
-    tick_seconds = 1.0 / scn.bt_hz
+    if mj_model is None:
+        from mjxskill.sim.model import load_model
+
+        mj_model = load_model(scn)
+    setup = episode_setup(scn, task, mj_model, seconds)
+    ct = compile_tree(task.tree)
+    terms = build_terms(scn, setup.bindings)
     spec = EpisodeSpec(
         ct=ct,
-        leaves=build_leaf_programs(ct, scn.parameter_names, bindings, scn.robot.default_stiffness, tick_seconds),
+        leaves=build_leaf_programs(ct, task.parameter_names, setup.bindings, scn.robot.default_stiffness, 1.0 / scn.bt_hz),
         terms=terms,
-        bindings=bindings,
-        ctrl=ctrl,
-        default_stiffness=tuple(float(v) for v in scn.robot.default_stiffness),
-        ticks=max(1, int(round(seconds * scn.bt_hz))),
-        steps_per_tick=scn.steps_per_tick,
-        **_success_spec(scn, bindings),
+        setup=setup,
     )
     data = mujoco.MjData(mj_model)
     mujoco.mj_forward(mj_model, data)
+    # MJX places the model on jax.devices()[0] unless told: under jax.distributed that is process
+    # 0's device, which the other processes cannot use; this process's first device is.
+    device = jax.local_devices()[0]
+    model, template = mjx.put_model(mj_model, device=device), mjx.put_data(mj_model, data, device=device)
+    sampler = make_sampler(scn, setup.bindings, start_configs)
+    weights = objective_matrix(terms, len(scn.objective_names))
+    reward_names = tuple(t.name for t in terms)
+
+    def episode(params, world):
+        return run_episode(spec, model, template, params, world)
+
+    def batched_episodes(params: jax.Array, worlds_: Worlds) -> RolloutOutput:
+        b, w = worlds_.config_index.shape
+        flat_params = jnp.repeat(params, w, axis=0)
+        flat_worlds = jax.tree.map(lambda x: x.reshape((b * w,) + x.shape[2:]), worlds_)
+        # The flat B x W batch is split over all local devices (one device: unchanged).
+        res: EpisodeResult = shard_batch(over_worlds(episode, strategy, chunk))(flat_params, flat_worlds)
+        res = jax.tree.map(lambda x: x.reshape((b, w) + x.shape[1:]), res)
+        return summarize(res, worlds_.config_index, weights, reward_names, xp=jnp)
+
+    sample = jax.jit(lambda key, batch: sample_worlds(sampler, key, (batch, worlds)), static_argnums=1)
+    trace = jax.jit(lambda params, world: run_episode(spec, model, template, params, world, record=True))
     return Rollout(
         scenario=scn,
+        task=task,
         worlds=worlds,
         spec=spec,
-        sampler=make_sampler(scn, bindings, start_configs),
-        model=mjx.put_model(mj_model),
-        template=mjx.put_data(mj_model, data),
+        sampler=sampler,
+        mj_model=mj_model,
         strategy=strategy,
         chunk=chunk,
-        _objective_matrix=objective_matrix(terms, len(scn.objective_names)),
-        mj_model=mj_model,
+        _sample=sample,
+        _episodes=batched_episodes,
+        _trace=trace,
     )
-
-
-def _success_spec(scn: Scenario, bindings: SceneBindings) -> dict:
-    s = scn.success
-    target = scn.objects[s.target]
-    return dict(
-        success_kind=s.kind,
-        success_object=bindings.slot_of[s.object],
-        success_target=bindings.slot_of[s.target],
-        position_tolerance=float(s.position_tolerance or 0.0),
-        orientation_tolerance=math.radians(float(s.orientation_tolerance_deg or 0.0)),
-        depth=float(s.depth or 0.0),
-        hole_top_local=bindings.hole_top_local or (0.0, 0.0, float(target.extra.get("hole_top", 0.0))),
-        hole_half_width=float(target.extra.get("hole_half_width", DEFAULT_HOLE_HALF_WIDTH)),
-    )
-
-
-def summarize(res: EpisodeResult, config_index, objective_matrix, reward_names, xp=jnp) -> RolloutOutput:
-    """(B, W) episode results -> RolloutOutput; ``xp`` is jax.numpy or numpy (the native
-    baseline reports through the same function)."""
-    objectives = xp.mean(res.reward_totals @ xp.asarray(objective_matrix), axis=1)
-    metrics = {f"reward_{name}": res.reward_totals[..., i] for i, name in enumerate(reward_names)}
-    metrics.update(
-        diverged=res.diverged,
-        bt_status=res.bt_status,
-        bt_success=res.bt_status == int(Status.SUCCESS),
-        bt_done_tick=res.bt_done_tick,
-        position_error=res.position_error,
-        orientation_error_deg=xp.degrees(res.orientation_error),
-        insertion_depth=res.insertion_depth,
-        max_force=res.max_force,
-        config_index=config_index,
-    )
-    return RolloutOutput(objectives=objectives, success=res.success, metrics=metrics)
-
-
-def _batched_episodes(r: Rollout, params: jax.Array, worlds: Worlds) -> RolloutOutput:
-    b, w = worlds.config_index.shape
-    flat_params = jnp.repeat(params, w, axis=0)
-    flat_worlds = jax.tree.map(lambda x: x.reshape((b * w,) + x.shape[2:]), worlds)
-    episode = lambda p, wd: run_episode(r.spec, r.model, r.template, p, wd)  # noqa: E731
-    # The flat B x W batch is split over all local devices (one device: unchanged).
-    res: EpisodeResult = shard_batch(over_worlds(episode, r.strategy, r.chunk))(flat_params, flat_worlds)
-    res = jax.tree.map(lambda x: x.reshape((b, w) + x.shape[1:]), res)
-    return summarize(res, worlds.config_index, r._objective_matrix, r.reward_names)
-
-
-# The Rollout is static (hashed by identity): its model, tree and leaf programs are baked into
-# the trace; one compile per (rollout, batch size).
-@partial(jax.jit, static_argnums=(0, 2))
-def _sample(r: Rollout, key: jax.Array, batch: int) -> Worlds:
-    return sample_worlds(r.sampler, key, (batch, r.worlds))
-
-
-@partial(jax.jit, static_argnums=0)
-def _run_worlds(r: Rollout, params: jax.Array, worlds: Worlds) -> RolloutOutput:
-    return _batched_episodes(r, params, worlds)
-
-
-@partial(jax.jit, static_argnums=0)
-def _trace(r: Rollout, params: jax.Array, world: Worlds):
-    return run_episode(r.spec, r.model, r.template, params, world, record=True)

@@ -22,13 +22,13 @@ from mujoco import mjx
 
 from mjxskill.bt_compiled import CompiledTree, init_state, started_leaves, tick
 from mjxskill.ebt.nodes import Status
-from mjxskill.rollout.bindings import FREE, MOCAP, SceneBindings, nominal_poses
+from mjxskill.rollout.bindings import FREE, MOCAP, nominal_poses
 from mjxskill.rollout.leaves import Blackboard, LeafPrograms, LeafWorld, advance, init_blackboard, reference_pose
 from mjxskill.rollout.rewards import Observation, RewardTerm, raw_rewards
+from mjxskill.rollout.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, EpisodeSetup, TickRecord
 from mjxskill.rollout.worlds import Worlds
 from mjxskill.sim.controller import (
     N_ARM,
-    ControllerConfig,
     ControllerState,
     impedance_control,
     init_controller_state,
@@ -37,51 +37,16 @@ from mjxskill.sim.controller import (
 )
 from mjxskill.sim.rotations import quat_angle
 
-MAX_QVEL = 100.0  # rad/s (or m/s for free objects): far beyond anything the arm can do
-MIN_OBJECT_Z = -0.05  # m: a free object this far below the table top fell through it
-
 
 class EpisodeSpec(NamedTuple):
-    """Everything static about an episode (host values, closed over by the traced function)."""
+    """Everything static about a compiled episode (host values, closed over by the traced
+    function): the compiled tree, its leaf programs, the reward terms and the engine-independent
+    ``setup``."""
 
     ct: CompiledTree
     leaves: LeafPrograms
     terms: tuple[RewardTerm, ...]
-    bindings: SceneBindings
-    ctrl: ControllerConfig
-    default_stiffness: tuple[float, ...]
-    ticks: int
-    steps_per_tick: int
-    success_kind: str  # "object_at_pose" or "inserted"
-    success_object: int  # slot index
-    success_target: int  # slot index
-    position_tolerance: float
-    orientation_tolerance: float  # rad
-    depth: float
-    hole_top_local: tuple[float, float, float]
-    hole_half_width: float
-
-
-class EpisodeResult(NamedTuple):
-    """Per-world outcome (scalars unless noted).
-
-    reward_totals (R,): sum over ticks of each term's raw value (worst values if diverged).
-    success: the scenario's success test at the end. diverged: physics blew up. bt_status: the
-    root's last status (RUNNING if it never finished). bt_done_tick: tick the root finished (-1:
-    never). position_error m, orientation_error rad: success object to target at the end (peg:
-    tool to hole axis, 0). insertion_depth m: below the hole's top (peg; 0 for push).
-    max_force N: largest |feed-forward force| commanded.
-    """
-
-    reward_totals: jax.Array
-    success: jax.Array
-    diverged: jax.Array
-    bt_status: jax.Array
-    bt_done_tick: jax.Array
-    position_error: jax.Array
-    orientation_error: jax.Array
-    insertion_depth: jax.Array
-    max_force: jax.Array
+    setup: EpisodeSetup
 
 
 class _Carry(NamedTuple):
@@ -99,9 +64,9 @@ class _Carry(NamedTuple):
 
 def initial_data(spec: EpisodeSpec, model: mjx.Model, template: mjx.Data, world: Worlds) -> mjx.Data:
     """MJX data at the world's initial conditions, kinematics computed."""
-    qpos = template.qpos.at[jnp.asarray(spec.bindings.arm_qpos)].set(world.arm_qpos)
+    qpos = template.qpos.at[jnp.asarray(spec.setup.bindings.arm_qpos)].set(world.arm_qpos)
     mocap_pos, mocap_quat = template.mocap_pos, template.mocap_quat
-    for k, slot in enumerate(spec.bindings.slots):
+    for k, slot in enumerate(spec.setup.bindings.slots):
         if slot.how == FREE:
             qpos = qpos.at[slot.qpos_adr : slot.qpos_adr + 3].set(world.object_pos[k])
             qpos = qpos.at[slot.qpos_adr + 3 : slot.qpos_adr + 7].set(world.object_quat[k])
@@ -114,9 +79,9 @@ def initial_data(spec: EpisodeSpec, model: mjx.Model, template: mjx.Data, world:
 
 def world_model(spec: EpisodeSpec, model: mjx.Model, world: Worlds) -> mjx.Model:
     """The model with this world's friction on the randomized object's contact pairs."""
-    if not spec.bindings.randomized_pairs:
+    if not spec.setup.bindings.randomized_pairs:
         return model
-    pairs = jnp.asarray(spec.bindings.randomized_pairs)
+    pairs = jnp.asarray(spec.setup.bindings.randomized_pairs)
     friction = model.pair_friction
     new = friction.at[pairs, 0].set(world.friction).at[pairs, 1].set(world.friction)
     return model.replace(pair_friction=jnp.where(jnp.isnan(world.friction), friction, new))
@@ -125,7 +90,7 @@ def world_model(spec: EpisodeSpec, model: mjx.Model, world: Worlds) -> mjx.Model
 def slot_poses(spec: EpisodeSpec, data: mjx.Data, world: Worlds):
     """(K, 3), (K, 4): current poses of the bound objects (free bodies move; others do not)."""
     pos, quat = world.object_pos, world.object_quat
-    for k, slot in enumerate(spec.bindings.slots):
+    for k, slot in enumerate(spec.setup.bindings.slots):
         if slot.how == FREE:
             pos = pos.at[k].set(data.xpos[slot.body_id])
             quat = quat.at[k].set(data.xquat[slot.body_id])
@@ -135,7 +100,7 @@ def slot_poses(spec: EpisodeSpec, data: mjx.Data, world: Worlds):
 def _healthy(spec: EpisodeSpec, data: mjx.Data) -> jax.Array:
     ok = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
     ok &= jnp.all(jnp.abs(data.qvel) < MAX_QVEL)
-    for slot in spec.bindings.slots:
+    for slot in spec.setup.bindings.slots:
         if slot.how == FREE:
             ok &= data.qpos[slot.qpos_adr + 2] > MIN_OBJECT_Z
     return ok
@@ -143,22 +108,6 @@ def _healthy(spec: EpisodeSpec, data: mjx.Data) -> jax.Array:
 
 def _where(cond, new, old):
     return jax.tree.map(lambda n, o: jnp.where(cond, n, o), new, old)
-
-
-class TickRecord(NamedTuple):
-    """Per-tick trace of one world (only when asked for: it grows with the episode).
-
-    qpos (nq,): joint and object positions at the end of the tick (for rendering).
-    tool_pos (3,), ref_pos (3,): tool and reference positions. root: root status this tick.
-    active (L,) bool: the leaves ticked. rewards (R,): raw reward values of the tick.
-    """
-
-    qpos: jax.Array
-    tool_pos: jax.Array
-    ref_pos: jax.Array
-    root: jax.Array
-    active: jax.Array
-    rewards: jax.Array
 
 
 def run_episode(
@@ -171,25 +120,25 @@ def run_episode(
     """
     model = world_model(spec, model, world)
     data = initial_data(spec, model, template, world)
-    tool_pos, tool_quat = tool_pose(spec.ctrl, model, data)
-    bb = init_blackboard(tool_pos, tool_quat, spec.default_stiffness, len(spec.ct.leaves))
+    tool_pos, tool_quat = tool_pose(spec.setup.ctrl, model, data)
+    bb = init_blackboard(tool_pos, tool_quat, spec.setup.default_stiffness, len(spec.ct.leaves))
     ref = reference_pose(bb)
     ctrl = init_controller_state(data, make_command(ref.pos, ref.quat, bb.wrench, bb.stiffness))
     nullspace_target = world.arm_qpos
-    dt = spec.ctrl.dt
-    nominal_pos = jnp.asarray(nominal_poses(spec.bindings)[0])
+    dt = spec.setup.ctrl.dt
+    nominal_pos = jnp.asarray(nominal_poses(spec.setup.bindings)[0])
     n_terms = len(spec.terms)
 
     def control_step(carry, _):
         data, ctrl, bb = carry
         ref = reference_pose(bb)
         command = make_command(ref.pos, ref.quat, bb.wrench, bb.stiffness)
-        tau, ctrl = impedance_control(spec.ctrl, model, data, command, nullspace_target, ctrl)
+        tau, ctrl = impedance_control(spec.setup.ctrl, model, data, command, nullspace_target, ctrl)
         data = mjx.step(model, data.replace(ctrl=data.ctrl.at[:N_ARM].set(tau)))
         return (data, ctrl, advance(bb, dt)), None
 
     def bt_tick(c: _Carry, t):
-        tool_pos, tool_quat = tool_pose(spec.ctrl, model, c.data)
+        tool_pos, tool_quat = tool_pose(spec.setup.ctrl, model, c.data)
         # The skills see the world *model* (the YAML's nominal poses), not the randomized world:
         # that mismatch is what the learned parameters must be robust to.
         leaf_world = LeafWorld(tool_pos, tool_quat, nominal_pos)
@@ -202,12 +151,12 @@ def run_episode(
         bt = _where(c.done, c.bt, bt)
         root = jnp.where(c.done, c.status, root)
         bb = spec.leaves.effects(c.bb, active, started, leaf_world, params)
-        (data, ctrl, bb), _ = jax.lax.scan(control_step, (c.data, c.ctrl, bb), None, length=spec.steps_per_tick)
+        (data, ctrl, bb), _ = jax.lax.scan(control_step, (c.data, c.ctrl, bb), None, length=spec.setup.steps_per_tick)
 
         healthy = _healthy(spec, data) & ~c.diverged
         data, ctrl, bb = _where(healthy, (data, ctrl, bb), (c.data, c.ctrl, c.bb))
         finished = root != Status.RUNNING
-        tool_pos, tool_quat = tool_pose(spec.ctrl, model, data)
+        tool_pos, tool_quat = tool_pose(spec.setup.ctrl, model, data)
         slot_pos, slot_quat = slot_poses(spec, data, world)
         obs = Observation(
             tool_pos=tool_pos,
@@ -249,8 +198,8 @@ def run_episode(
         totals=jnp.zeros(n_terms, jnp.float32),
         max_force=jnp.zeros((), jnp.float32),
     )
-    c, trace = jax.lax.scan(bt_tick, carry, jnp.arange(spec.ticks, dtype=jnp.int32))
-    worst = jnp.asarray([t.worst_raw * spec.ticks for t in spec.terms], jnp.float32).reshape(n_terms)
+    c, trace = jax.lax.scan(bt_tick, carry, jnp.arange(spec.setup.ticks, dtype=jnp.int32))
+    worst = jnp.asarray([t.worst_raw * spec.setup.ticks for t in spec.terms], jnp.float32).reshape(n_terms)
     totals = jnp.where(c.diverged, worst, c.totals)
     success, pos_err, rot_err, depth = _success(spec, c.data, world)
     result = EpisodeResult(
@@ -271,16 +220,16 @@ def _success(spec: EpisodeSpec, data: mjx.Data, world: Worlds):
     """(success, position error, orientation error, insertion depth) at the end of the episode."""
     slot_pos, slot_quat = slot_poses(spec, data, world)
     zero = jnp.zeros((), jnp.float32)
-    if spec.success_kind == "object_at_pose":
-        d_pos = jnp.linalg.norm(slot_pos[spec.success_object, :2] - slot_pos[spec.success_target, :2])
-        d_rot = quat_angle(slot_quat[spec.success_object], slot_quat[spec.success_target])
-        ok = (d_pos < spec.position_tolerance) & (d_rot < spec.orientation_tolerance)
+    if spec.setup.success_kind == "object_at_pose":
+        d_pos = jnp.linalg.norm(slot_pos[spec.setup.success_object, :2] - slot_pos[spec.setup.success_target, :2])
+        d_rot = quat_angle(slot_quat[spec.setup.success_object], slot_quat[spec.setup.success_target])
+        ok = (d_pos < spec.setup.position_tolerance) & (d_rot < spec.setup.orientation_tolerance)
         return ok, d_pos, d_rot, zero
     # "inserted": the tool (peg tip) is inside the hole's footprint, deeper than ``depth``.
-    tool_pos = data.site_xpos[spec.ctrl.site_id]
-    hole_top = slot_pos[spec.success_target] + jnp.asarray(spec.hole_top_local, jnp.float32)
+    tool_pos = data.site_xpos[spec.setup.ctrl.site_id]
+    hole_top = slot_pos[spec.setup.success_target] + jnp.asarray(spec.setup.hole_top_local, jnp.float32)
     lateral = jnp.linalg.norm(tool_pos[:2] - hole_top[:2])
     depth = hole_top[2] - tool_pos[2]
-    inside = jnp.all(jnp.abs(tool_pos[:2] - hole_top[:2]) < spec.hole_half_width)
-    return inside & (depth > spec.depth), lateral, zero, depth
+    inside = jnp.all(jnp.abs(tool_pos[:2] - hole_top[:2]) < spec.setup.hole_half_width)
+    return inside & (depth > spec.setup.depth), lateral, zero, depth
 

@@ -1,4 +1,4 @@
-"""Leaf programs: what each eBT primitive (``mjxskill/ebt/from_plan.py``) does to the controller
+"""Leaf programs: what each eBT primitive (``mjxskill.ebt.primitives``) does to the controller
 command, as pure JAX over a small blackboard state.
 
 Every BT tick runs in two phases, so that no Python runs per tick and the tick itself stays the
@@ -32,11 +32,11 @@ import numpy as np
 
 from mjxskill.bt_compiled import CompiledTree
 from mjxskill.ebt.nodes import Status
+from mjxskill.ebt.primitives import SPIRAL_NORMAL, LeafRegistry, goal_orientation
 from mjxskill.rollout.bindings import SceneBindings
 from mjxskill.sim.motion import MotionLimits, Pose, SpiralState, init_spiral, linear_trajectory, spiral_offset, spiral_step
 from mjxskill.sim.rotations import quat_mul
 
-SPIRAL_NORMAL = np.array([0.0, 0.0, 1.0], np.float32)  # the search plane is horizontal
 
 
 class Blackboard(NamedTuple):
@@ -130,18 +130,6 @@ def tool_down_aligned(current_quat, object_yaw: float):
     return quat_mul(turn, jnp.asarray(TOOL_DOWN))
 
 
-ORIENTATIONS = ("tool_down_aligned", "tool_down")
-
-
-def goal_orientation(leaf) -> str:
-    """ElementToBBPose's ``args.orientation``: "tool_down_aligned" (default) turns the tool's
-    faces to the element's yaw; "tool_down" keeps the tool's current yaw (a pure translation)."""
-    orientation = leaf.args.get("orientation", "tool_down_aligned")
-    if orientation not in ORIENTATIONS:
-        raise ValueError(f"leaf {leaf.name!r}: orientation {orientation!r} is not one of {', '.join(ORIENTATIONS)}")
-    return orientation
-
-
 class LeafWorld(NamedTuple):
     """What leaf programs read: the tool pose and the world model's object positions (K, 3)."""
 
@@ -178,11 +166,11 @@ def build_leaf_programs(
     tick_seconds: float,
 ) -> LeafPrograms:
     """Leaf programs for the compiled tree's leaves (host-side; the closures trace into jit)."""
-    index = {name: i for i, name in enumerate(parameter_names)}
+    ctx = _Context({name: i for i, name in enumerate(parameter_names)}, bindings, tick_seconds)
     default_stiffness = np.asarray(default_stiffness, np.float32)
     status_fns, effect_fns = [], []
     for i, leaf in enumerate(ct.leaves):
-        status, effect = _program(i, leaf, index, bindings, tick_seconds)
+        status, effect = LEAF_PROGRAMS.build(i, leaf, ctx)
         status_fns.append(status)
         effect_fns.append(effect)
 
@@ -204,70 +192,108 @@ def build_leaf_programs(
     return LeafPrograms(status, effects)
 
 
-def _program(i: int, leaf, index: dict, bindings: SceneBindings, tick_seconds: float):
-    """(status_fn, effect_fn) of leaf number ``i``."""
-    running = lambda bb, world, params, live: Status.RUNNING  # noqa: E731
-    keep = lambda bb, world, params, fresh: bb  # noqa: E731
-    primitive = leaf.primitive
-    if primitive == "set_goal_from_object":
-        obj = leaf.args.get("object")
-        if obj not in bindings.slot_of:
-            raise ValueError(f"leaf {leaf.name!r}: object {obj!r} is not bound to the scene")
-        slot = bindings.slot_of[obj]
-        fixed = np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), np.float32)
-        dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
+class _Context(NamedTuple):
+    """What leaf programs are built from: parameter name -> index in the parameter vector, the
+    scene bindings and the BT tick period (s)."""
 
-        aligned = goal_orientation(leaf) == "tool_down_aligned"
-        object_yaw = _yaw_of(bindings.slots[slot].quat)
+    index: dict
+    bindings: SceneBindings
+    tick_seconds: float
 
-        def set_goal(bb, world, params, fresh):
-            offset = jnp.asarray(fixed) + jnp.stack([dx(params), dy(params), jnp.float32(0.0)])
-            current = reference_pose(bb).quat
-            quat = tool_down_aligned(current, object_yaw if aligned else tool_yaw(current))
-            return bb._replace(goal_pos=world.slot_pos[slot] + offset, goal_quat=quat)
 
-        return (lambda bb, world, params, live: Status.SUCCESS), set_goal
-    if primitive == "goal_pose":
+def _running(bb, world, params, live):
+    return Status.RUNNING
 
-        def start_motion(bb, world, params, fresh):
-            ref = reference_pose(bb)
-            start = jax.tree.map(lambda n, o: jnp.where(fresh, n, o), ref, bb.mg_start)
-            goal = jax.tree.map(lambda n, o: jnp.where(fresh, n, o), Pose(bb.goal_pos, bb.goal_quat), bb.mg_goal)
-            return bb._replace(mg_start=start, mg_goal=goal, mg_time=jnp.where(fresh, 0.0, bb.mg_time))
 
-        return running, start_motion
-    if primitive == "change_stiffness":
-        stiffness = np.asarray(leaf.args["stiffness"], np.float32)
-        return running, lambda bb, world, params, fresh: bb._replace(stiffness=jnp.asarray(stiffness))
-    if primitive == "apply_force":
-        base = np.asarray(leaf.args.get("wrench", (0.0,) * 6), np.float32)
-        overrides = [(axis, _input(leaf, f"force_{c}", index)) for axis, c in enumerate("xyz") if f"force_{c}" in leaf.params or f"force_{c}" in leaf.args]
+def _keep(bb, world, params, fresh):
+    return bb
 
-        def apply_force(bb, world, params, fresh):
-            wrench = jnp.asarray(base)
-            for axis, value in overrides:
-                wrench = wrench.at[axis].set(value(params))
-            return bb._replace(wrench=wrench)
 
-        return running, apply_force
-    if primitive == "overlay_spiral":
-        radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
+# primitive -> (leaf number, leaf, _Context) -> (status, effect): every mjxskill.ebt.primitives.PRIMITIVES
+LEAF_PROGRAMS = LeafRegistry()
 
-        def overlay(bb, world, params, fresh):
-            spiral = jax.tree.map(lambda o: jnp.where(fresh, jnp.zeros_like(o), o), bb.spiral)
-            p = jnp.stack([radius(params), velocity(params), pitch(params)])
-            return bb._replace(spiral=spiral, spiral_on=jnp.ones((), bool), spiral_params=p)
 
-        return running, overlay
-    if primitive == "ee_pose_distance":
-        threshold = float(leaf.args["threshold"])
+@LEAF_PROGRAMS.register
+def _set_goal_from_object(i: int, leaf, ctx: _Context):
+    index, bindings = ctx.index, ctx.bindings
+    obj = leaf.args.get("object")
+    if obj not in bindings.slot_of:
+        raise ValueError(f"leaf {leaf.name!r}: object {obj!r} is not bound to the scene")
+    slot = bindings.slot_of[obj]
+    fixed = np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), np.float32)
+    dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
 
-        def reached(bb, world, params, live):
-            close = jnp.linalg.norm(world.tool_pos - bb.mg_goal.pos) < threshold
-            return jnp.where(live[i] & close, Status.SUCCESS, Status.RUNNING)
+    aligned = goal_orientation(leaf) == "tool_down_aligned"
+    object_yaw = _yaw_of(bindings.slots[slot].quat)
 
-        return reached, keep
-    if primitive == "wait":
-        ticks = int(np.ceil(float(leaf.args["seconds"]) / tick_seconds - 1e-9))
-        return (lambda bb, world, params, live: jnp.where(live[i] & (bb.leaf_ticks[i] >= ticks), Status.SUCCESS, Status.RUNNING)), keep
-    raise ValueError(f"leaf {leaf.name!r}: no leaf program for primitive {primitive!r}")
+    def set_goal(bb, world, params, fresh):
+        offset = jnp.asarray(fixed) + jnp.stack([dx(params), dy(params), jnp.float32(0.0)])
+        current = reference_pose(bb).quat
+        quat = tool_down_aligned(current, object_yaw if aligned else tool_yaw(current))
+        return bb._replace(goal_pos=world.slot_pos[slot] + offset, goal_quat=quat)
+
+    return (lambda bb, world, params, live: Status.SUCCESS), set_goal
+
+
+@LEAF_PROGRAMS.register
+def _goal_pose(i: int, leaf, ctx: _Context):
+
+    def start_motion(bb, world, params, fresh):
+        ref = reference_pose(bb)
+        start = jax.tree.map(lambda n, o: jnp.where(fresh, n, o), ref, bb.mg_start)
+        goal = jax.tree.map(lambda n, o: jnp.where(fresh, n, o), Pose(bb.goal_pos, bb.goal_quat), bb.mg_goal)
+        return bb._replace(mg_start=start, mg_goal=goal, mg_time=jnp.where(fresh, 0.0, bb.mg_time))
+
+    return _running, start_motion
+
+
+@LEAF_PROGRAMS.register
+def _change_stiffness(i: int, leaf, ctx: _Context):
+    stiffness = np.asarray(leaf.args["stiffness"], np.float32)
+    return _running, lambda bb, world, params, fresh: bb._replace(stiffness=jnp.asarray(stiffness))
+
+
+@LEAF_PROGRAMS.register
+def _apply_force(i: int, leaf, ctx: _Context):
+    index = ctx.index
+    base = np.asarray(leaf.args.get("wrench", (0.0,) * 6), np.float32)
+    overrides = [(axis, _input(leaf, f"force_{c}", index)) for axis, c in enumerate("xyz") if f"force_{c}" in leaf.params or f"force_{c}" in leaf.args]
+
+    def apply_force(bb, world, params, fresh):
+        wrench = jnp.asarray(base)
+        for axis, value in overrides:
+            wrench = wrench.at[axis].set(value(params))
+        return bb._replace(wrench=wrench)
+
+    return _running, apply_force
+
+
+@LEAF_PROGRAMS.register
+def _overlay_spiral(i: int, leaf, ctx: _Context):
+    index = ctx.index
+    radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
+
+    def overlay(bb, world, params, fresh):
+        spiral = jax.tree.map(lambda o: jnp.where(fresh, jnp.zeros_like(o), o), bb.spiral)
+        p = jnp.stack([radius(params), velocity(params), pitch(params)])
+        return bb._replace(spiral=spiral, spiral_on=jnp.ones((), bool), spiral_params=p)
+
+    return _running, overlay
+
+
+@LEAF_PROGRAMS.register
+def _ee_pose_distance(i: int, leaf, ctx: _Context):
+    threshold = float(leaf.args["threshold"])
+
+    def reached(bb, world, params, live):
+        close = jnp.linalg.norm(world.tool_pos - bb.mg_goal.pos) < threshold
+        return jnp.where(live[i] & close, Status.SUCCESS, Status.RUNNING)
+
+    return reached, _keep
+
+
+@LEAF_PROGRAMS.register
+def _wait(i: int, leaf, ctx: _Context):
+    tick_seconds = ctx.tick_seconds
+    ticks = int(np.ceil(float(leaf.args["seconds"]) / tick_seconds - 1e-9))
+    return (lambda bb, world, params, live: jnp.where(live[i] & (bb.leaf_ticks[i] >= ticks), Status.SUCCESS, Status.RUNNING)), _keep

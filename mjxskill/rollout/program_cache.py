@@ -13,7 +13,10 @@ of it is what the persistent cache then serves.
 Where: ``<mjxskill cache dir>/programs`` (see ``mjxskill._runtime.default_cache_dir``;
 ``MJXSKILL_CACHE_DIR=off`` turns both caches off). Only single-device runs use it: a batch
 sharded over several devices is traced every time (``mjxskill.rollout.sharding``).
-A file that cannot be read back is traced again and overwritten.
+Each file holds a header line (the format, the key, and the sha256 of key and program) before
+the program: a file whose bytes changed, or that was stored under another key (a copy, a
+rename), would run a damaged program or silently another scenario's. Either is detected when
+read, reported (``Notice``), traced again and rewritten; so is a file that cannot be read back.
 """
 
 from __future__ import annotations
@@ -22,9 +25,10 @@ import hashlib
 import importlib.metadata
 import os
 import tempfile
+import warnings
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, NamedTuple
+from typing import Callable, NamedTuple
 
 import jax
 import jax.export
@@ -32,12 +36,11 @@ import mujoco
 import numpy as np
 
 from mjxskill._runtime import default_cache_dir
+from mjxskill.errors import Notice
+from mjxskill.rollout.types import RolloutOutput
 from mjxskill.rollout.worlds import Worlds
 
-if TYPE_CHECKING:  # pragma: no cover
-    from mjxskill.rollout.compiled import Rollout
-
-FORMAT = "mjxskill-rollout-program-v1"
+FORMAT = "mjxskill-rollout-program-v2"
 PACKAGE_ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -82,16 +85,16 @@ def _model_bytes(model: mujoco.MjModel) -> bytes:
     return buffer.tobytes()
 
 
-def program_key(r: "Rollout", mj_model: mujoco.MjModel, args) -> str:
-    """Hex digest naming the program of rollout ``r`` for the argument shapes ``args``."""
+def program_key(identity: str, mj_model: mujoco.MjModel, args) -> str:
+    """Hex digest naming the program of a rollout for the argument shapes ``args``. identity:
+    what else shapes the program (``Rollout.identity``: scenario, plan, episode settings)."""
     h = hashlib.sha256()
     shapes = [(str(getattr(x, "dtype", type(x))), tuple(np.shape(x))) for x in jax.tree.leaves(args)]
     device = jax.devices()[0]
     parts = (
         FORMAT,
         package_digest(),
-        repr(r.scenario),
-        repr((r.spec.ticks, r.spec.steps_per_tick, r.strategy, r.chunk)),
+        identity,
         repr(shapes),
         repr(jax.tree.structure(args)),
         jax.__version__,
@@ -113,8 +116,6 @@ def program_key(r: "Rollout", mj_model: mujoco.MjModel, args) -> str:
 @lru_cache(maxsize=1)
 def _register_pytrees() -> None:
     # Exported programs record their argument and result trees; NamedTuples need a stable name.
-    from mjxskill.rollout.compiled import RolloutOutput
-
     for cls, name in ((Worlds, "mjxskill.rollout.Worlds"), (RolloutOutput, "mjxskill.rollout.RolloutOutput")):
         try:
             jax.export.register_namedtuple_serialization(cls, serialized_name=name)
@@ -122,26 +123,52 @@ def _register_pytrees() -> None:
             pass
 
 
-def load_or_trace(r: "Rollout", mj_model: mujoco.MjModel, body: Callable, params, worlds: Worlds) -> Program:
+def load_or_trace(identity: str, mj_model: mujoco.MjModel, body: Callable, params, worlds: Worlds) -> Program:
     """The program ``body(params, worlds)`` for these argument shapes: read from disk, or traced
     now (and stored). The rollout keeps what it gets, so this runs once per rollout and shape."""
     _register_pytrees()
     args = (params, worlds)
-    key = program_key(r, mj_model, args)
+    key = program_key(identity, mj_model, args)
     directory = programs_dir()
     path = None if directory is None else directory / f"{key}.stablehlo"
     exported, origin = None, "traced"
     if path is not None and path.exists():
         try:
-            exported, origin = jax.export.deserialize(bytearray(path.read_bytes())), "disk"
-        except Exception:  # truncated or from an incompatible jax: trace again
+            payload = unpack(path.read_bytes(), key)
+            exported, origin = jax.export.deserialize(bytearray(payload)), "disk"
+        except Exception as err:  # noqa: BLE001  (damaged, another key's, or from an incompatible jax)
+            warnings.warn(f"the cached rollout program {path} cannot be used ({' '.join(str(err).split())[:200]}); "
+                          f"tracing it again and replacing the file", Notice, stacklevel=2)
             exported = None
     if exported is None:
         specs = jax.tree.map(lambda x: jax.ShapeDtypeStruct(np.shape(x), x.dtype), args)
         exported = jax.export.export(jax.jit(body))(*specs)
         if path is not None:
-            _write_atomically(path, exported.serialize())
+            _write_atomically(path, pack(exported.serialize(), key))
     return Program(jax.jit(exported.call), origin, key)
+
+
+def _digest(key: str, payload: bytes) -> str:
+    return hashlib.sha256(key.encode() + b"\0" + bytes(payload)).hexdigest()
+
+
+def pack(payload: bytes | bytearray, key: str) -> bytes:
+    """The file content of ``payload`` stored under ``key``: a header line, then the bytes."""
+    return f"{FORMAT} {key} {_digest(key, payload)}\n".encode() + bytes(payload)
+
+
+def unpack(data: bytes, key: str) -> bytes:
+    """The program in a file read for ``key``; ValueError unless its header names ``key`` and
+    its digest matches its content."""
+    header, newline, payload = data.partition(b"\n")
+    parts = header.decode("ascii", "replace").split(" ")
+    if not newline or len(parts) != 3 or parts[0] != FORMAT:
+        raise ValueError(f"not a {FORMAT} file")
+    if parts[1] != key:
+        raise ValueError(f"it is stored for another key ({parts[1][:12]}..., not {key[:12]}...)")
+    if parts[2] != _digest(key, payload):
+        raise ValueError("its content does not match its digest (the bytes were changed)")
+    return payload
 
 
 def _write_atomically(path: Path, payload: bytes | bytearray) -> None:
@@ -155,4 +182,4 @@ def _write_atomically(path: Path, payload: bytes | bytearray) -> None:
         pass
 
 
-__all__ = ["Program", "load_or_trace", "package_digest", "program_key", "programs_dir"]
+__all__ = ["Program", "load_or_trace", "pack", "package_digest", "program_key", "programs_dir", "unpack"]

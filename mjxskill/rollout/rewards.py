@@ -4,19 +4,8 @@ Each term maps an :class:`Observation` of one world at one BT tick to a raw per-
 rollout sums ``weight * raw`` over the episode's ticks, and an objective is the sum of its
 rewards, averaged over the worlds of a parameter set. Larger is better everywhere.
 
-Kinds (constants in brackets, defaults after ``=``):
-
-* ``task_completion`` [value = 8.0]: ``value`` per tick once the BT has returned SUCCESS.
-* ``ee_distance_to_box`` [w = 2.0, d_o = 0.006]: ``1 / (w (d + d_o))``, d = tool to target (m).
-* ``applied_wrench`` [cap = 100.0]: ``min(|Fx| + |Fy| + |Fz|, cap)`` of the force the controller
-  feeds forward (N); give it a negative weight. The cap bounds the worst value, which a diverged
-  world receives.
-* ``exp_ee_to_goal`` [sigma_w = 0.4, d_o = 0.0]: ``exp(-(d + d_o) / (2 sigma_w^2))``, d = tool to
-  target.
-* ``exp_ee_to_reference``: the same with d = tool to the controller's reference position.
-* ``object_pose_divergence`` [sigma_w, d_o, position_weight = 1, orientation_weight = 0]:
-  ``position_weight exp(-(d_p + d_o) / (2 sigma_w^2)) + orientation_weight exp(-(d_r + d_o) /
-  (2 sigma_w^2))`` with d_p the object-to-target distance (m) and d_r their angle (rad).
+Kinds, their constants and defaults: ``mjxskill.scenario.schema.REWARD_KINDS`` (one table for
+the loader and both engines); what each computes: ``mjxskill.scenario.schema.Reward``.
 """
 
 from __future__ import annotations
@@ -28,18 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjxskill.rollout.bindings import SceneBindings
-from mjxskill.scenario_schema import Reward, Scenario
+from mjxskill.scenario.schema import REWARD_KINDS, Reward, Scenario
 from mjxskill.sim.rotations import quat_angle
-
-KINDS = (
-    "task_completion",
-    "ee_distance_to_box",
-    "applied_wrench",
-    "exp_ee_to_goal",
-    "exp_ee_to_reference",
-    "object_pose_divergence",
-)
-
 
 class Observation(NamedTuple):
     """What the rewards see of one world at the end of a BT tick.
@@ -62,10 +41,6 @@ class Observation(NamedTuple):
 def exp_reward(d, sigma_w, d_o):
     """The paper's exponential family r(d) = exp(-(d + d_o) / (2 sigma_w^2))."""
     return jnp.exp(-(d + d_o) / (2.0 * sigma_w**2))
-
-
-def _constant(reward: Reward, key: str, default: float) -> float:
-    return float(reward.constants.get(key, default))
 
 
 class RewardTerm(NamedTuple):
@@ -99,18 +74,20 @@ def _target(reward: Reward, bindings: SceneBindings):
 def _raw_term(reward: Reward, bindings: SceneBindings):
     """(raw function, smallest raw value, largest raw value) of one reward."""
     kind = reward.kind
+    if kind not in REWARD_KINDS:
+        raise ValueError(f"reward {reward.name!r}: unknown kind {kind!r}; expected one of {sorted(REWARD_KINDS)}")
     if kind == "task_completion":
-        value = _constant(reward, "value", 8.0)
+        value = reward.constant("value")
         return (lambda obs: jnp.where(obs.bt_succeeded, value, 0.0)), min(value, 0.0), max(value, 0.0)
     if kind == "ee_distance_to_box":
-        w, d_o = _constant(reward, "w", 2.0), _constant(reward, "d_o", 0.006)
+        w, d_o = reward.constant("w"), reward.constant("d_o")
         target = _target(reward, bindings)
         largest = 1.0 / (w * d_o) if d_o > 0 else float("inf")
         return (lambda obs: 1.0 / (w * (jnp.linalg.norm(obs.tool_pos - target(obs)) + d_o))), 0.0, largest
     if kind == "applied_wrench":
-        cap = _constant(reward, "cap", 100.0)
+        cap = reward.constant("cap")
         return (lambda obs: jnp.minimum(jnp.sum(jnp.abs(obs.wrench[:3])), cap)), 0.0, cap
-    sigma_w, d_o = _constant(reward, "sigma_w", 0.4), _constant(reward, "d_o", 0.0)
+    sigma_w, d_o = reward.constant("sigma_w"), reward.constant("d_o")
     best = float(np.exp(-d_o / (2.0 * sigma_w**2)))
     if kind == "exp_ee_to_goal":
         target = _target(reward, bindings)
@@ -118,8 +95,8 @@ def _raw_term(reward: Reward, bindings: SceneBindings):
     if kind == "exp_ee_to_reference":
         return (lambda obs: exp_reward(jnp.linalg.norm(obs.tool_pos - obs.ref_pos), sigma_w, d_o)), 0.0, best
     if kind == "object_pose_divergence":
-        w_pos = _constant(reward, "position_weight", 1.0)
-        w_rot = _constant(reward, "orientation_weight", 0.0)
+        w_pos = reward.constant("position_weight")
+        w_rot = reward.constant("orientation_weight")
         obj, tgt = bindings.slot_of[reward.object], bindings.slot_of[reward.target]
 
         def divergence(obs):
@@ -128,17 +105,8 @@ def _raw_term(reward: Reward, bindings: SceneBindings):
             return w_pos * exp_reward(d_pos, sigma_w, d_o) + w_rot * exp_reward(d_rot, sigma_w, d_o)
 
         return divergence, 0.0, (w_pos + w_rot) * best
-    raise ValueError(f"reward {reward.name!r}: unknown kind {kind!r}; expected one of {KINDS}")
 
 
 def raw_rewards(terms: tuple[RewardTerm, ...], obs: Observation) -> jax.Array:
     """(R,) raw per-tick values of all terms."""
     return jnp.stack([t.raw(obs) for t in terms]) if terms else jnp.zeros((0,))
-
-
-def objective_matrix(terms: tuple[RewardTerm, ...], n_objectives: int) -> np.ndarray:
-    """(R, O) weights mapping summed raw rewards to objectives."""
-    m = np.zeros((len(terms), n_objectives), np.float32)
-    for r, t in enumerate(terms):
-        m[r, t.objective] = t.weight
-    return m

@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjxskill.rollout.bindings import SceneBindings, nominal_poses
-from mjxskill.scenario_schema import Scenario
+from mjxskill.scenario.schema import Scenario
 
 
 class Worlds(NamedTuple):

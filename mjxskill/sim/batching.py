@@ -1,7 +1,7 @@
 """Stepping W worlds at once: one control step (controller + mjx.step) written for one world,
 and wrappers that map it over a leading world axis.
 
-Strategies (measured by benchmarks/batching.py, see the report in the sim branch):
+Strategies (measured by benchmarks/batching.py, results in benchmarks/RESULTS.md):
   "vmap"    jax.vmap over all worlds: one wide XLA program. Fastest on the CPU once XLA's CPU
             fusion emitters are off (mjxskill/_runtime.py) and the natural choice on GPUs.
   "map"     jax.lax.map: a loop over worlds, one world at a time (small programs, slower).
@@ -31,8 +31,8 @@ def default_strategy(backend: str | None = None) -> str:
     """Fastest correct strategy for ``backend`` (default: jax's current one).
 
     CPU: measured by benchmarks/batching.py (vmap beats lax.map 3-5x at W = 8-64 with the
-    fusion-emitter flag off; see the sim branch report). GPU: vmap is what MJX is built for;
-    not measured here (no GPU in this session)."""
+    fusion-emitter flag off; benchmarks/RESULTS.md). GPU: vmap is what MJX is built for;
+    not measured yet on a GPU."""
     backend = jax.default_backend() if backend is None else backend
     return _FASTEST.get(backend, "vmap")
 
@@ -106,5 +106,5 @@ def put_worlds(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray | None 
         if mocap_pos is not None:
             data.mocap_pos[:] = mocap_pos[w]
         mujoco.mj_forward(model, data)
-        worlds.append(mjx.put_data(model, data))
+        worlds.append(mjx.put_data(model, data, device=jax.local_devices()[0]))  # see rollout.compiled
     return jax.tree.map(lambda *xs: jnp.stack(xs), *worlds)

@@ -7,7 +7,7 @@ from pathlib import Path
 import mujoco
 
 # assets/ sits next to the package in the source tree (pyproject ships *.xml as package data
-# only inside packages, so an installed copy must run from a checkout: see the report).
+# only inside packages, so an installed copy must run from a checkout: README, "Using the library").
 ASSETS_DIR = Path(__file__).resolve().parents[2] / "assets"
 SCENES = ("push", "peg")
 

@@ -19,12 +19,10 @@ from pddl.logic.predicates import Predicate
 from pddl.parser.domain import DomainParser
 from pddl.parser.problem import ProblemParser
 
+from mjxskill.errors import GoalError
+
 if TYPE_CHECKING:  # pragma: no cover
-    from mjxskill.scenario_schema import Scenario
-
-
-class GoalError(ValueError):
-    """A goal that is not valid PDDL or names something the world model does not know."""
+    from mjxskill.scenario.schema import Scenario
 
 
 @functools.cache

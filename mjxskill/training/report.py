@@ -2,7 +2,7 @@
 
 Objectives are reward sums (larger is better, no physical unit): axes say "reward". The
 hypervolume is measured in the minimized space (negated objectives) against the run's fixed
-reference point (see ``mjxskill.train``).
+reference point (see ``mjxskill.training.front``).
 """
 
 from __future__ import annotations
@@ -11,12 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from mjxskill.run_dir import Evaluations, Run, RunConfig
+from mjxskill.training.run_dir import Evaluations, Run, RunConfig
 
 OBJECTIVE_UNIT = "reward, larger is better"
 
 
-def _pyplot():
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (files only, no display needed)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -31,7 +32,7 @@ def objective_label(name: str) -> str:
 
 def plot_pareto(ev: Evaluations, mask: np.ndarray, config: RunConfig, path: Path, i: int = 0, j: int = 1) -> None:
     """All evaluations (coloured by success rate) and the Pareto front in objectives i, j."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     if len(config.objective_names) < 2:
         j = i
@@ -51,7 +52,7 @@ def plot_pareto(ev: Evaluations, mask: np.ndarray, config: RunConfig, path: Path
 
 
 def plot_hypervolume(evaluations: np.ndarray, hv: np.ndarray, config: RunConfig, path: Path, n_init: int) -> None:
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     ax.plot(evaluations, hv, "-o", ms=3)
     ax.axvline(n_init, color="gray", ls="--", lw=1, label="end of random warm-up")
@@ -66,7 +67,7 @@ def plot_hypervolume(evaluations: np.ndarray, hv: np.ndarray, config: RunConfig,
 
 def write_run_figures(run: Run, config: RunConfig, ev: Evaluations) -> None:
     """pareto.png and hypervolume.png of one run."""
-    from mjxskill.train import hypervolume_history, pareto_mask_of, reference_from
+    from mjxskill.training.front import hypervolume_history, pareto_mask_of, reference_from
 
     if not len(ev):
         return
@@ -89,7 +90,7 @@ def front_table(config: RunConfig, front: Evaluations) -> str:
 
 
 def summary(run: Run, config: RunConfig, ev: Evaluations) -> str:
-    from mjxskill.train import hypervolume_history, pareto_mask_of, reference_from
+    from mjxskill.training.front import hypervolume_history, pareto_mask_of, reference_from
 
     front = ev.take(pareto_mask_of(ev))
     ref = reference_from(run, config, ev)
@@ -102,9 +103,9 @@ def write_repeats(run: Run, config: RunConfig, runs: list[Run]) -> str:
     """Aggregated Pareto plot (one colour per seed) and repeats.yaml; returns a summary line."""
     import yaml
 
-    from mjxskill.train import pareto_mask_of
+    from mjxskill.training.front import pareto_mask_of
 
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     cmap = plt.get_cmap("tab10" if len(runs) <= 10 else "tab20")
     sizes = {}

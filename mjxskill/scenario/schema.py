@@ -22,14 +22,18 @@ Conventions (the same in the YAML files under ``assets/scenarios/``):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Mapping
+from typing import Mapping
 
 import numpy as np
 
-if TYPE_CHECKING:  # pragma: no cover
-    from mjxskill.plan import PlannedTask
+
+# Bounds of the run settings a scenario gives defaults for, shared with the command-line flags
+# and a run's config.yaml (mjxskill.training.settings): one number, one place.
+MAX_EPISODE_SECONDS = 3600.0  # an hour of simulated time; the shipped episodes last 12 and 18 s
+MAX_SEED = 2**32 - 1  # seeds become uint32 PRNG keys and numpy seed words
+MIN_N_INIT = 2  # the optimizer's warm-up needs two points to fit a model
 
 
 def frozen_array(values, dtype=np.float64) -> np.ndarray:
@@ -176,15 +180,39 @@ class Skill:
         return self.parameter(name).default
 
 
-REWARD_KINDS = {
-    # kind: required constants (see the YAML files for what each means)
-    "task_completion": ("value",),
-    "ee_distance_to_box": ("w", "d_o"),
-    "applied_wrench": (),
-    "exp_ee_to_goal": ("sigma_w", "d_o"),
-    "exp_ee_to_reference": ("sigma_w", "d_o"),
-    "object_pose_divergence": ("sigma_w", "d_o", "position_weight", "orientation_weight"),
-}
+REQUIRED = None  # a reward constant without a default: the YAML must give it
+
+
+@dataclass(frozen=True)
+class RewardKind:
+    """One entry of the reward vocabulary.
+
+    constants: name -> default (``REQUIRED``: the YAML must give it); the loader rejects any
+    other constant. needs: the reward's own keys the kind reads ("object", "target").
+    """
+
+    constants: Mapping[str, float | None]
+    needs: tuple[str, ...] = ()
+
+
+# The reward vocabulary, read by the loader (what a YAML may and must give), the compiled
+# rewards (mjxskill.rollout.rewards) and the native ones (mjxskill.native.rewards): one table, so
+# the three cannot disagree about a kind, a constant or a default. Meanings: ``Reward``.
+REWARD_KINDS: Mapping[str, RewardKind] = MappingProxyType(
+    {
+        "task_completion": RewardKind(MappingProxyType({"value": REQUIRED})),
+        "ee_distance_to_box": RewardKind(MappingProxyType({"w": REQUIRED, "d_o": REQUIRED}), ("target",)),
+        "applied_wrench": RewardKind(MappingProxyType({"cap": 100.0})),
+        "exp_ee_to_goal": RewardKind(MappingProxyType({"sigma_w": REQUIRED, "d_o": REQUIRED}), ("target",)),
+        "exp_ee_to_reference": RewardKind(MappingProxyType({"sigma_w": REQUIRED, "d_o": REQUIRED})),
+        "object_pose_divergence": RewardKind(
+            MappingProxyType(
+                {"sigma_w": REQUIRED, "d_o": REQUIRED, "position_weight": REQUIRED, "orientation_weight": REQUIRED}
+            ),
+            ("object", "target"),
+        ),
+    }
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,7 +221,8 @@ class Reward:
 
     task_completion: ``value`` per step while the BT has returned SUCCESS.
     ee_distance_to_box: 1 / (w (d + d_o)), d = tool to ``target`` distance (m).
-    applied_wrench: |Fx| + |Fy| + |Fz| of the commanded force (N); use a negative weight.
+    applied_wrench: min(|Fx| + |Fy| + |Fz|, cap) of the commanded force (N); use a negative
+    weight. The cap bounds the worst value, which a diverged world receives.
     exp_*: exp(-(d_m + d_o) / (2 sigma_w^2)) with d_m the tool-to-``target`` distance
     (exp_ee_to_goal), the tool reference-to-actual distance (exp_ee_to_reference) or
     position_weight * |p_obj - p_target| + orientation_weight * |angle (rad)| between ``object``
@@ -209,6 +238,15 @@ class Reward:
     object: str | None = None
     target: str | None = None
     target_offset: np.ndarray | None = None  # (3,) m added to the target's position
+
+    def constant(self, key: str) -> float:
+        """The constant ``key``: the YAML's value, or the kind's default (``REWARD_KINDS``)."""
+        if key in self.constants:
+            return float(self.constants[key])
+        default = REWARD_KINDS[self.kind].constants.get(key, REQUIRED)
+        if default is REQUIRED:
+            raise KeyError(f"reward {self.name!r} ({self.kind}) has no constant {key!r}")
+        return float(default)
 
 
 @dataclass(frozen=True)
@@ -254,16 +292,31 @@ class Optimizer:
     repetitions: int  # independent runs in the paper's experiments
 
 
+@dataclass(frozen=True)
+class ManualSet:
+    """An operator's parameter set from the YAML's ``manual_parameters``.
+
+    values: learnable parameter name (e.g. "Push.offset_x_start") -> value, checked against the
+    skill's bounds when loaded. where: the set's place in the file (for errors found when a plan
+    is matched with it, see ``mjxskill.task``).
+    """
+
+    values: Mapping[str, float]
+    where: str
+
+
 @dataclass(frozen=True, eq=False)
 class Scenario:
-    """A validated scenario. See the module docstring for units and frames.
+    """A validated scenario: the world model and the task settings, no plan (``mjxskill.task``
+    plans a goal in it). See the module docstring for units and frames.
 
     name: "push" / "peg". source: the YAML file. scene: the MJCF file. gravity: False runs the
     scene without gravity (SkiREIL's peg). types: PDDL type -> parent type (None: root).
     predicates: name -> argument types. objects: name -> WorldObject (poses included).
-    skills: name -> Skill. goal: the default goal. task: the planned task of the default goal
-    (``mjxskill.plan.plan_task``); the learnable parameters below come from it.
-    manual_parameters: name -> (P,) operator-chosen parameter vectors (illustrative values).
+    skills: name -> Skill. goal: the default goal. manual_parameters: name -> ManualSet, the
+    operators' parameter sets (illustrative values). locations: key path -> "file: key path
+    (line N)" of the entries checked after loading (the goal, when it is planned; the scene
+    references), so that those errors name the file, key and line too (``where``).
     """
 
     name: str
@@ -284,27 +337,12 @@ class Scenario:
     success: Success
     randomization: Randomization
     optimizer: Optimizer
-    manual_parameters: Mapping[str, np.ndarray]
-    task: "PlannedTask"
+    manual_parameters: Mapping[str, ManualSet]
+    locations: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
 
-    @property
-    def parameter_names(self) -> tuple[str, ...]:
-        """Learnable parameters in parameter-vector order, e.g. "Push.offset_x_start"."""
-        return tuple(p.name for p in self.task.parameters)
-
-    @property
-    def bounds(self) -> np.ndarray:
-        """(2, P) lower and upper bounds."""
-        return self.task.bounds
-
-    @property
-    def parameter_units(self) -> tuple[str, ...]:
-        return tuple(p.unit for p in self.task.parameters)
-
-    @property
-    def parameter_defaults(self) -> np.ndarray:
-        """(P,) the values used when nothing is learned (the plain planner solution)."""
-        return self.task.defaults
+    def where(self, key_path: str) -> str:
+        """``"file: key path (line N)"`` of a YAML entry (the file alone when not recorded)."""
+        return self.locations.get(key_path, self.source)
 
     @property
     def episode_ticks(self) -> int:

@@ -1,0 +1,55 @@
+"""The command line: one module per command (``plan``, ``train``, ``evaluate``, ``select``, ``explore``) over
+the library, and the one edge where bad input becomes a message.
+
+``run`` parses the arguments, switches on the compile caches and runs the command; any
+``mjxskill.errors.UserError`` (a bad scenario, goal, flag or run directory) is printed as one
+``prog: error: message`` line on stderr with exit code 2, without a traceback, and a
+``mjxskill.errors.Notice`` warning (rows set aside on resume, a cache that is off) as one
+``prog: warning: message`` line. A Ctrl-C ends the command with exit code 130
+(``mjxskill.cli.interrupt``). Nothing below this package prints errors or exits.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from typing import Callable, Sequence
+
+from mjxskill.cli import interrupt
+from mjxskill.cli.interrupt import EXIT_INTERRUPTED
+from mjxskill.errors import Notice, UserError
+
+EXIT_BAD_INPUT = 2
+
+
+def run(main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentParser, argv: Sequence[str] | None = None) -> int:
+    """Parses ``argv``, runs ``main`` and turns user errors into ``prog: error: message`` + exit 2."""
+    args = parser.parse_args(argv)  # argparse itself exits 2 with a usage message
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", Notice)
+        default_show = warnings.showwarning
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            if issubclass(category, Notice):
+                print(f"{parser.prog}: warning: {message}", file=sys.stderr, flush=True)
+            else:
+                default_show(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = show
+        from mjxskill._runtime import enable_compilation_cache
+
+        try:
+            enable_compilation_cache()
+            return main(args)
+        except UserError as err:
+            message = " ".join((str(err) or type(err).__name__).split())  # one line, whatever it holds
+            print(f"{parser.prog}: error: {message}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except KeyboardInterrupt:
+            interrupt.acknowledge()
+            print(f"\n{parser.prog}: {interrupt.message()}", file=sys.stderr)
+            return EXIT_INTERRUPTED
+
+
+__all__ = ["EXIT_BAD_INPUT", "EXIT_INTERRUPTED", "interrupt", "run"]

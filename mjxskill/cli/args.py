@@ -1,0 +1,68 @@
+"""Argument types shared by the commands: a bad value becomes argparse's own "invalid value"
+message with exit code 2."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from typing import Callable
+
+
+def add_task_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("task", help="scenario name (push, peg) or path of a scenario YAML file")
+
+
+def int_at_least(minimum: int) -> Callable[[str], int]:
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
+        return value
+
+    parse.__name__ = f"integer >= {minimum}"
+    return parse
+
+
+positive_int = int_at_least(1)
+
+
+def nonnegative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (value >= 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return value
+
+
+def setting_type(setting) -> Callable[[str], object]:
+    """The argparse type of a run setting (``mjxskill.training.settings.Setting``): the check
+    config.yaml goes through too."""
+
+    def parse(text: str):
+        try:
+            return setting.coerce(text)
+        except ValueError as err:
+            raise argparse.ArgumentTypeError(str(err)) from None
+
+    parse.__name__ = setting.name
+    return parse
+
+
+def seed_type() -> Callable[[str], int]:
+    """``--seed`` of every command: an integer in the range of a run's seed."""
+    from mjxskill.training.settings import SEED
+
+    return setting_type(SEED)
+
+
+def port(text: str) -> int:
+    """A TCP port, 0 (any free one) to 65535."""
+    value = int_at_least(0)(text)
+    if value > 65535:
+        raise argparse.ArgumentTypeError(f"must be a port number 0-65535, got {value}")
+    return value

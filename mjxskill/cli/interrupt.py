@@ -1,0 +1,169 @@
+"""Ctrl-C at any moment of a command: start-up, imports, compilation and the loop included.
+
+Python turns SIGINT into a ``KeyboardInterrupt`` wherever the main thread happens to be. Two
+places lost it: raised inside a garbage-collector callback (JAX installs one,
+``_xla_gc_callback``) or a finalizer, it is printed as "Exception ignored in ..." and dropped,
+and the run went on to its end; and while the main thread sits in a long C call (an XLA
+compile, a batch on the device) it is only raised when that call returns. So, for the process
+of a ``python -m mjxskill.<command>`` (``run_command``; never on import):
+
+* the first Ctrl-C raises ``KeyboardInterrupt`` as usual; the command handles it where it
+  knows what is on disk and calls ``acknowledge()``;
+* one that would be raised inside a gc callback (seen from the handler's frame) or that a
+  finalizer swallowed (seen by ``sys.unraisablehook``, silenced for it) is raised again in the
+  main thread a moment later by the watchdog (``_thread.interrupt_main``), until it lands;
+* Python runs its handler only when the main thread next runs Python code, so a watchdog
+  thread hears the signal itself (``signal.set_wakeup_fd``: the C-level handler writes to a
+  pipe at once). If nothing acknowledged the interrupt after ``GRACE_SECONDS`` (the main
+  thread is stuck in C), it prints the command's message and ends the process with
+  ``EXIT_INTERRUPTED``; a second Ctrl-C does that at once.
+
+Nothing is lost by ending there: every finished batch is on disk (appended and fsynced), every
+other file is replaced in one step, and a line cut short is set aside on resume
+(``mjxskill.training.resume``). After an interrupt the process also ends with ``os._exit``
+rather than the interpreter's shutdown, which could crash in XLA's threads (exit 139) when the
+interrupt came during a compile.
+"""
+
+from __future__ import annotations
+
+import _thread
+import gc
+import importlib
+import os
+import select
+import signal
+import sys
+import threading
+import time
+
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, what shells report for a Ctrl-C
+GRACE_SECONDS = 5.0
+
+_state = {"prog": "mjxskill", "acknowledged": False, "redeliver": False, "redelivered": 0,
+          "message": "interrupted", "previous_hook": None, "request_fd": None, "pressed": False}
+
+
+def run_command(prog: str, module: str) -> int:
+    """Runs ``module.main()`` (a command) with Ctrl-C handled from the first import on."""
+    install(prog)
+    try:
+        code = importlib.import_module(module).main()
+    except Exception:
+        if not _state["pressed"]:
+            raise  # a bug: keep its traceback
+        # A KeyboardInterrupt that an extension turned into another error on its way up
+        # (numpy's import reports one as "Importing the numpy C-extensions failed").
+        code = _interrupted()
+    except KeyboardInterrupt:  # before the command had anything to say (imports, parsing)
+        code = _interrupted()
+    if code == EXIT_INTERRUPTED:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
+def _interrupted() -> int:
+    acknowledge()
+    print(f"\n{_state['prog']}: {_state['message']}", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+def install(prog: str) -> None:
+    """Handles SIGINT as described in the module docstring (main thread only)."""
+    _state["prog"] = prog
+    signal.signal(signal.SIGINT, _on_sigint)
+    if _state["previous_hook"] is None:
+        _state["previous_hook"] = sys.unraisablehook
+        sys.unraisablehook = _on_unraisable
+        signals, write = os.pipe()
+        os.set_blocking(write, False)
+        signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+        requests, _state["request_fd"] = os.pipe()
+        os.set_blocking(_state["request_fd"], False)
+        threading.Thread(target=_watchdog, args=(signals, requests), name="mjxskill-interrupt", daemon=True).start()
+
+
+def set_message(message: str) -> None:
+    """What an interrupt from now on leaves behind, e.g. where the finished batches are."""
+    _state["message"] = message
+
+
+def message() -> str:
+    return _state["message"]
+
+
+def acknowledge() -> None:
+    """The KeyboardInterrupt reached the command: no redelivery, no forced exit."""
+    _state["acknowledged"] = True
+
+
+def _on_sigint(signum, frame) -> None:
+    _state["pressed"] = True
+    if _in_gc_callback(frame):  # it would be printed and dropped there: raise it again after
+        _request_redelivery()
+        return
+    _state["redeliver"] = False
+    raise KeyboardInterrupt  # a second Ctrl-C is the watchdog's: it ends the process
+
+
+def _on_unraisable(unraisable) -> None:
+    if issubclass(unraisable.exc_type, KeyboardInterrupt) and not _state["acknowledged"]:
+        _request_redelivery()  # raised where Python cannot propagate it (a finalizer, a callback)
+        return
+    _state["previous_hook"](unraisable)
+
+
+def _in_gc_callback(frame) -> bool:
+    codes = {getattr(getattr(cb, "__func__", cb), "__code__", None) for cb in gc.callbacks}
+    while frame is not None:
+        if frame.f_code in codes:
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _request_redelivery() -> None:
+    # Not from here: we are inside the callback that would swallow it again. The watchdog raises
+    # it in the main thread a moment later, and again until it lands.
+    _state["redeliver"] = True
+    try:
+        os.write(_state["request_fd"], b"r")
+    except (OSError, KeyError):  # the pipe is full: a request is pending anyway
+        pass
+
+
+def _watchdog(signals: int, requests: int) -> None:
+    """Hears every SIGINT at once, whatever the main thread is doing, and raises swallowed ones
+    again."""
+    received, deadline = 0, None
+    while True:
+        waiting = not _state["acknowledged"] and deadline is not None
+        timeout = 0.05 if _state["redeliver"] else max(0.0, deadline - time.monotonic()) if waiting else None
+        readable, _, _ = select.select([signals, requests], [], [], timeout)
+        if signals in readable:
+            received += sum(1 for b in os.read(signals, 64) if b == signal.SIGINT)
+            presses = received - _state["redelivered"]
+            if presses >= 2:
+                _exit_now("interrupted again")
+            if presses >= 1 and deadline is None:
+                deadline = time.monotonic() + GRACE_SECONDS
+        if requests in readable:
+            os.read(requests, 64)
+        if _state["redeliver"] and not _state["acknowledged"]:
+            _state["redelivered"] += 1  # before interrupt_main writes to the wakeup pipe
+            _thread.interrupt_main(signal.SIGINT)
+        if waiting and not _state["acknowledged"] and time.monotonic() >= deadline:
+            _exit_now(f"the running step did not stop within {GRACE_SECONDS:g} s, so the process ends here")
+
+
+def _exit_now(why: str) -> None:
+    try:
+        sys.stdout.flush()
+        print(f"\n{_state['prog']}: {_state['message']} ({why})", file=sys.stderr, flush=True)
+    finally:
+        os._exit(EXIT_INTERRUPTED)
+
+
+__all__ = ["EXIT_INTERRUPTED", "GRACE_SECONDS", "acknowledge", "install", "message", "run_command", "set_message"]

@@ -1,0 +1,96 @@
+"""``python -m mjxskill.select RUN_DIR``: pick a Pareto solution, export it, render it.
+
+    python -m mjxskill.select runs/push-0                    # list the Pareto front
+    python -m mjxskill.select runs/push-0 --pick 2           # row 2 of pareto.csv
+    python -m mjxskill.select runs/push-0 --max-force 20     # the most successful under 20 N
+    python -m mjxskill.select runs/push-0 --pick 2 --format mp4 --config-index 1
+
+The rule of a pick by constraint and the export format: ``mjxskill.training.selection``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from mjxskill import cli
+from mjxskill.cli import args as cli_args
+from mjxskill.errors import CommandError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="mjxskill.select", description="Pick a Pareto solution, export its parameters and render it.")
+    parser.add_argument("run", type=Path, help="run directory written by mjxskill.train")
+    pick = parser.add_argument_group("choice (none: list the front)")
+    pick.add_argument("--pick", type=cli_args.int_at_least(0), metavar="K", help="row K of pareto.csv")
+    pick.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="largest commanded force (mean over worlds) at most N newtons")
+    pick.add_argument("--min-success", type=cli_args.nonnegative_float, metavar="RATE", help="success rate at least RATE (0-1)")
+    parser.add_argument("--out", type=Path, help="export folder (default RUN_DIR/selected-<K>)")
+    parser.add_argument("--no-render", action="store_true", help="export the parameters only")
+    parser.add_argument("--format", choices=("png", "mp4"), default="png", help="PNG frames (default) or an MP4 (needs ffmpeg)")
+    parser.add_argument("--config-index", type=cli_args.int_at_least(0), default=0, help="known start configuration to render from (default 0)")
+    parser.add_argument("--seed", type=cli_args.seed_type(), default=0, help="seed of the rendered world's randomization")
+    parser.add_argument("--size", type=cli_args.positive_int, nargs=2, default=(640, 480), metavar=("W", "H"), help="frame size in pixels")
+    return parser
+
+
+def _main(args: argparse.Namespace) -> int:
+    from mjxskill.training.render import default_gl
+
+    default_gl()  # before anything imports mujoco
+    from mjxskill.training.report import front_table
+    from mjxskill.training.run_dir import Run
+    from mjxskill.training.selection import choose, export_document, write_export
+
+    run = Run(args.run)
+    config = run.config()
+    if config.repeats > 1:
+        raise CommandError(f"{run.path} holds {config.repeats} repeated runs; select from one of them, e.g. {run.sub_runs(config)[0].path}")
+    front = run.front(config)
+    if args.min_success is not None and args.min_success > 1:
+        raise CommandError(f"--min-success is a rate between 0 and 1, got {args.min_success}")
+    print(f"Pareto front of {run.path} ({len(front)} solutions):")
+    print(front_table(config, front))
+    if args.pick is None and args.max_force is None and args.min_success is None:
+        print("pick one with --pick K or a constraint (--max-force N, --min-success RATE)")
+        return 0
+    if args.pick is not None:
+        if args.pick >= len(front):
+            raise CommandError(f"--pick {args.pick}: the front has rows 0-{len(front) - 1}")
+        k = args.pick
+    else:
+        k = choose(front, args.max_force, args.min_success)
+    folder = args.out or run.path / f"selected-{k}"
+    doc = export_document(config, front, k, run.path)
+    for path in write_export(doc, folder):
+        print(f"wrote {path}")
+    print(f"chose Pareto solution {k}: " + ", ".join(f"{n} = {v['value']:.4g} {v['unit']}" for n, v in doc["parameters"].items()))
+    if args.no_render:
+        return 0
+
+    from mjxskill.engines import build_rollout
+    from mjxskill.training.render import RenderUnavailable, render_episode, render_world
+    from mjxskill.training.run_task import load_run_task
+
+    scn, task = load_run_task(run, config)
+    n_known = len(scn.robot.start_configs)
+    if args.config_index >= n_known:
+        raise CommandError(f"--config-index {args.config_index}: the task has known start configurations 0-{n_known - 1}")
+    rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
+    world = render_world(rollout, args.config_index, args.seed)
+    print(f"rendering from start configuration {args.config_index} ({config.engine} engine) ...", flush=True)
+    try:
+        paths = render_episode(rollout, front.params[k], world, folder / ("episode" if args.format == "mp4" else "frames"),
+                               args.format, *args.size)
+    except RenderUnavailable as err:
+        print(f"{build_parser().prog}: rendering skipped: {err}", file=sys.stderr)
+        return 1
+    print(f"wrote {paths[0]}" if len(paths) == 1 else f"wrote {len(paths)} frames to {paths[0].parent}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return cli.run(_main, build_parser(), argv)
+

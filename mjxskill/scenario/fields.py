@@ -1,0 +1,286 @@
+"""Reading a YAML file as data with every error naming the file, the key path and the line.
+
+``yaml.compose`` (safe, no tags executed) gives the node tree with start marks; a ``Field`` is
+one node plus its key path, and its accessors check types and report errors like
+``push.yaml: objects.Peg-1.mass (line 12): expected a number, got 'heavy'``.
+
+What is read is bounded before anything is built from it: files over ``MAX_BYTES`` are refused
+(a 20 MB scenario took 144 s and 1.8 GB to compose), the text must be UTF-8, only the plain
+YAML tags are accepted (``!kg`` or ``!!python/...`` name no value we know), and aliases may not
+expand the document beyond ``MAX_NODES`` nodes (a 1 KB "billion laughs" document is harmless
+as a node graph but explodes wherever it is walked or printed). The error class is the
+caller's: ``ScenarioError`` for scenarios, ``RunError`` for a run's ``config.yaml``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import yaml
+
+from mjxskill.errors import ScenarioError, UserError
+
+_constructor = yaml.constructor.SafeConstructor()
+
+MAX_BYTES = 1 << 20  # the shipped scenarios are about 10 KB
+MAX_NODES = 100_000  # nodes after alias expansion; the shipped scenarios have about 2,000
+_STANDARD = "tag:yaml.org,2002:"
+# What the safe loader resolves plain values to, plus the two collections.
+ALLOWED_TAGS = frozenset(_STANDARD + t for t in ("null", "bool", "int", "float", "str", "timestamp", "seq", "map"))
+
+
+def read_text(path: Path, error: type[UserError] = ScenarioError, what: str = "scenario file") -> str:
+    """The UTF-8 text of ``path``, at most ``MAX_BYTES`` long; ``error`` names the problem."""
+    source = str(path)
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(MAX_BYTES + 1)  # bounded even for a file that grows or a device
+    except OSError as err:
+        raise error(f"{source}: cannot read the {what} ({err.strerror})") from None
+    if len(data) > MAX_BYTES:
+        raise error(f"{source}: the {what} is larger than {MAX_BYTES // 1024} KiB; refusing to read it")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = data[: err.start].count(b"\n") + 1
+        column = err.start - (data.rfind(b"\n", 0, err.start) + 1) + 1
+        raise error(f"{source} (line {line}, column {column}): byte 0x{data[err.start]:02x} is not UTF-8 text") from None
+
+
+def compose_file(path: Path, error: type[UserError] = ScenarioError, what: str = "scenario file") -> "Field":
+    """The document in ``path`` as a root Field. Raises ``error`` for unreadable YAML."""
+    return compose_text(read_text(path, error, what), str(path), error)
+
+
+def compose_text(text: str, source: str, error: type[UserError] = ScenarioError) -> "Field":
+    """The YAML document ``text`` (read from ``source``) as a root Field, checked for tags and
+    alias expansion; raises ``error`` naming ``source`` and the line."""
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as err:
+        raise error(f"{source}{_mark(err, text)}: not valid YAML: {_problem(err)}") from None
+    if node is None:
+        raise error(f"{source}: the file is empty")
+    _check_nodes(node, source, error)
+    return Field(node, "", source, error=error)
+
+
+def _mark(err: yaml.YAMLError, text: str) -> str:
+    mark = getattr(err, "problem_mark", None)
+    if mark is not None:
+        return f" (line {mark.line + 1}, column {mark.column + 1})"
+    position = getattr(err, "position", None)  # a ReaderError (a control character) has no mark
+    if isinstance(position, int):
+        return f" (line {text.count(chr(10), 0, position) + 1})"
+    return ""
+
+
+def _problem(err: yaml.YAMLError) -> str:
+    if isinstance(err, yaml.reader.ReaderError):  # str(err) would name "<unicode string>"
+        code = err.character if isinstance(err.character, int) else ord(err.character)
+        return f"the character #x{code:04x} is not allowed in YAML ({err.reason})"
+    return _one_line(getattr(err, "problem", None) or err)
+
+
+def _finite(value: int | float) -> bool:
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an integer too large for a float (10**400)
+        return False
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _check_nodes(root: yaml.Node, source: str, error: type[UserError]) -> None:
+    """Refuses unknown tags and documents whose aliases expand beyond MAX_NODES nodes; the
+    error names the key path and line like ``Field.where``.
+
+    Sizes are counted once per distinct node (aliases share nodes), so this is linear in the
+    text even for a document built to explode."""
+    size: dict[int, int] = {}
+    active: set[int] = set()
+
+    def fail(node: yaml.Node, path: str, message: str):
+        raise error(f"{source}: {path or '<top level>'} (line {node.start_mark.line + 1}): {message}")
+
+    # Iterative post-order walk: a deep document must not hit Python's recursion limit.
+    stack: list[tuple[yaml.Node, str, bool]] = [(root, "", False)]
+    while stack:
+        node, path, done = stack.pop()
+        key = id(node)
+        if done:
+            active.discard(key)
+            size[key] = 1 + sum(size[id(child)] for child, _ in _children(node, path))
+            if size[key] > MAX_NODES:
+                fail(node, path, f"expands to more than {MAX_NODES} values (YAML aliases *name repeat what they "
+                                 "point to); refusing the document")
+            continue
+        if key in size:
+            continue
+        if key in active:
+            fail(node, path, "an alias refers to the list or mapping it is in")
+        if node.tag not in ALLOWED_TAGS:
+            tag = "!!" + node.tag[len(_STANDARD):] if node.tag.startswith(_STANDARD) else node.tag
+            fail(node, path, f"the YAML tag {tag} is not supported: write plain numbers, text, true/false, lists and mappings")
+        active.add(key)
+        stack.append((node, path, True))
+        stack.extend((child, child_path, False) for child, child_path in _children(node, path) if id(child) not in size)
+
+
+def _children(node: yaml.Node, path: str) -> list[tuple[yaml.Node, str]]:
+    """The child nodes of a collection with their key paths (a mapping's keys too)."""
+    if isinstance(node, yaml.MappingNode):
+        out = []
+        for key, value in node.value:
+            name = key.value if isinstance(key, yaml.ScalarNode) else "?"
+            child = f"{path}.{name}" if path else str(name)
+            out += [(key, child), (value, child)]
+        return out
+    if isinstance(node, yaml.SequenceNode):
+        return [(child, f"{path}[{i}]") for i, child in enumerate(node.value)]
+    return []
+
+
+class Field:
+    """One YAML node with its key path (e.g. ``robot.start_configs[2]``) and source file."""
+
+    def __init__(self, node: yaml.Node, path: str, source: str, key_node: yaml.Node | None = None,
+                 error: type[UserError] = ScenarioError):
+        self.node = node
+        self.path = path
+        self.source = source
+        self.key_node = key_node  # for a mapping entry: errors point at its key's line
+        self.error = error
+
+    @property
+    def line(self) -> int:
+        return (self.key_node or self.node).start_mark.line + 1
+
+    # -- errors -------------------------------------------------------------------------------
+    def where(self) -> str:
+        return f"{self.source}: {self.path or '<top level>'} (line {self.line})"
+
+    def fail(self, message: str):
+        raise self.error(f"{self.where()}: {message}")
+
+    def _child(self, node: yaml.Node, path: str, key_node: yaml.Node | None = None) -> "Field":
+        return Field(node, path, self.source, key_node, self.error)
+
+    def _child_path(self, key) -> str:
+        if isinstance(key, int):
+            return f"{self.path}[{key}]"
+        return f"{self.path}.{key}" if self.path else str(key)
+
+    # -- containers ---------------------------------------------------------------------------
+    def items(self) -> list[tuple[str, "Field"]]:
+        """Key/value pairs of a mapping with string keys, in file order; duplicates rejected."""
+        if not isinstance(self.node, yaml.MappingNode):
+            self.fail(f"expected a mapping, got {self._describe()}")
+        seen: dict[str, int] = {}
+        pairs = []
+        for key_node, value_node in self.node.value:
+            key = self._child(key_node, self.path).scalar()
+            if not isinstance(key, str):
+                self._child(key_node, self._child_path(key)).fail(f"keys must be names, got {key!r}")
+            if key in seen:
+                self._child(key_node, self._child_path(key)).fail(
+                    f"duplicate key {key!r} (first on line {seen[key]})"
+                )
+            seen[key] = key_node.start_mark.line + 1
+            pairs.append((key, self._child(value_node, self._child_path(key), key_node)))
+        return pairs
+
+    def mapping(self, required: tuple[str, ...] = (), optional: tuple[str, ...] = ()) -> dict[str, "Field"]:
+        """The mapping's fields; every ``required`` key present, no key outside both lists."""
+        fields = dict(self.items())
+        allowed = set(required) | set(optional)
+        for key, field in fields.items():
+            if key not in allowed:
+                field.fail(f"unknown key {key!r}; expected one of {sorted(allowed)}")
+        for key in required:
+            if key not in fields:
+                self.fail(f"missing key {key!r}")
+        return fields
+
+    def seq(self) -> list["Field"]:
+        if not isinstance(self.node, yaml.SequenceNode):
+            self.fail(f"expected a list, got {self._describe()}")
+        return [self._child(n, self._child_path(i)) for i, n in enumerate(self.node.value)]
+
+    # -- scalars ------------------------------------------------------------------------------
+    def scalar(self):
+        if not isinstance(self.node, yaml.ScalarNode):
+            self.fail(f"expected a single value, got {self._describe()}")
+        try:
+            return _constructor.construct_object(self.node)
+        except Exception as err:  # noqa: BLE001  (e.g. !!float abc, !!bool maybe: any failure is a bad value)
+            text = self.node.value if len(self.node.value) <= 60 else self.node.value[:57] + "..."
+            self.fail(f"cannot read {text!r} as {self.node.tag.rpartition(':')[2]}: {_one_line(err)[:200]}")
+
+    def is_null(self) -> bool:
+        return isinstance(self.node, yaml.ScalarNode) and self.node.tag.endswith(":null")
+
+    def string(self, choices=None) -> str:
+        value = self.scalar()
+        if not isinstance(value, str) or not value:
+            self.fail(f"expected a name (text), got {value!r}")
+        if choices is not None and value not in choices:
+            self.fail(f"{value!r} is not one of {sorted(choices)}")
+        return value
+
+    def boolean(self) -> bool:
+        value = self.scalar()
+        if not isinstance(value, bool):
+            self.fail(f"expected true or false, got {value!r}")
+        return value
+
+    def number(self, positive: bool = False, nonnegative: bool = False, maximum: float | None = None) -> float:
+        value = self.scalar()
+        if isinstance(value, str) and self.node.style is None:
+            try:  # YAML 1.1 reads an exponent without a dot (1e300, 5e-3) as text; it means a number
+                value = float(value)
+            except ValueError:
+                pass
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            self.fail(f"expected a number, got {value!r}")
+        if not _finite(value):
+            self.fail(f"expected a finite number, got {value!r}")
+        if positive and value <= 0:
+            self.fail(f"expected a positive number, got {value!r}")
+        if nonnegative and value < 0:
+            self.fail(f"expected a number >= 0, got {value!r}")
+        if maximum is not None and value > maximum:
+            self.fail(f"expected a number <= {maximum:g}, got {value!r}")
+        return float(value)
+
+    def integer(self, minimum: int | None = None, maximum: int | None = None) -> int:
+        value = self.scalar()
+        if isinstance(value, bool) or not isinstance(value, int):
+            self.fail(f"expected an integer, got {value!r}")
+        if minimum is not None and value < minimum:
+            self.fail(f"expected an integer >= {minimum}, got {value!r}")
+        if maximum is not None and value > maximum:
+            self.fail(f"expected an integer <= {maximum}, got {value!r}")
+        return value
+
+    def vector(self, length: int | None = None) -> tuple[float, ...]:
+        items = self.seq()
+        if length is not None and len(items) != length:
+            self.fail(f"expected a list of {length} numbers, got {len(items)}")
+        return tuple(item.number() for item in items)
+
+    def matrix(self, columns: int) -> tuple[tuple[float, ...], ...]:
+        return tuple(row.vector(columns) for row in self.seq())
+
+    def strings(self) -> tuple[str, ...]:
+        return tuple(item.string() for item in self.seq())
+
+    def _describe(self) -> str:
+        if isinstance(self.node, yaml.MappingNode):
+            return "a mapping"
+        if isinstance(self.node, yaml.SequenceNode):
+            return "a list"
+        return repr(self.scalar())

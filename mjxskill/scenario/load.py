@@ -1,0 +1,302 @@
+"""Loading and validating a scenario YAML (the digital twin) into an immutable ``Scenario``.
+
+``load_scenario("push")`` reads ``assets/scenarios/push.yaml``; ``load_scenario(path)`` any file.
+Every invalid file fails with one ``ScenarioError`` naming the file, the key path and the line.
+Loading plans nothing: ``mjxskill.task.plan_task`` turns a goal into a plan, an eBT and the
+learnable parameters. This module reads the top level, the PDDL vocabulary (types,
+predicates, relations), the robot and the objects; ``skills`` and ``sections`` read the rest.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from mjxskill.errors import GoalError, ScenarioError
+from mjxskill.planner.world_pddl import check_atom, goal_literals, parse_literal
+from mjxskill.scenario.fields import Field, compose_file
+from mjxskill.scenario.scene_refs import check_scene
+from mjxskill.scenario.schema import MAX_EPISODE_SECONDS, Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping
+from mjxskill.scenario.sections import optimizer, randomization, rewards, success
+from mjxskill.scenario.skills import manual_parameters, skill
+
+SCENARIO_DIR = Path(__file__).resolve().parents[2] / "assets" / "scenarios"
+
+__all__ = ["SCENARIO_DIR", "ScenarioError", "available_scenarios", "load_scenario", "scenario_path"]
+
+
+def available_scenarios() -> tuple[str, ...]:
+    return tuple(sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml")))
+
+
+def scenario_path(name_or_path: str | Path) -> Path:
+    """``"push"`` -> assets/scenarios/push.yaml; a path (with a suffix or a slash) as given."""
+    text = str(name_or_path)
+    if isinstance(name_or_path, Path) or text.endswith((".yaml", ".yml")) or "/" in text or "\\" in text:
+        return Path(name_or_path)
+    path = SCENARIO_DIR / f"{text}.yaml"
+    if not path.exists():
+        raise ScenarioError(
+            f"unknown task {text!r}: no {path.name} in {SCENARIO_DIR} "
+            f"(available: {', '.join(available_scenarios()) or 'none'}); pass a YAML path for your own"
+        )
+    return path
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Reads and validates a scenario.
+
+    name_or_path: a scenario name ("push", "peg") or the path of a YAML file.
+    """
+    path = scenario_path(name_or_path)
+    root = compose_file(path)
+    top = root.mapping(
+        required=(
+            "name", "scene", "gravity", "episode_seconds", "bt_hz", "control_hz", "types", "predicates",
+            "robot", "objects", "skills", "goal", "objectives", "rewards", "success", "randomization",
+            "optimizer",
+        ),
+        optional=("manual_parameters",),
+    )
+    types = _types(top["types"])
+    predicates = _predicates(top["predicates"], types)
+    robot_field = top["robot"]
+    objects_field = top["objects"]
+    # PDDL names first: relations of any object may mention any other.
+    names = _object_names(robot_field, objects_field, types)
+    robot = _robot(robot_field, types, predicates, names)
+    objects = frozen_mapping(
+        (name, _object(name, field, types, predicates, names)) for name, field in objects_field.items()
+    )
+    skills = frozen_mapping((name, skill(name, field, types, predicates)) for name, field in top["skills"].items())
+    if not skills:
+        top["skills"].fail("the skill library is empty")
+    object_names = set(objects)
+    objectives = top["objectives"].strings()
+    _no_duplicates(top["objectives"], objectives, "objective")
+    bt_hz = top["bt_hz"].integer(minimum=1)
+    control_hz = top["control_hz"].integer(minimum=1)
+    if control_hz % bt_hz:
+        top["control_hz"].fail(f"control_hz {control_hz} must be a multiple of bt_hz {bt_hz}")
+    name = top["name"].string()
+    if not name.replace("-", "").replace("_", "").isalnum():
+        top["name"].fail(f"{name!r} is not usable as a PDDL name (letters, digits, - and _)")
+    scn = Scenario(
+        name=name,
+        source=str(path),
+        scene=str((path.parent / top["scene"].string()).resolve()),
+        gravity=top["gravity"].boolean(),
+        episode_seconds=top["episode_seconds"].number(positive=True, maximum=MAX_EPISODE_SECONDS),
+        bt_hz=bt_hz,
+        control_hz=control_hz,
+        types=types,
+        predicates=predicates,
+        objects=objects,
+        robot=robot,
+        skills=skills,
+        goal=top["goal"].string(),
+        rewards=rewards(top["rewards"], objectives, object_names),
+        objective_names=tuple(objectives),
+        success=success(top["success"], object_names),
+        randomization=randomization(top["randomization"], object_names),
+        optimizer=optimizer(top["optimizer"]),
+        manual_parameters=manual_parameters(top.get("manual_parameters"), skills),
+        locations=frozen_mapping(_locations(top, robot_field, objects_field)),
+    )
+    try:  # the goal's syntax and names (planning it is mjxskill.task's)
+        goal_literals(scn, scn.goal)
+    except GoalError as err:
+        top["goal"].fail(str(err))
+    refs = _scene_fields(top, robot_field, objects_field)
+    check_scene(Path(scn.scene), refs.pop("scene"), refs.pop("robot.tool_site"), refs)
+    return scn
+
+
+def _scene_fields(top, robot: Field, objects: Field) -> dict[str, Field]:
+    """The scene and the entries naming things in it: key path -> Field."""
+    fields = {"scene": top["scene"], "robot.tool_site": robot.mapping(optional=_ROBOT_KEYS)["tool_site"]}
+    for name, field in objects.items():
+        entries = field.mapping(optional=_OBJECT_KEYS)
+        if "mjcf_body" in entries:
+            fields[f"objects.{name}.mjcf_body"] = entries["mjcf_body"]
+    return fields
+
+
+def _locations(top, robot: Field, objects: Field) -> dict[str, str]:
+    fields = {"goal": top["goal"], **_scene_fields(top, robot, objects)}
+    return {key: f.where() for key, f in fields.items()}
+
+
+# -- sections ---------------------------------------------------------------------------------
+def _no_duplicates(field: Field, names, what: str) -> None:
+    seen = set()
+    for item, name in zip(field.seq(), names):
+        if name.lower() in seen:
+            item.fail(f"duplicate {what} name {name!r}")
+        seen.add(name.lower())
+
+
+def _pddl_name(field: Field, name: str) -> str:
+    if not name.replace("-", "").replace("_", "").isalnum() or not name[0].isalpha():
+        field.fail(f"{name!r} is not a PDDL name (a letter, then letters, digits, - or _)")
+    return name.lower()
+
+
+def _types(field: Field):
+    parents = {}
+    for name, parent in field.items():
+        key = _pddl_name(parent, name)
+        if key == "object":
+            parent.fail("'object' is PDDL's root type; name your types differently")
+        if key in parents:
+            parent.fail(f"duplicate type {name!r}")
+        parents[key] = None if parent.is_null() else parent.string().lower()
+    for (name, parent), (_, parent_field) in zip(parents.items(), field.items()):
+        if parent is not None and parent not in parents:
+            parent_field.fail(f"unknown parent type {parent!r} (types: {', '.join(parents)})")
+        seen = {name}
+        while parent is not None:  # a cycle would make every type its own ancestor
+            if parent in seen:
+                parent_field.fail(f"type {name!r} is its own ancestor")
+            seen.add(parent)
+            parent = parents[parent]
+    return frozen_mapping(parents)
+
+
+def _predicates(field: Field, types):
+    predicates = {}
+    for name, args in field.items():
+        key = _pddl_name(args, name)
+        if key in predicates:
+            args.fail(f"duplicate predicate {name!r}")
+        arg_types = tuple(t.lower() for t in args.strings())
+        for item, type_ in zip(args.seq(), arg_types):
+            if type_ not in types:
+                item.fail(f"unknown type {type_!r} (types: {', '.join(types)})")
+        predicates[key] = arg_types
+    return frozen_mapping(predicates)
+
+
+def _object_names(robot: Field, objects: Field, types) -> dict[str, str]:
+    """PDDL name -> type of every object and the robot; names unique ignoring case."""
+    robot_fields = robot.mapping(required=_ROBOT_KEYS[:-1], optional=("relations",))
+    entries = [(robot_fields["name"].string(), robot_fields["name"], robot_fields["type"])]
+    for name, field in objects.items():
+        fields = field.mapping(required=("type", "shape", "size", "pose"), optional=_OBJECT_KEYS)
+        entries.append((name, field, fields["type"]))
+    names: dict[str, str] = {}
+    for name, where, type_field in entries:
+        key = _pddl_name(where, name)
+        if key in names:
+            where.fail(f"duplicate name {name!r}: object names must differ in more than case")
+        type_ = type_field.string().lower()
+        if type_ not in types:
+            type_field.fail(f"unknown type {type_!r} (types: {', '.join(types)})")
+        names[key] = type_
+    return names
+
+
+def _relations(field: Field | None, types, predicates, names) -> tuple[str, ...]:
+    if field is None:
+        return ()
+    relations = []
+    for item in field.seq():
+        text = item.string()
+        literal = parse_literal(text)
+        if literal is None or not literal[0]:
+            item.fail(f"{text!r} is not a PDDL fact like (pushable box-1)")
+        problem = check_atom(literal[1], literal[2], predicates, types, names)
+        if problem:
+            item.fail(problem)
+        relations.append(f"({' '.join((literal[1], *literal[2]))})")
+    return tuple(relations)
+
+
+_ROBOT_KEYS = (
+    "name", "type", "tool_site", "home", "joint_limits_deg", "nullspace_stiffness", "default_stiffness",
+    "start_configs", "eval_configs", "relations",
+)
+
+
+def _configs(field: Field, limits: np.ndarray, at_least: int) -> np.ndarray:
+    rows = field.matrix(7)
+    if len(rows) < at_least:
+        field.fail(f"expected at least {at_least} configurations of 7 joint angles (rad), got {len(rows)}")
+    for i, row in enumerate(rows):
+        for j, q in enumerate(row):
+            if abs(q) > limits[j]:
+                field.seq()[i].seq()[j].fail(
+                    f"joint {j + 1} angle {q} rad is outside the joint limit +-{limits[j]:.4f} rad"
+                )
+    return frozen_array(rows)
+
+
+def _robot(field: Field, types, predicates, names) -> Robot:
+    f = field.mapping(required=_ROBOT_KEYS[:-1], optional=("relations",))
+    limits_deg = np.array(f["joint_limits_deg"].vector(7))
+    if np.any(limits_deg <= 0):
+        f["joint_limits_deg"].fail("joint limits must be positive (degrees, symmetric)")
+    limits = np.deg2rad(limits_deg)
+    home = _configs_row(f["home"], limits)
+    return Robot(
+        name=f["name"].string(),
+        type=f["type"].string().lower(),
+        tool_site=f["tool_site"].string(),
+        home=home,
+        joint_limits=frozen_array([-limits, limits]),
+        start_configs=_configs(f["start_configs"], limits, 1),
+        eval_configs=_configs(f["eval_configs"], limits, 0),
+        nullspace_stiffness=f["nullspace_stiffness"].number(nonnegative=True),
+        default_stiffness=_nonnegative_vector(f["default_stiffness"], 6),
+        relations=_relations(f.get("relations"), types, predicates, names),
+    )
+
+
+def _configs_row(field: Field, limits) -> np.ndarray:
+    values = field.vector(7)
+    for j, q in enumerate(values):
+        if abs(q) > limits[j]:
+            field.seq()[j].fail(f"joint {j + 1} angle {q} rad is outside the joint limit +-{limits[j]:.4f} rad")
+    return frozen_array(values)
+
+
+def _nonnegative_vector(field: Field, length: int) -> np.ndarray:
+    values = field.vector(length)
+    for item, v in zip(field.seq(), values):
+        if v < 0:
+            item.fail(f"expected a value >= 0, got {v}")
+    return frozen_array(values)
+
+
+_OBJECT_KEYS = (
+    "type", "mjcf_body", "shape", "size", "mass", "friction", "com_offset", "pose", "approach_offset",
+    "extra", "relations",
+)
+
+
+def _object(name: str, field: Field, types, predicates, names) -> WorldObject:
+    f = field.mapping(required=("type", "shape", "size", "pose"), optional=_OBJECT_KEYS)
+    pose = f["pose"].mapping(required=("position", "rpy_deg"))
+    size = f["size"].vector()
+    for item, v in zip(f["size"].seq(), size):
+        if v < 0:
+            item.fail(f"sizes are lengths >= 0 (m), got {v}")
+    optional_number = lambda key: None if key not in f or f[key].is_null() else f[key].number(positive=True)  # noqa: E731
+    extra = f["extra"].items() if "extra" in f else []
+    return WorldObject(
+        name=name,
+        type=f["type"].string().lower(),
+        pose=Pose(frozen_array(pose["position"].vector(3)), frozen_array(pose["rpy_deg"].vector(3))),
+        mjcf_body=None if "mjcf_body" not in f or f["mjcf_body"].is_null() else f["mjcf_body"].string(),
+        shape=f["shape"].string(),
+        size=frozen_array(size),
+        mass=optional_number("mass"),
+        friction=optional_number("friction"),
+        com_offset=frozen_array(f["com_offset"].vector(3) if "com_offset" in f else (0.0, 0.0, 0.0)),
+        approach_offset=frozen_array(f["approach_offset"].vector(3) if "approach_offset" in f else (0.0, 0.0, 0.0)),
+        extra=frozen_mapping((k, v.number()) for k, v in extra),
+        relations=_relations(f.get("relations"), types, predicates, names),
+    )
+
+

@@ -1,0 +1,107 @@
+"""The task sections of a scenario YAML: rewards, success test, randomization, optimizer."""
+
+from __future__ import annotations
+
+from mjxskill.scenario.fields import Field
+from mjxskill.scenario.schema import (
+    REQUIRED,
+    MAX_SEED,
+    MIN_N_INIT,
+    REWARD_KINDS,
+    Optimizer,
+    Randomization,
+    Reward,
+    Success,
+    frozen_array,
+    frozen_mapping,
+)
+
+
+def rewards(field: Field, objectives, object_names) -> tuple[Reward, ...]:
+    """``rewards``: a list of terms, each of a kind of ``REWARD_KINDS`` with that kind's
+    constants (defaults filled in) and the object keys it needs."""
+    terms, used = [], set()
+    for item in field.seq():
+        f = item.mapping(
+            required=("name", "kind", "objective", "weight"), optional=("constants", "object", "target", "target_offset")
+        )
+        name = f["name"].string()
+        if name in {r.name for r in terms}:
+            f["name"].fail(f"duplicate reward name {name!r}")
+        kind = f["kind"].string(choices=REWARD_KINDS)
+        spec = REWARD_KINDS[kind]
+        objective = f["objective"].string()
+        if objective not in objectives:
+            f["objective"].fail(f"unknown objective {objective!r} (objectives: {', '.join(objectives)})")
+        used.add(objective)
+        required = tuple(k for k, default in spec.constants.items() if default is REQUIRED)
+        optional = tuple(k for k, default in spec.constants.items() if default is not REQUIRED)
+        if "constants" in f:
+            given = f["constants"].mapping(required=required, optional=optional)
+        elif required:
+            item.fail(f"missing key 'constants' ({kind} needs {', '.join(required)})")
+        else:
+            given = {}
+        constants = {k: spec.constants[k] for k in optional} | {k: v.number() for k, v in given.items()}
+        for key in ("object", "target"):
+            if key in f and f[key].string() not in object_names:
+                f[key].fail(f"unknown object {f[key].string()!r} (objects: {', '.join(sorted(object_names))})")
+        missing = [key for key in spec.needs if key not in f]
+        if missing:
+            item.fail(f"{kind} needs {' and '.join(repr(k) for k in missing)} (an object name)")
+        terms.append(
+            Reward(
+                name, kind, f["weight"].number(), objective, frozen_mapping(constants),
+                f["object"].string() if "object" in f else None,
+                f["target"].string() if "target" in f else None,
+                frozen_array(f["target_offset"].vector(3)) if "target_offset" in f else None,
+            )
+        )
+    for objective in objectives:
+        if objective not in used:
+            field.fail(f"objective {objective!r} has no reward")
+    return tuple(terms)
+
+
+def success(field: Field, object_names) -> Success:
+    kind = field.mapping(required=("kind",), optional=("object", "target", "position_tolerance", "orientation_tolerance_deg", "depth"))["kind"].string(choices=("object_at_pose", "inserted"))
+    extra = ("position_tolerance", "orientation_tolerance_deg") if kind == "object_at_pose" else ("depth",)
+    f = field.mapping(required=("kind", "object", "target", *extra))
+    for key in ("object", "target"):
+        if f[key].string() not in object_names:
+            f[key].fail(f"unknown object {f[key].string()!r} (objects: {', '.join(sorted(object_names))})")
+    values = {key: f[key].number(positive=True) for key in extra}
+    return Success(kind, f["object"].string(), f["target"].string(), **values)
+
+
+def randomization(field: Field, object_names) -> Randomization:
+    f = field.mapping(required=("n_worlds", "xy_sigma"), optional=("clip_sigmas", "friction_range"))
+    sigma = {}
+    for name, value in f["xy_sigma"].items():
+        if name not in object_names:
+            value.fail(f"unknown object {name!r} (objects: {', '.join(sorted(object_names))})")
+        sigma[name] = value.number(nonnegative=True)
+    clip = None if "clip_sigmas" not in f or f["clip_sigmas"].is_null() else f["clip_sigmas"].number(positive=True)
+    friction = None
+    if "friction_range" in f and not f["friction_range"].is_null():
+        low, high = f["friction_range"].vector(2)
+        if not 0 <= low <= high:
+            f["friction_range"].fail(f"expected 0 <= low <= high, got [{low}, {high}]")
+        friction = (low, high)
+    return Randomization(frozen_mapping(sigma), clip, friction, f["n_worlds"].integer(minimum=1))
+
+
+def optimizer(field: Field) -> Optimizer:
+    f = field.mapping(required=("budget", "batch_size", "n_init", "seed", "repetitions"))
+    opt = Optimizer(
+        budget=f["budget"].integer(minimum=1),
+        batch_size=f["batch_size"].integer(minimum=1),
+        n_init=f["n_init"].integer(minimum=MIN_N_INIT),
+        seed=f["seed"].integer(minimum=0, maximum=MAX_SEED),
+        repetitions=f["repetitions"].integer(minimum=1),
+    )
+    if opt.n_init > opt.budget:
+        f["n_init"].fail(f"n_init {opt.n_init} exceeds the budget {opt.budget}")
+    return opt
+
+

@@ -1,0 +1,122 @@
+"""The skill library and the operators' parameter sets of a scenario YAML."""
+
+from __future__ import annotations
+
+from mjxskill.ebt.from_plan import EXPANSIONS
+from mjxskill.planner.world_pddl import check_atom, parse_literal
+from mjxskill.scenario.fields import Field
+from mjxskill.scenario.schema import ManualSet, Skill, SkillParameter, frozen_mapping
+
+
+def skill(name: str, field: Field, types, predicates) -> Skill:
+    """One entry of ``skills``: its parameters and PDDL conditions, checked against what the
+    skill's expansion into an eBT reads (``mjxskill.ebt.from_plan.EXPANSIONS``)."""
+    if name not in EXPANSIONS:
+        field.fail(f"unknown skill {name!r}: no expansion into a behavior tree (known: {', '.join(EXPANSIONS)})")
+    f = field.mapping(required=("parameters", "preconditions", "postconditions"), optional=("holdconditions",))
+    parameters = []
+    for pname, pfield in f["parameters"].items():
+        parameters.append(_skill_parameter(pname, pfield, types))
+    by_name = {p.name: p for p in parameters}
+    for needed, kind in EXPANSIONS[name][1].items():
+        if needed not in by_name:
+            f["parameters"].fail(f"skill {name} needs a parameter {needed!r} ({kind})")
+        p = by_name[needed]
+        if kind == "float" and p.type != "float" or kind == "vector6" and (p.type != "vector" or len(p.default) != 6):
+            f["parameters"].items()[list(by_name).index(needed)][1].fail(
+                f"skill {name} reads {needed!r} as a {'6-vector' if kind == 'vector6' else 'number'}"
+            )
+    variables = {f"?{p.name.lower()}": p.type for p in parameters if p.plan}
+    conditions = {}
+    for key in ("preconditions", "holdconditions", "postconditions"):
+        texts = []
+        for item in f[key].seq() if key in f else []:
+            text = item.string()
+            literal = parse_literal(text)
+            if literal is None:
+                item.fail(f"{text!r} is not a PDDL literal like (at ?peg ?box) or (not (at ?peg ?box))")
+            problem = check_atom(literal[1], literal[2], predicates, types, variables, what="parameter")
+            if problem:
+                item.fail(f"{problem} (plan parameters: {', '.join(variables) or 'none'})")
+            texts.append(text)
+        conditions[key] = tuple(texts)
+    if not conditions["postconditions"]:
+        f["postconditions"].fail(f"skill {name} has no postconditions, so no plan can use it")
+    return Skill(name, tuple(parameters), conditions["preconditions"], conditions["holdconditions"], conditions["postconditions"])
+
+
+def _skill_parameter(name: str, field: Field, types) -> SkillParameter:
+    f = field.mapping(optional=("type", "plan", "unit", "default", "bounds", "learnable", "description"))
+    if "type" not in f:
+        field.fail("missing key 'type'")
+    plan = f["plan"].boolean() if "plan" in f else False
+    description = f["description"].string() if "description" in f else ""
+    if plan:
+        type_ = f["type"].string().lower()
+        if type_ not in types:
+            f["type"].fail(f"unknown type {type_!r} for a plan parameter (types: {', '.join(types)})")
+        for key in ("default", "bounds", "learnable"):
+            if key in f:
+                f[key].fail(f"a plan parameter (set by the planner) has no {key}")
+        return SkillParameter(name, type_, True, description=description)
+    type_ = f["type"].string(choices=("float", "vector"))
+    unit = f["unit"].string() if "unit" in f else ""
+    if "default" not in f:
+        field.fail("missing key 'default'")
+    learnable = f["learnable"].boolean() if "learnable" in f else False
+    if type_ == "vector":
+        if learnable or "bounds" in f:
+            field.fail("vector parameters cannot be learnable")
+        return SkillParameter(name, type_, False, unit, f["default"].vector(), None, False, description)
+    default = f["default"].number()
+    bounds = None
+    if "bounds" in f:
+        lower, upper = f["bounds"].vector(2)
+        if lower > upper:
+            f["bounds"].fail(f"lower bound {lower} is above the upper bound {upper}")
+        if not lower <= default <= upper:
+            f["default"].fail(f"default {default} is outside the bounds [{lower}, {upper}]")
+        bounds = (lower, upper)
+    if learnable and bounds is None:
+        field.fail("a learnable parameter needs bounds: [lower, upper]")
+    if learnable and bounds[0] == bounds[1]:
+        f["bounds"].fail(f"bounds [{bounds[0]:g}, {bounds[1]:g}] leave a learnable parameter nothing to learn; "
+                         f"widen them or set learnable: false")
+    return SkillParameter(name, type_, False, unit, default, bounds, learnable, description)
+
+
+def manual_parameters(field: Field | None, skills) -> dict:
+    """``manual_parameters``: set name -> ManualSet. Each value names a learnable parameter of a
+    skill of the library as the plan names it ("Push.offset_x_start", "Push#2.offset_x_start"
+    for a second use) and lies within that parameter's bounds. Whether a set fits a plan (names
+    exactly the plan's learnable parameters) is checked when a goal is planned
+    (``mjxskill.task``)."""
+    if field is None:
+        return frozen_mapping({})
+    sets = {}
+    for set_name, values_field in field.items():
+        values = {}
+        for key, item in values_field.items():
+            parameter = _learnable(key, skills)
+            if parameter is None:
+                learnable = [f"{s.name}.{p.name}" for s in skills.values() for p in s.parameters if p.learnable]
+                item.fail(f"{key!r} is not a learnable parameter of the skill library (learnable: {', '.join(learnable)})")
+            v = item.number()
+            lower, upper = parameter.bounds
+            if not lower <= v <= upper:
+                item.fail(f"{v} is outside the bounds [{lower}, {upper}] {parameter.unit}")
+            values[key] = v
+        sets[set_name] = ManualSet(frozen_mapping(values), values_field.where())
+    return frozen_mapping(sets)
+
+
+def _learnable(key: str, skills) -> SkillParameter | None:
+    """The learnable parameter that ``"<Skill>[#k].<parameter>"`` names, or None."""
+    label, dot, name = key.partition(".")
+    skill_name, _, use = label.partition("#")
+    if not dot or skill_name not in skills or (use and not (use.isdigit() and int(use) >= 2)):
+        return None
+    for p in skills[skill_name].parameters:
+        if p.name == name and p.learnable:
+            return p
+    return None

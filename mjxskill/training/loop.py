@@ -1,0 +1,118 @@
+"""The optimizer loop of a run: propose a batch, evaluate it, write it, repeat to the budget.
+
+Scenario -> plan -> eBT -> compiled rollout -> optimizer loop. Every batch is appended to
+``evaluations.csv`` and flushed before the next proposal; the optimizer state is replayed from
+that file on resume (see ``mjxskill.training.run_dir``), so an interrupted run continues to the
+same budget and ends with the results of an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple, Protocol
+
+import numpy as np
+
+from mjxskill.training.front import pareto_mask_of, reference_from
+from mjxskill.training.resume import resume_batches
+from mjxskill.training.run_config import optimizer_config
+from mjxskill.training.run_dir import OPTIMIZER_STATE, Evaluations, Run, RunConfig, batch_sizes, concat_all
+
+
+class BatchResult(NamedTuple):
+    """What one evaluated batch of B parameter sets gives: objectives (B, O), larger is better;
+    success_rate (B,) in [0, 1]; max_force (B,) N."""
+
+    objectives: np.ndarray
+    success_rate: np.ndarray
+    max_force: np.ndarray
+
+
+# (params (B, P) float64, batch index) -> BatchResult. Must be a pure function of its inputs:
+# resuming relies on a re-run batch giving the same numbers.
+BatchEvaluator = Callable[[np.ndarray, int], BatchResult]
+
+
+class Progress(Protocol):
+    """What the loop reports to (the command line's progress bar)."""
+
+    def start(self, ev: Evaluations, reference: np.ndarray | None) -> None: ...
+
+    def update(self, new: Evaluations, ev: Evaluations, reference: np.ndarray | None) -> None: ...
+
+    def close(self) -> None: ...
+
+
+def rollout_key(seed: int, iteration: int):
+    """PRNG key of batch ``iteration``'s worlds: depends only on (seed, batch index), so a
+    resumed run draws the same worlds. A stream separate from the optimizer's keys."""
+    import jax
+
+    return jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), 0x0ED0), iteration)
+
+
+def rollout_evaluator(rollout, batch_size: int, seed: int) -> BatchEvaluator:
+    """Evaluates batches with a compiled rollout, always at ``batch_size`` parameter sets (short
+    batches are padded with copies of their first row) so that a run compiles once."""
+
+    def evaluate(params: np.ndarray, iteration: int) -> BatchResult:
+        n = len(params)
+        padded = np.concatenate([params, np.repeat(params[:1], batch_size - n, axis=0)])
+        out = rollout(padded, rollout_key(seed, iteration))
+        success = np.asarray(out.success, np.float64)[:n]
+        return BatchResult(
+            objectives=np.asarray(out.objectives, np.float64)[:n],
+            success_rate=success.mean(axis=1),
+            max_force=np.asarray(out.metrics["max_force"], np.float64)[:n].mean(axis=1),
+        )
+
+    return evaluate
+
+
+def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Progress | None = None) -> Evaluations:
+    """Runs (or continues) the optimizer loop of ``run`` to ``config.budget`` evaluations.
+
+    The complete batches on disk are kept (``mjxskill.training.resume``: what cannot be used is
+    set aside, never dropped) and only the missing ones are evaluated. The optimizer state is
+    replayed batch by batch in batch order, so every proposal is the one an uninterrupted run
+    makes; each new batch is on disk before the next proposal. Returns all evaluations.
+    """
+    from mjxskill import gp
+
+    done = resume_batches(run, config)
+    shape = (len(config.parameter_names), len(config.objective_names))
+    state = gp.init(optimizer_config(config))
+    sizes = list(batch_sizes(config.budget, config.batch_size, config.n_init))
+    known = lambda: concat_all((done[b] for b in sorted(done)), *shape)  # noqa: E731  (in batch order)
+    ev = known()
+    if progress:
+        progress.start(ev, reference_from(run, config, ev))
+    for batch, size in enumerate(sizes):
+        if batch in done:  # replayed: the optimizer sees it where the uninterrupted run did
+            state = gp.tell(state, done[batch].params, -done[batch].objectives)
+            continue
+        x = gp.ask(state, num=size)
+        result = evaluate(x, batch)
+        new = done[batch] = Evaluations(np.full(len(x), batch), x, *(np.asarray(a, np.float64) for a in result))
+        ev = known()
+        if max(done) == batch:
+            run.append(new)  # on disk before anything else happens
+        else:  # filled in before batches already on disk: the file stays in batch order
+            run.write_evaluations(config, ev)
+        state = gp.tell(state, x, -new.objectives)
+        _save_state(gp, state, run.path / OPTIMIZER_STATE)
+        run.write_pareto(config, ev, pareto_mask_of(ev))
+        if progress:
+            progress.update(new, ev, reference_from(run, config, ev))
+    run.write_pareto(config, ev, pareto_mask_of(ev))
+    if progress:
+        progress.close()
+    return ev
+
+
+def _save_state(gp, state, path) -> None:
+    """The optimizer state, replaced in one step (a kill mid-write leaves the previous one)."""
+    import os
+
+    tmp = path.with_name(path.name + ".tmp")
+    gp.save_state(state, tmp)
+    os.replace(tmp, path)

@@ -1,0 +1,77 @@
+"""One writer per run directory: an exclusive ``fcntl`` lock on ``RUN_DIR/.lock``.
+
+Two ``train --resume`` of one run at once both replayed the file and both appended (6 rows for
+a budget of 4). The lock is taken before the evaluations are read and held until the command
+ends; a second writer fails at once with a ``RunError`` naming the holder (process id, host,
+start time, command line), which the holder wrote into the lock file. The kernel releases the
+lock when the holder exits, however it exits (a kill included), so a stale file never blocks.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import socket
+import sys
+import time
+from pathlib import Path
+
+LOCK_FILE = ".lock"
+
+
+class RunLock:
+    """A held lock; ``release()`` (or leaving the ``with`` block) lets the next writer in."""
+
+    def __init__(self, path: Path, fd: int):
+        self.path, self._fd = path, fd
+
+    def release(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)  # closing the descriptor drops the flock
+            self._fd = None
+
+    def __enter__(self) -> "RunLock":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+def lock_run(folder: Path) -> RunLock:
+    """Takes the writer's lock of the run in ``folder``; RunError if another process holds it."""
+    import fcntl
+
+    from mjxskill.errors import RunError
+
+    path = Path(folder) / LOCK_FILE
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as err:
+        raise RunError(f"cannot lock the run directory {str(folder)!r}: {err.strerror}") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as err:
+        holder = _holder(fd)
+        os.close(fd)
+        if err.errno in (errno.EWOULDBLOCK, errno.EACCES):
+            raise RunError(f"{folder} is being written by another process ({holder}); wait for it to end "
+                           f"or stop it, then run again") from None
+        raise RunError(f"cannot lock the run directory {str(folder)!r}: {err.strerror}") from None
+    info = {"pid": os.getpid(), "host": socket.gethostname(), "since": time.strftime("%Y-%m-%d %H:%M:%S"),
+            "command": " ".join([os.path.basename(sys.executable), *sys.argv])}
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
+    return RunLock(path, fd)
+
+
+def _holder(fd: int) -> str:
+    """What the holder wrote about itself (it writes right after locking: may still be empty)."""
+    try:
+        info = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
+        return f"pid {info['pid']} on {info['host']} since {info['since']}: {info['command']}"
+    except (ValueError, KeyError, TypeError, OSError):
+        return "a process that has not said who it is yet"
+
+
+__all__ = ["LOCK_FILE", "RunLock", "lock_run"]

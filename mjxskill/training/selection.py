@@ -1,0 +1,81 @@
+"""Picking a Pareto solution and exporting it (``python -m mjxskill.select``).
+
+A pick by constraint keeps the Pareto solutions within every given limit (``--max-force``: the
+largest feed-forward force the skills commanded in an episode, N, mean over the worlds; ``--min-success``) and takes the
+one with the highest success rate, ties broken by the first objective. The choice is written to
+``RUN_DIR/selected-<k>/parameters.yaml`` and ``parameters.json`` (parameter name -> value and
+unit, ready for a controller) and rendered there (PNG frames, or an MP4 with ffmpeg).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from mjxskill.errors import CommandError
+
+
+def choose(front, max_force: float | None = None, min_success: float | None = None) -> int:
+    """Row of ``front`` (Evaluations) meeting the limits with the best success rate, ties by
+    the first objective. Raises CommandError when no row meets them."""
+    ok = np.ones(len(front), bool)
+    # A NaN (a diverged world) meets no limit: it is not known to be within it.
+    if max_force is not None:
+        ok &= front.max_force <= max_force
+    if min_success is not None:
+        ok &= front.success_rate >= min_success
+    if not ok.any():
+        limits = ", ".join(f"{name} {value:g}" for name, value in (("--max-force", max_force), ("--min-success", min_success))
+                           if value is not None)
+        raise CommandError(f"no Pareto solution meets {limits or 'the limits'}: the front's {len(front)} rows have "
+                           f"peak forces {_span(front.max_force, '{:.1f}', ' N')} and success rates "
+                           f"{_span(front.success_rate, '{:.0%}', '')}")
+    rows = np.flatnonzero(ok)
+    order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows]))
+    return int(rows[order[0]])
+
+
+def _span(values: np.ndarray, fmt: str, unit: str) -> str:
+    finite = values[np.isfinite(values)]
+    text = f"{fmt.format(finite.min())}-{fmt.format(finite.max())}{unit}" if len(finite) else "unknown"
+    missing = len(values) - len(finite)
+    return text + (f" ({missing} not a number: a diverged world)" if missing else "")
+
+
+def export_document(config, front, k: int, run_path: Path) -> dict:
+    """The chosen solution as plain data (YAML/JSON)."""
+    return {
+        "task": config.task,
+        "goal": config.goal,
+        "run": str(run_path),
+        "pareto_index": k,
+        "parameters": {
+            name: {"value": float(v), "unit": unit}
+            for name, v, unit in zip(config.parameter_names, front.params[k], config.parameter_units)
+        },
+        "objectives": {name: float(v) for name, v in zip(config.objective_names, front.objectives[k])},
+        "success_rate": float(front.success_rate[k]),
+        "max_force_N": float(front.max_force[k]),
+        "evaluated_in": f"{config.worlds} randomized worlds, {config.episode_seconds:g} s episodes",
+    }
+
+
+def export_texts(doc: dict) -> dict[str, str]:
+    """File name -> text of the export of ``doc``."""
+    import yaml
+
+    return {"parameters.yaml": yaml.safe_dump(doc, sort_keys=False), "parameters.json": json.dumps(doc, indent=2) + "\n"}
+
+
+def write_export(doc: dict, folder: Path) -> list[Path]:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        paths = []
+        for name, text in export_texts(doc).items():
+            (folder / name).write_text(text)
+            paths.append(folder / name)
+    except OSError as err:
+        raise CommandError(f"cannot write the export to {str(folder)!r}: {err.strerror}") from None
+    return paths

@@ -1,0 +1,57 @@
+"""Running the commands in tests: in this process through their entry point (fast), or as a
+real ``python -m`` subprocess (what a user runs), and the shape every bad input must have."""
+
+import importlib
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def command(module, *args):
+    return [sys.executable, "-m", f"mjxskill.{module}", *map(str, args)]
+
+
+def subprocess_env(**extra) -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])  # this checkout first
+    env.update(extra)
+    return env
+
+
+def run_cli(module, *args, timeout=600, cwd=ROOT, **env):
+    """``python -m mjxskill.<module> args`` in a subprocess: CompletedProcess (text)."""
+    return subprocess.run(command(module, *args), cwd=cwd, capture_output=True, text=True, timeout=timeout,
+                          env=subprocess_env(**env))
+
+
+def invoke(capsys, module, *args):
+    """The command's entry point in this process (what ``python -m`` runs): (exit code, stderr)."""
+    main = importlib.import_module(f"mjxskill.{module}").main
+    try:
+        code = main([str(a) for a in args])
+    except SystemExit as exit_:  # argparse's own errors
+        code = exit_.code
+    return code, capsys.readouterr().err
+
+
+def error_line(code: int, stderr: str, prog: str, *fragments: str) -> str:
+    """Asserts exit code 2 and exactly one ``prog: error:`` line (no traceback) holding every
+    fragment; returns that line."""
+    assert code == 2, stderr
+    assert "Traceback" not in stderr, stderr
+    errors = [line for line in stderr.splitlines() if ": error:" in line]
+    assert len(errors) == 1 and errors[0].startswith(f"mjxskill.{prog}: error: "), stderr
+    for fragment in fragments:
+        assert fragment in errors[0], (fragment, errors[0])
+    return errors[0]
+
+
+def snapshot(folder: Path) -> dict:
+    """Every file below ``folder`` (relative path -> bytes) but the writer's lock (which says
+    who last wrote, mjxskill.training.run_lock): to show that nothing was changed."""
+    folder = Path(folder)
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name != ".lock"}
