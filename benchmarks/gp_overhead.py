@@ -4,7 +4,7 @@ Prints the first ask (compile + run) and the median of later asks in the same pa
 bucket (compiled), plus, as a yardstick of how loaded the machine is, the time of a numpy
 float64 Cholesky of the same padded size measured in the same run.
 
-    python benchmarks/gp_overhead.py [--n 400] [--d 4] [--q 8] [--repeats 5]
+    python benchmarks/gp_overhead.py [--n 400] [--d 4] [--q 8] [--repeats 5] [--option KEY=VALUE ...]
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import mjxskill  # noqa: E402,F401
 
-from mjxskill.gp import MOBOConfig, ask, init, tell  # noqa: E402
+from mjxskill.gp import MOBOConfig, acquisition_settings, ask, init, tell  # noqa: E402
 
 
 def main(argv=None):
@@ -30,9 +30,16 @@ def main(argv=None):
     ap.add_argument("--d", type=int, default=4)
     ap.add_argument("--q", type=int, default=8)
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                    help="acquisition setting of mjxskill.gp (repeatable), e.g. model=per_objective")
     args = ap.parse_args(argv)
+    try:
+        settings = acquisition_settings(dict(kv.partition("=")[::2] for kv in args.option))
+    except ValueError as err:
+        ap.error(f"--option: {err}")
     rng = np.random.default_rng(0)
-    cfg = MOBOConfig(bounds=[[0.0] * args.d, [1.0] * args.d], n_objectives=2, batch_size=args.q, n_init=40)
+    cfg = MOBOConfig(bounds=[[0.0] * args.d, [1.0] * args.d], n_objectives=2, batch_size=args.q, n_init=40,
+                     acquisition=settings)
     x = rng.random((args.n, args.d))
     y = np.stack([np.sum((x - 0.2) ** 2, 1), np.sum((x - 0.8) ** 2, 1)], 1) + 0.01 * rng.standard_normal((args.n, 2))
     state = tell(init(cfg), x, y)
@@ -47,7 +54,7 @@ def main(argv=None):
         t = time.perf_counter()
         ask(state)
         times.append(time.perf_counter() - t)
-    size = cfg.bucket * -(-len(state.x) // cfg.bucket)
+    size = settings.bucket * -(-len(state.x) // settings.bucket)
     a = rng.random((size, size))
     a = a @ a.T + size * np.eye(size)
     t = time.perf_counter()
@@ -55,7 +62,7 @@ def main(argv=None):
         np.linalg.cholesky(a)
     chol = (time.perf_counter() - t) / 10
     run = float(np.median(times))
-    print(f"n={args.n} d={args.d} q={args.q} padded rows={size}")
+    print(f"n={args.n} d={args.d} q={args.q} padded rows={size}" + (f" options {' '.join(args.option)}" if args.option else ""))
     print(f"first ask (compile + run): {first:.1f} s")
     print(f"compiled ask: median {run:.2f} s over {args.repeats} (min {min(times):.2f}, max {max(times):.2f})")
     print(f"numpy Cholesky {size}x{size}: {chol * 1e3:.2f} ms; ask / Cholesky = {run / chol:.0f}")

@@ -1,20 +1,25 @@
-"""Multi-objective BO quality: final hypervolume on BraninCurrin and ZDT1 (d = 6).
+"""Multi-objective BO quality: final hypervolume on BraninCurrin, ZDT1 (d = 6), DTLZ2 (d = 6, m = 3).
 
 Budget 6 + 20 x 4 = 86 evaluations (the BoTorch multi-objective tutorial's), >= 10 seeds;
 median and quartiles of the final hypervolume for mjxskill.gp, uniform random search with
-the same budget and, where BoTorch imports, its qNParEGO (qLogNParEGO when available) with
-the same budget. Noiseless problems, minimization.
+the same budget and, where BoTorch imports (a benchmark-only dependency), its qLogNEHVI and
+qLogNParEGO as in BoTorch's multi-objective tutorial with the same budget, on the first
+``--botorch-seeds`` seeds (they are slow). Noiseless problems, minimization; one hypervolume
+code (``mjxskill.gp.hypervolume``) for every column.
 
-    python benchmarks/mobo_quality.py --seeds 10 [--botorch] [--write benchmarks/RESULTS.md]
+    python benchmarks/mobo_quality.py --seeds 10 [--columns mjxskill.gp,random] [--option n_raw=512]
+        [--save runs.jsonl] [--write benchmarks/RESULTS.md]
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime
+import json
 import os
 import sys
 import time
+import warnings
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # see RESULTS.md: threads thrash on 2 cores
 
@@ -47,15 +52,31 @@ def zdt1(x: np.ndarray) -> np.ndarray:
     return np.stack([f1, g * (1.0 - np.sqrt(f1 / g))], axis=1)
 
 
+def dtlz2(x: np.ndarray, m: int = 3) -> np.ndarray:
+    """(q, d) in [0, 1]^d -> (q, m), BoTorch's DTLZ2 (front: the unit sphere's positive part)."""
+    g = np.sum((x[:, m - 1 :] - 0.5) ** 2, axis=1)
+    c, s = np.cos(0.5 * np.pi * x[:, : m - 1]), np.sin(0.5 * np.pi * x[:, : m - 1])
+    out = []
+    for i in range(m):
+        k = m - 1 - i
+        fi = (1.0 + g) * np.prod(c[:, :k], axis=1)
+        out.append(fi * s[:, k] if i > 0 else fi)
+    return np.stack(out, axis=1)
+
+
 PROBLEMS = {
     "BraninCurrin": dict(f=branin_currin, d=2, ref=[18.0, 6.0], max_hv=59.3601),
     "ZDT1 (d=6)": dict(f=zdt1, d=6, ref=[11.0, 11.0], max_hv=120.6667),
+    # 1.1^3 - pi/6: the cube to the reference point minus the unit sphere's positive octant
+    "DTLZ2 (d=6, m=3)": dict(f=dtlz2, d=6, ref=[1.1, 1.1, 1.1], max_hv=round(1.1**3 - np.pi / 6, 4)),
 }
 
 
-def run_ours(problem, seed, **options):
+def run_ours(problem, seed, given_ref=False, **options):
+    """given_ref: pass the problem's reference point (as qLogNEHVI gets it); else inferred."""
     bounds = np.stack([np.zeros(problem["d"]), np.ones(problem["d"])])
-    res = minimize(problem["f"], bounds, budget=BUDGET, batch_size=BATCH, n_init=N_INIT, seed=seed, **options)
+    res = minimize(problem["f"], bounds, budget=BUDGET, batch_size=BATCH, n_init=N_INIT, seed=seed,
+                   ref_point=problem["ref"] if given_ref else None, **options)
     return hypervolume(res.Y, problem["ref"])
 
 
@@ -64,27 +85,48 @@ def run_random(problem, seed):
     return hypervolume(problem["f"](x), problem["ref"])
 
 
-def run_botorch(problem, seed):
-    import torch
-    from botorch.acquisition.multi_objective.parego import qLogNParEGO
+def _botorch_model(x, y):
+    """The BoTorch tutorial's model: one SingleTaskGP per objective (outputs standardized),
+    inputs already in the unit cube; fitted by marginal likelihood."""
     from botorch.fit import fit_gpytorch_mll
-    from botorch.models import SingleTaskGP
-    from botorch.models.transforms import Normalize, Standardize
-    from botorch.optim import optimize_acqf
-    from gpytorch.mlls import ExactMarginalLogLikelihood
+    from botorch.models import ModelListGP, SingleTaskGP
+    from botorch.models.transforms import Standardize
+    from gpytorch.mlls import SumMarginalLogLikelihood
 
+    model = ModelListGP(*[SingleTaskGP(x, y[:, i : i + 1], outcome_transform=Standardize(m=1)) for i in range(y.shape[1])])
+    fit_gpytorch_mll(SumMarginalLogLikelihood(model.likelihood, model))
+    return model
+
+
+def run_botorch(problem, seed, method="qLogNEHVI"):
+    """One BoTorch run as in its multi-objective tutorial (10 restarts, 512 raw samples,
+    128 Sobol MC samples, sequential greedy q = 4): qLogNEHVI with the problem's reference
+    point, or qLogNParEGO with a fresh simplex weight per batch element (optimize_acqf_list)."""
+    import torch
+    from botorch.acquisition.multi_objective.logei import qLogNoisyExpectedHypervolumeImprovement
+    from botorch.acquisition.multi_objective.parego import qLogNParEGO
+    from botorch.optim.optimize import optimize_acqf, optimize_acqf_list
+    from botorch.sampling import SobolQMCNormalSampler
+
+    # BoTorch warns on every jittered Cholesky and restarted L-BFGS-B; they change nothing here.
+    warnings.filterwarnings("ignore", module=r"(botorch|linear_operator|gpytorch)(\.|$)")
     torch.manual_seed(seed)
     d = problem["d"]
     bounds = torch.stack([torch.zeros(d), torch.ones(d)]).double()
     f = lambda x: -torch.from_numpy(problem["f"](x.numpy()))  # BoTorch maximizes
     x = torch.rand(N_INIT, d, dtype=torch.double)
     y = f(x)
+    opts = dict(bounds=bounds, num_restarts=10, raw_samples=512, options={"batch_limit": 5, "maxiter": 200})
     for _ in range(N_BATCHES):
-        model = SingleTaskGP(x, y, input_transform=Normalize(d), outcome_transform=Standardize(y.shape[-1]))
-        fit_gpytorch_mll(ExactMarginalLogLikelihood(model.likelihood, model))
-        acq = qLogNParEGO(model=model, X_baseline=x, prune_baseline=True)
-        cand, _ = optimize_acqf(acq, bounds=bounds, q=BATCH, num_restarts=10, raw_samples=512, sequential=True,
-                                options={"batch_limit": 5, "maxiter": 200})
+        model = _botorch_model(x, y)
+        sampler = SobolQMCNormalSampler(sample_shape=torch.Size([128]))
+        if method == "qLogNEHVI":
+            acq = qLogNoisyExpectedHypervolumeImprovement(model=model, ref_point=(-torch.tensor(problem["ref"])).tolist(),
+                                                          X_baseline=x, prune_baseline=True, sampler=sampler)
+            cand, _ = optimize_acqf(acq, q=BATCH, sequential=True, **opts)
+        else:
+            acqs = [qLogNParEGO(model=model, X_baseline=x, prune_baseline=True, sampler=sampler) for _ in range(BATCH)]
+            cand, _ = optimize_acqf_list(acqs, **opts)
         x = torch.cat([x, cand])
         y = torch.cat([y, f(cand)])
     return hypervolume(-y.numpy(), problem["ref"])
@@ -95,52 +137,101 @@ def summarize(values):
     return f"{med:.2f} [{q1:.2f}, {q3:.2f}]"
 
 
+def botorch_available() -> bool:
+    try:
+        import botorch  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+COLUMNS = ("mjxskill.gp", "random", "qLogNEHVI", "qLogNParEGO")
+
+
+def parse_options(pairs):
+    """``KEY=VALUE`` strings -> {key: int | float | str} (acquisition settings of mjxskill.gp)."""
+    options = {}
+    for kv in pairs:
+        k, _, v = kv.partition("=")
+        for kind in (int, float, str):
+            try:
+                options[k] = kind(v)
+                break
+            except ValueError:
+                pass
+    return options
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--first-seed", type=int, default=0, help="seeds first-seed .. first-seed + seeds - 1")
-    ap.add_argument("--botorch", action="store_true", help="add BoTorch's qLogNParEGO column")
+    ap.add_argument("--botorch-seeds", type=int, default=5, help="BoTorch columns on the first N seeds only (slow)")
+    ap.add_argument("--columns", default=",".join(COLUMNS), help=f"comma-separated subset of {', '.join(COLUMNS)}")
+    ap.add_argument("--torch-threads", type=int, default=1,
+                    help="torch intra-op threads for the BoTorch columns (1: leaves the other core to the machine's other jobs)")
     ap.add_argument("--write", help="append the table to this markdown file")
+    ap.add_argument("--save", help="append one JSON line per run (problem, column, seed, hv, seconds) to this file")
     ap.add_argument("--problems", nargs="*", default=list(PROBLEMS))
-    ap.add_argument("--option", action="append", default=[], help="MOBOConfig field=value")
+    ap.add_argument("--option", action="append", default=[], help="acquisition setting KEY=VALUE of mjxskill.gp")
+    ap.add_argument("--given-ref", action="store_true",
+                    help="give mjxskill.gp the problem's reference point (MOBOConfig.ref_point), as qLogNEHVI has it")
     args = ap.parse_args(argv)
-    options = {}
-    for kv in args.option:
-        k, v = kv.split("=")
-        try:
-            options[k] = float(v) if "." in v else int(v)
-        except ValueError:
-            options[k] = v
+    options = parse_options(args.option)
+    wanted = [c.strip() for c in args.columns.split(",") if c.strip()]
+    notes = []
+    if any(c.startswith("qLog") for c in wanted) and not botorch_available():
+        wanted = [c for c in wanted if not c.startswith("qLog")]
+        notes.append("BoTorch is not installed: its columns are skipped (pip install torch==2.13.0 (CPU), then botorch).")
+    elif any(c.startswith("qLog") for c in wanted):
+        import torch
+
+        torch.set_num_threads(args.torch_threads)
+    runners = {
+        "mjxskill.gp": lambda p, s: run_ours(p, s, args.given_ref, **options),
+        "random": run_random,
+        "qLogNEHVI": lambda p, s: run_botorch(p, s, "qLogNEHVI"),
+        "qLogNParEGO": lambda p, s: run_botorch(p, s, "qLogNParEGO"),
+    }
     rows = []
     for name in args.problems:
         problem = PROBLEMS[name]
-        cols = {"mjxskill.gp": [], "random": []}
-        if args.botorch:
-            cols["BoTorch qLogNParEGO"] = []
-        times = {k: 0.0 for k in cols}
+        cols = {c: [] for c in wanted}
+        times = {c: [] for c in wanted}
+        loads = []
         for seed in range(args.first_seed, args.first_seed + args.seeds):
-            for col, fn in (("mjxskill.gp", lambda: run_ours(problem, seed, **options)), ("random", lambda: run_random(problem, seed)),
-                            ("BoTorch qLogNParEGO", lambda: run_botorch(problem, seed))):
-                if col not in cols:
+            for col in wanted:
+                if col.startswith("qLog") and seed >= args.first_seed + args.botorch_seeds:
                     continue
                 t = time.perf_counter()
-                cols[col].append(fn())
-                times[col] += time.perf_counter() - t
-            print(name, seed, {k: round(v[-1], 3) for k, v in cols.items()}, flush=True)
-        rows.append((name, problem, cols, times))
+                hv = runners[col](problem, seed)
+                dt = time.perf_counter() - t
+                cols[col].append(hv)
+                times[col].append(dt)
+                load = os.getloadavg()[0]
+                loads.append(load)
+                if args.save:
+                    with open(args.save, "a") as fh:
+                        fh.write(json.dumps(dict(problem=name, column=col, seed=seed, hv=hv, seconds=dt, load1=load,
+                                                 options={**options, "given_ref": args.given_ref} if col == "mjxskill.gp" else {})) + "\n")
+            print(name, seed, {k: round(v[-1], 3) for k, v in cols.items() if v}, f"load {os.getloadavg()[0]:.1f}",
+                  flush=True)
+        rows.append((name, problem, cols, times, loads))
     lines = [
         f"Measured {datetime.date.today().isoformat()} on the 2-core CPU machine (shared with other jobs), "
-        f"budget {N_INIT} + {N_BATCHES} x {BATCH} = {BUDGET}, {args.seeds} seeds from {args.first_seed}, noiseless problems. "
-        "Final hypervolume, median [25th, 75th percentile]; wall time is per run.",
+        f"budget {N_INIT} + {N_BATCHES} x {BATCH} = {BUDGET}, seeds {args.first_seed}-{args.first_seed + args.seeds - 1} "
+        f"(BoTorch: the first {args.botorch_seeds}), noiseless problems. "
+        "Final hypervolume, median [25th, 75th percentile] (runs); wall time is the median per run.",
         "",
-        "| problem | max HV | " + " | ".join(rows[0][2]) + " |",
-        "| --- | --- | " + " | ".join("---" for _ in rows[0][2]) + " |",
+        "| problem | max HV | " + " | ".join(wanted) + " | 1-min load (min-max) |",
+        "| --- | --- | " + " | ".join("---" for _ in wanted) + " | --- |",
     ]
-    for name, problem, cols, times in rows:
-        cells = [f"{summarize(v)} ({times[k] / len(v):.0f} s)" for k, v in cols.items()]
-        lines.append(f"| {name} | {problem['max_hv']} | " + " | ".join(cells) + " |")
-    if options:
-        lines += ["", f"Options: {options}"]
+    for name, problem, cols, times, loads in rows:
+        cells = [f"{summarize(v)} ({len(v)}; {np.median(times[k]):.0f} s)" if v else "-" for k, v in cols.items()]
+        lines.append(f"| {name} | {problem['max_hv']} | " + " | ".join(cells) + f" | {min(loads):.1f}-{max(loads):.1f} |")
+    if options or args.given_ref:
+        lines += ["", f"mjxskill.gp options: {options}" + (", the problem's reference point given" if args.given_ref else "")]
+    lines += ["", *notes] if notes else []
     table = "\n".join(lines)
     print(table)
     if args.write:

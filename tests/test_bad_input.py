@@ -85,8 +85,12 @@ CONFIG_EDITS = {
     "warm-up beyond the budget": ("n_init: 2", "n_init: 9", "n_init", "n_init 9 exceeds the budget of 4 evaluations"),
     "unknown key": ("repeats: 1", "repeats: 1\nbogus: 3", "bogus", "unknown key 'bogus'"),
     "a tag": ("worlds: 1", "worlds: !kg 1", "worlds", "the YAML tag !kg is not supported"),
-    "bad optimizer option": ("optimizer_options: {}", "optimizer_options: {n_raw: 0}", "optimizer_options", "MOBOConfig.n_raw"),
-    "unknown optimizer option": ("optimizer_options: {}", "optimizer_options: {n_rwa: 3}", "optimizer_options.n_rwa", "unknown optimizer option 'n_rwa'"),
+    "bad optimizer option": ("optimizer_options: {}", "optimizer_options: {n_raw: 0}", "optimizer_options.n_raw",
+                             "acquisition setting n_raw: expected a positive integer, got 0"),
+    "unknown optimizer option": ("optimizer_options: {}", "optimizer_options: {n_rwa: 3}", "optimizer_options.n_rwa",
+                                 "unknown acquisition setting 'n_rwa'; valid settings: scalarization, alpha,"),
+    "optimizer options at odds": ("optimizer_options: {}", "optimizer_options: {n_raw: 8, n_restarts: 9}", "optimizer_options",
+                                  "acquisition setting n_restarts (9) exceeds n_raw (8)"),
     # 9 ** 6 values from a few hundred bytes: a goal that exhausted memory when select printed it
     "alias bomb in the goal": ("goal: (skiros:at skiros:ObjectToBePushed-1 skiros:ObjectGoalPose-1)",
                                "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(

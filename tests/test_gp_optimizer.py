@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from mjxskill.gp import (
+    AcquisitionSettings,
     MOBOConfig,
+    acquisition_settings,
     ask,
     hypervolume,
     init,
@@ -34,8 +36,15 @@ def objectives(x):
     return np.stack([(x[:, 0] + 0.5) ** 2 + (x[:, 1] - 1) ** 2, (x[:, 0] - 0.5) ** 2 + (x[:, 1] - 1) ** 2], 1)
 
 
+PROBLEM = ("bounds", "n_objectives", "batch_size", "n_init", "seed", "ref_point")
+
+
 def config(**kw):
-    return MOBOConfig(**{**dict(bounds=BOUNDS, n_objectives=2, batch_size=3, n_init=5, seed=7), **CHEAP, **kw})
+    """The test problem's config; keyword arguments that are not problem fields are acquisition settings."""
+    problem = {k: v for k, v in kw.items() if k in PROBLEM}
+    acq = {**CHEAP, **{k: v for k, v in kw.items() if k not in PROBLEM}}
+    return MOBOConfig(**{**dict(bounds=BOUNDS, n_objectives=2, batch_size=3, n_init=5, seed=7), **problem},
+                      acquisition=acquisition_settings(acq))
 
 
 def run(state, n_batches):
@@ -88,6 +97,40 @@ def test_state_file_is_plain_npz_without_pickle(tmp_path):
         load_state(bad)
 
 
+def test_state_file_of_format_1_with_a_flat_config_is_read(tmp_path):
+    import json
+
+    state = run(init(config()), 2)
+    cfg = state.config
+    flat = {**{k: getattr(cfg, k) for k in PROBLEM if k != "ref_point"}, **cfg.acquisition.to_dict()}
+    for new in ("learning_rate", "scalarization", "ref_margin"):  # format 1 could not set them
+        del flat[new]
+    path = tmp_path / "old.npz"
+    np.savez(path, x=state.x, y=state.y,
+             config_json=np.array(json.dumps({"format": "mjxskill.gp.MOBOState/1", "config": flat})))
+    assert load_state(path).config == cfg
+    np.savez(path, x=state.x, y=state.y,
+             config_json=np.array(json.dumps({"format": "mjxskill.gp.MOBOState/1", "config": {**flat, "n_raw": 0}})))
+    with pytest.raises(ValueError, match="old.npz: acquisition setting n_raw: expected a positive integer"):
+        load_state(path)
+
+
+def test_acquisition_settings_from_flat_options_parse_strings_and_name_bad_keys():
+    got = acquisition_settings({"n_raw": "256", "tau": "1e-4", "model": "scalarized", "learning_rate": 0.05,
+                                "fit_steps": 20.0})
+    assert got == AcquisitionSettings(n_raw=256, tau=1e-4, model="scalarized", learning_rate=0.05, fit_steps=20)
+    assert isinstance(got.fit_steps, int) and isinstance(got.alpha, float)
+    assert acquisition_settings({}) == AcquisitionSettings() == MOBOConfig(BOUNDS, 2).acquisition
+    assert MOBOConfig(BOUNDS, 2, acquisition={"n_raw": 64}).acquisition.n_raw == 64
+    hash(got)  # a static argument of the jitted proposal
+    with pytest.raises(ValueError, match=r"unknown acquisition setting 'bounds'; valid settings: .*n_raw.*tau"):
+        acquisition_settings({"bounds": 1})
+    with pytest.raises(ValueError, match="acquisition setting n_raw: expected an integer, got 'many'"):
+        acquisition_settings({"n_raw": "many"})
+    with pytest.raises(ValueError, match="acquisition setting model: expected one of"):
+        acquisition_settings({"model": 3})
+
+
 def test_repeated_asks_with_growing_data_do_not_retrace_within_a_bucket(monkeypatch):
     counted = jax.jit(chex.assert_max_traces(propose_batch.__wrapped__, n=1), static_argnames=("q", "settings"))
     monkeypatch.setattr(opt_mod, "propose_batch", counted)
@@ -119,9 +162,13 @@ def test_non_finite_objectives_are_kept_and_do_not_break_the_model():
         (dict(bounds=[[0.0, np.nan], [1.0, 1.0]]), "must be finite"),
         (dict(batch_size=0), "batch_size"),
         (dict(n_init=1), "n_init"),
-        (dict(model="single"), "MOBOConfig.model: expected 'per_objective', 'scalarized' or 'hybrid', got 'single'"),
-        (dict(ei="ucb"), "MOBOConfig.ei"),
-        (dict(tau=0.0), "MOBOConfig.tau"),
+        (dict(model="single"), "acquisition setting model: expected one of 'hybrid', 'scalarized', 'per_objective', got 'single'"),
+        (dict(ei="ucb"), "acquisition setting ei"),
+        (dict(tau=0.0), "acquisition setting tau: must be > 0"),
+        (dict(n_raw=0), "acquisition setting n_raw: expected a positive integer, got 0"),
+        (dict(n_raw=2.5), "acquisition setting n_raw: expected an integer, got 2.5"),
+        (dict(n_restarts=100), r"n_restarts \(100\) exceeds n_raw \(64\)"),
+        (dict(n_rwa=3), "unknown acquisition setting 'n_rwa'; valid settings: scalarization, alpha, reference, ref_margin"),
     ],
 )
 def test_bad_config_raises_clear_errors(kwargs, message):

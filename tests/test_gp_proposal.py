@@ -1,15 +1,17 @@
 """Proposal internals: the Kriging believer's Schur-complement update against refactorizing,
-and the per-objective model path of the optimizer."""
+the deflated variance, pending points in the incumbent, and the per-objective and
+hypervolume-scalarization paths of the optimizer."""
 
 import mjxskill  # noqa: F401  (XLA flags before jax runs)
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
-from mjxskill.gp import MOBOConfig, ask, init, tell
+from mjxskill.gp import AcquisitionSettings, MOBOConfig, ask, init, tell
 from mjxskill.gp import gp as gpm
-from mjxskill.gp.proposal import _believer_predictor
+from mjxskill.gp.proposal import _believer_predictor, _scalarization
 
 
 def test_believer_update_equals_conditioning_on_the_believed_points():
@@ -38,9 +40,70 @@ def test_believer_update_equals_conditioning_on_the_believed_points():
 
 
 def test_per_objective_model_with_moment_matching_proposes_distinct_points_in_bounds():
-    cfg = MOBOConfig(bounds=[[0.0, 0.0], [1.0, 1.0]], n_objectives=2, batch_size=3, n_init=6, seed=1, bucket=16,
-                     n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1, fit_steps=5, model="per_objective",
-                     ei="moments")
+    cfg = MOBOConfig(bounds=[[0.0, 0.0], [1.0, 1.0]], n_objectives=2, batch_size=3, n_init=6, seed=1,
+                     acquisition=AcquisitionSettings(bucket=16, n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1,
+                                                     fit_steps=5, model="per_objective", ei="moments"))
+    x = np.random.default_rng(0).random((6, 2))
+    state = tell(init(cfg), x, np.stack([x[:, 0], 1 - x[:, 0] + x[:, 1] ** 2], 1))
+    batch = ask(state)
+    assert batch.shape == (3, 2) and np.all((batch >= 0) & (batch <= 1))
+    assert np.min(np.linalg.norm(batch[:, None] - batch[None], axis=-1) + np.eye(3) * 9) > 1e-3
+
+
+def _two_objective_posteriors(rng, n=10):
+    x = rng.random((n, 2))
+    y = np.stack([x[:, 0], 1 - x[:, 0] + x[:, 1] ** 2], 1)
+    mask = np.ones(n, bool)
+    posts = []
+    for i in range(2):
+        p = gpm.params_from_values([0.4, 0.6], 1.0, 1e-4)
+        posts.append(gpm.condition(p, jnp.asarray(x), jnp.asarray((y[:, i] - y[:, i].mean()) / y[:, i].std()),
+                                   jnp.asarray(mask)))
+    return x, y, mask, posts
+
+
+def test_deflated_variance_vanishes_at_observed_points_and_keeps_the_latent_one_away():
+    rng = np.random.default_rng(3)
+    with jax.enable_x64(True):
+        x, _, _, posts = _two_objective_posteriors(rng)
+        none = (jnp.zeros((2, 2)), jnp.zeros(2, bool))
+        far = jnp.asarray(rng.random((4, 2)))
+        _, latent_at = _believer_predictor(posts[0], *none)(jnp.asarray(x[:3]))
+        _, deflated_at = _believer_predictor(posts[0], *none, deflate=True)(jnp.asarray(x[:3]))
+        _, latent_far = _believer_predictor(posts[0], *none)(far)
+        _, deflated_far = _believer_predictor(posts[0], *none, deflate=True)(far)
+        nv = float(gpm.noise(posts[0].params))
+    assert np.all(np.asarray(latent_at) > 0.5 * nv)  # ~ the noise variance at a noiseless observation
+    # Exactly 0 in exact arithmetic (the latent variance at a training point is at most the
+    # noise variance); the explicit inverse leaves ~1e-6 relative error on the 1 - 1e-4 it subtracts.
+    assert np.all(np.asarray(deflated_at) < 0.05 * nv)
+    np.testing.assert_allclose(deflated_far, np.maximum(np.asarray(latent_far) - nv, 1e-12), rtol=1e-9)
+
+
+@pytest.mark.parametrize("scalarization", ["chebyshev", "hypervolume"])
+def test_pending_values_take_away_the_improvement_a_pending_point_already_offers(scalarization):
+    rng = np.random.default_rng(4)
+    y_norm = rng.random((12, 2))
+    mask = np.ones(12, bool)
+    better = np.array([[0.01, 0.02]])  # improves on every observation in every direction
+    with jax.enable_x64(True):
+        args = (jnp.asarray(y_norm), jnp.asarray(mask), jnp.array([1.1, 1.1]), jax.random.PRNGKey(0), 2)
+        var = jnp.full((1, 2), 1e-10)  # (nearly) certain: EI is the improvement itself
+        pend, pend_mask = jnp.asarray(better), jnp.array([True])
+        got = {}
+        for pending in ("variance", "values"):
+            scal = _scalarization(*args, AcquisitionSettings(scalarization=scalarization, pending=pending, tau=1e-6))
+            got[pending] = float(scal.log_ei(0, jnp.asarray(better), var, pend, pend_mask)[0])
+    assert got["variance"] > np.log(1e-3)  # a real improvement while the pending point is ignored
+    assert got["values"] < np.log(1e-5)  # none left once the pending point counts at its believed value
+
+
+def test_hypervolume_scalarization_proposes_distinct_points_in_bounds():
+    cfg = MOBOConfig(bounds=[[0.0, 0.0], [1.0, 1.0]], n_objectives=2, batch_size=3, n_init=6, seed=1,
+                     acquisition=AcquisitionSettings(bucket=16, n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1,
+                                                     fit_steps=5, scalarization="hypervolume", model="per_objective",
+                                                     n_directions=2, pending="values", variance="deflated"),
+                     ref_point=(1.2, 2.2))
     x = np.random.default_rng(0).random((6, 2))
     state = tell(init(cfg), x, np.stack([x[:, 0], 1 - x[:, 0] + x[:, 1] ** 2], 1))
     batch = ask(state)

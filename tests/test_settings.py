@@ -79,3 +79,68 @@ def test_a_value_is_refused_by_the_flag_exactly_when_config_yaml_refuses_it(sett
 def test_config_yaml_names_file_key_and_line(text, message):
     kind, got = as_config_entry(next(s for s in SETTINGS if s.name == "batch_size"), text)
     assert (kind, got) == ("error", message)
+
+
+# -- optimizer options: gp's acquisition settings, from the flag and from config.yaml -------------
+def option_as_flag(text: str):
+    try:
+        return "ok", dict(build_parser().parse_args(["push", "--optimizer-option", text]).optimizer_option)
+    except SystemExit:  # argparse printed the error
+        return "error", None
+
+
+def options_as_config_entry(body: str):
+    data = yaml.safe_load(make_config().to_yaml())
+    text = yaml.safe_dump({k: v for k, v in data.items() if k != "optimizer_options"}, sort_keys=False)
+    try:
+        return "ok", RunConfig.from_yaml(text + f"optimizer_options:\n{body}", "run/config.yaml")
+    except RunError as err:
+        return "error", str(err)
+
+
+def test_every_acquisition_setting_is_an_option_of_both_sources_typed_by_gp(capsys):
+    from mjxskill.gp import AcquisitionSettings
+    from mjxskill.training.run_config import optimizer_config
+
+    for f in dataclasses.fields(AcquisitionSettings):
+        default = getattr(AcquisitionSettings(), f.name)
+        kind, options = option_as_flag(f"{f.name}={default}")
+        assert (kind, options) == ("ok", {f.name: default}), f.name
+        kind, config = options_as_config_entry(f"  {f.name}: {default}\n")
+        assert kind == "ok" and config.optimizer_options == {f.name: default}, (f.name, config)
+    kind, config = options_as_config_entry("  model: scalarized\n  learning_rate: 5.0e-2\n  n_raw: 256\n")
+    assert kind == "ok"
+    assert optimizer_config(config).acquisition == AcquisitionSettings(model="scalarized", learning_rate=0.05, n_raw=256)
+    assert option_as_flag("learning_rate=1") == ("ok", {"learning_rate": 1.0})  # typed as gp's float field
+
+
+@pytest.mark.parametrize("body, where, message", [
+    ("  n_rwa: 3\n", "optimizer_options.n_rwa", "unknown acquisition setting 'n_rwa'; valid settings: scalarization, alpha,"),
+    ("  n_raw: 0\n", "optimizer_options.n_raw", "acquisition setting n_raw: expected a positive integer, got 0"),
+    ("  model: single\n", "optimizer_options.model", "acquisition setting model: expected one of 'hybrid', "),
+    ("  tau: -1.0\n", "optimizer_options.tau", "acquisition setting tau: must be > 0, got -1.0"),
+    ("  n_raw: true\n", "optimizer_options.n_raw", "acquisition setting n_raw: expected an integer, got True"),
+    ("  n_raw: 8\n  n_restarts: 9\n", "optimizer_options", "acquisition setting n_restarts (9) exceeds n_raw (8)"),
+])
+def test_a_bad_optimizer_option_is_refused_by_both_sources_naming_it(capsys, body, where, message):
+    kind, error = options_as_config_entry(body)
+    assert kind == "error" and error.startswith(f"run/config.yaml: {where} (line ") and message in error, error
+    if "\n  " not in body.strip("\n"):  # one entry: the flag refuses it too, with gp's reason
+        key, value = body.strip().split(": ")
+        assert option_as_flag(f"{key}={value if value != 'true' else 'True'}")[0] == "error"
+        assert message.split(", got ")[0] in capsys.readouterr().err  # the value as each source holds it
+
+
+def test_the_optimizer_options_an_older_run_wrote_are_still_read():
+    """Before the acquisition settings were one gp field, config.yaml held MOBOConfig's flat
+    fields under optimizer_options; those are the same names, values and meanings."""
+    from mjxskill.gp import AcquisitionSettings
+    from mjxskill.training.run_config import optimizer_config
+
+    old = {"alpha": 0.1, "bucket": 32, "n_raw": 256, "n_restarts": 4, "n_opt_steps": 50, "fit_starts": 1,
+           "fit_steps": 20, "per_element_fit_max_rows": 64, "fit_max_rows": 64, "model": "scalarized", "n_draws": 64,
+           "ei": "moments", "tau": 0.01}
+    kind, config = options_as_config_entry("".join(f"  {k}: {v}\n" for k, v in old.items()))
+    assert kind == "ok", config
+    assert optimizer_config(config).acquisition == AcquisitionSettings(**old)
+    assert RunConfig.from_yaml(config.to_yaml(), "again/config.yaml") == config

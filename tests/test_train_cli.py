@@ -132,8 +132,8 @@ BAD_INPUT = (
     (["train", "push", "--worlds", "many"], "argument --worlds: expected an integer, got 'many'"),
     (["train", "push", "--episode-seconds", "nan"], "argument --episode-seconds: must be a positive finite number"),
     (["train", "push", "--budget", "6", "--init", "10"], "--init 10 exceeds the budget of 6 evaluations"),
-    (["train", "push", "--optimizer-option", "n_rwa=3"], "argument --optimizer-option: expected KEY=VALUE with KEY one of"),
-    (["train", "push", "--optimizer-option", "n_raw=0"], "--optimizer-option: MOBOConfig.n_raw: expected a positive integer"),
+    (["train", "push", "--optimizer-option", "n_rwa=3"], "--optimizer-option: unknown acquisition setting 'n_rwa'; valid settings: scalarization, alpha,"),
+    (["train", "push", "--optimizer-option", "n_raw=0"], "--optimizer-option: acquisition setting n_raw: expected a positive integer"),
     (["train", "push", "--resume", "{tmp}"], "is not a run directory"),
     (["train", "peg", "--resume", "{run}"], "is a run of task 'push', not 'peg'"),
     (["train", "push", "--resume", "{run}", "--budget", "9"], "drop --budget 9 (the run has 6)"),
@@ -146,6 +146,9 @@ BAD_INPUT = (
     (["select", "{run}", "--pick", "99"], "--pick 99: the front has rows"),
     (["select", "{run}", "--max-force", "-1"], "argument --max-force: must be a finite number >= 0"),
     (["select", "{run}", "--min-success", "2"], "--min-success is a rate between 0 and 1"),
+    (["train", "push", "--optimizer-option", "model=single"], "--optimizer-option: acquisition setting model: expected one of"),
+    (["train", "push", "--optimizer-option", "n_raw=4", "--optimizer-option", "n_restarts=5"],
+     "--optimizer-option: acquisition setting n_restarts (5) exceeds n_raw (4)"),
 )
 
 

@@ -29,7 +29,7 @@ from mjxskill.errors import CommandError
 from mjxskill.training.loop import rollout_evaluator, train
 from mjxskill.training.run_config import optimizer_problem
 from mjxskill.training.run_dir import Evaluations, Run, RunConfig
-from mjxskill.training.settings import BY_NAME, SETTINGS, cross_problems, optimizer_option_names
+from mjxskill.training.settings import BY_NAME, SETTINGS, cross_problems, optimizer_option_value
 
 
 class Progress:
@@ -86,23 +86,22 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue the run in RUN_DIR to its budget")
     parser.add_argument("--quiet", action="store_true", help="no progress bar: one log line per batch")
     parser.add_argument("--optimizer-option", action="append", type=optimizer_option, metavar="KEY=VALUE", default=None,
-                        help="a further mjxskill.gp.MOBOConfig setting, e.g. n_raw=256 (repeatable; stored with the run)")
+                        help="an acquisition setting of mjxskill.gp (AcquisitionSettings), e.g. n_raw=256 or "
+                             "model=scalarized (repeatable; stored with the run)")
     return parser
 
 
-def optimizer_option(text: str) -> tuple[str, int | float]:
-    """``KEY=VALUE`` for a numeric MOBOConfig field (argparse type)."""
+def optimizer_option(text: str) -> tuple[str, int | float | str]:
+    """``KEY=VALUE`` for an acquisition setting of mjxskill.gp (argparse type), VALUE typed and
+    checked by gp (a number or one of the setting's choices). What several options must satisfy
+    together is checked in ``resolve_config``."""
     key, sep, value = text.partition("=")
-    if not sep or key not in optimizer_option_names():
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE with KEY one of {', '.join(optimizer_option_names())}; got {text!r}")
+    if not sep or not key:
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
     try:
-        number = int(value)
-    except ValueError:
-        try:
-            number = float(value)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{key}: expected a number, got {value!r}") from None
-    return key, number
+        return key, optimizer_option_value(key, value)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def _origin(args: argparse.Namespace, name: str, value) -> str:

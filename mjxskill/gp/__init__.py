@@ -1,7 +1,8 @@
 """Multi-objective Bayesian optimization in JAX: a float64 Matern 5/2 GP, log-EI on random
 augmented Chebyshev scalarizations, sequential greedy batches (Kriging believer).
 
-``minimize(f, bounds, budget, ...)`` for a whole run; ``init``/``ask``/``tell`` and
+``minimize(f, bounds, budget, ...)`` for a whole run; ``MOBOConfig(bounds, n_objectives,
+batch_size, n_init, seed, acquisition=AcquisitionSettings(...))`` and ``init``/``ask``/``tell`` and
 ``save_state``/``load_state`` for a run that stops and resumes; ``pareto_mask`` and
 ``hypervolume`` to read the result. Objectives are minimized.
 
@@ -21,11 +22,14 @@ from mjxskill.gp.optimizer import (
     tell,
 )
 from mjxskill.gp.pareto import hypervolume, pareto_mask
+from mjxskill.gp.settings import AcquisitionSettings, acquisition_settings
 
 __all__ = [
+    "AcquisitionSettings",
     "MOBOConfig",
     "MOBOResult",
     "MOBOState",
+    "acquisition_settings",
     "ask",
     "hypervolume",
     "init",

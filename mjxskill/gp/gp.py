@@ -16,6 +16,7 @@ they do not switch it on themselves so that the rest of the process stays float3
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import jax
@@ -83,13 +84,25 @@ def _gamma_logpdf(x, concentration, rate):
     return jax.scipy.stats.gamma.logpdf(x, concentration, scale=1.0 / rate)
 
 
-def log_prior(p: GPParams) -> jnp.ndarray:
-    """Sum of the Gamma log-densities of the constrained hyperparameters (scalar)."""
-    return (
-        jnp.sum(_gamma_logpdf(lengthscales(p), 3.0, 6.0))
-        + _gamma_logpdf(outputscale(p), 2.0, 0.15)
-        + _gamma_logpdf(noise(p), 1.1, 0.05)
-    )
+def _lognormal_logpdf(x, loc, scale):
+    return jax.scipy.stats.norm.logpdf(jnp.log(x), loc, scale) - jnp.log(x)
+
+
+def log_prior(p: GPParams, prior: str = "gamma") -> jnp.ndarray:
+    """Log-density of the constrained hyperparameters (scalar).
+
+    prior: "gamma", the Gamma priors above on every hyperparameter; "lognormal", the
+    lengthscales' replaced by the dimension-scaled LogNormal(sqrt(2) + log(d) / 2, sqrt(3))
+    of Hvarfner et al. (2024), BoTorch's default since 0.12, whose heavy right tail lets a
+    smooth objective keep long lengthscales as d grows.
+    """
+    ls = lengthscales(p)
+    if prior == "lognormal":  # static
+        d = ls.shape[0]
+        ls_term = jnp.sum(_lognormal_logpdf(ls, math.sqrt(2.0) + 0.5 * math.log(d), math.sqrt(3.0)))
+    else:
+        ls_term = jnp.sum(_gamma_logpdf(ls, 3.0, 6.0))
+    return ls_term + _gamma_logpdf(outputscale(p), 2.0, 0.15) + _gamma_logpdf(noise(p), 1.1, 0.05)
 
 
 def _padded_cov(p: GPParams, x, mask):
@@ -123,19 +136,20 @@ def log_marginal_likelihood(p: GPParams, x, y, mask) -> jnp.ndarray:
     return jax.lax.stop_gradient(value - surrogate) + surrogate
 
 
-def fit_loss(p: GPParams, x, y, mask) -> jnp.ndarray:
+def fit_loss(p: GPParams, x, y, mask, prior: str = "gamma") -> jnp.ndarray:
     """Negative (log marginal likelihood + log prior) per real row; NaN mapped to +inf."""
     n = jnp.maximum(jnp.sum(mask), 1)
-    loss = -(log_marginal_likelihood(p, x, y, mask) + log_prior(p)) / n
+    loss = -(log_marginal_likelihood(p, x, y, mask) + log_prior(p, prior)) / n
     return jnp.where(jnp.isfinite(loss), loss, jnp.inf)
 
 
-def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50) -> GPParams:
+def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "gamma") -> GPParams:
     """MAP hyperparameters by L-BFGS from several starts (the prior modes plus random draws).
 
     Args:
       x: (n, d) float64 unit-cube inputs; y: (n,) float64 standardized targets;
-      mask: (n,) bool real rows; key: PRNG key for the random starts.
+      mask: (n,) bool real rows; key: PRNG key for the random starts;
+      prior: the hyperparameter prior (see :func:`log_prior`).
     Returns:
       GPParams of the start with the lowest final loss.
     """
@@ -151,7 +165,7 @@ def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50) -> GPParams:
             [base.raw_lengthscales[None], jnp.log(rand_ls - LENGTHSCALE_FLOOR)], axis=0
         )
     )
-    loss = lambda p: fit_loss(p, x, y, mask)
+    loss = lambda p: fit_loss(p, x, y, mask, prior)
     opt = optax.lbfgs()
     value_and_grad = optax.value_and_grad_from_state(loss)
 

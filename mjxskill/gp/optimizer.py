@@ -9,7 +9,7 @@ Determinism: the randomness of a proposal derives from ``(seed, number of observ
 only, so a run restored from disk proposes exactly what the uninterrupted run would.
 
 Static shapes: the model sees the training set padded to the next multiple of
-``config.bucket`` rows, so the proposal compiles once per bucket, not once per batch.
+``config.acquisition.bucket`` rows, so the proposal compiles once per bucket, not once per batch.
 
 Non-finite objective values (a crashed rollout) are kept in the state and on disk; the
 model sees them as the worst value observed for that objective (1 after normalization),
@@ -24,15 +24,18 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
-from typing import Callable, NamedTuple
+from typing import Callable, Mapping, NamedTuple
 
 import jax
 import numpy as np
 
+from mjxskill.gp.hypervolume_scalarization import reference_point, warmup_reference
 from mjxskill.gp.pareto import pareto_mask
-from mjxskill.gp.proposal import ProposalSettings, propose_batch
+from mjxskill.gp.proposal import propose_batch
+from mjxskill.gp.settings import AcquisitionSettings, acquisition_settings
 
-_STATE_FORMAT = "mjxskill.gp.MOBOState/1"
+_STATE_FORMAT = "mjxskill.gp.MOBOState/2"
+_OLD_FORMAT = "mjxskill.gp.MOBOState/1"  # flat config: acquisition settings beside the problem
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,6 +43,11 @@ class MOBOConfig:
     """Problem and optimizer settings (immutable, JSON-serializable).
 
     bounds: (2, d) lower and upper bounds (any nested sequence; stored as tuples).
+    acquisition: the model and acquisition settings (validated by their own class); a
+    mapping is accepted and read by :func:`acquisition_settings`.
+    ref_point: (m,) reference point of the hypervolume scalarizations in objective units
+    (minimized), e.g. the one the run's hypervolume is reported against; None infers it from
+    the observed front at each proposal.
     """
 
     bounds: tuple
@@ -47,19 +55,8 @@ class MOBOConfig:
     batch_size: int = 8
     n_init: int = 40
     seed: int = 0
-    alpha: float = 0.05
-    bucket: int = 64  # training sets are padded to a multiple of this many rows
-    n_raw: int = 1024
-    n_restarts: int = 10
-    n_opt_steps: int = 100
-    fit_starts: int = 2
-    fit_steps: int = 50
-    per_element_fit_max_rows: int = 128  # own GP fit per batch element up to this padded size
-    fit_max_rows: int = 128  # hyperparameters fitted on a random subset of this many rows
-    model: str = "hybrid"  # "scalarized", "per_objective" or "hybrid" (see proposal.py)
-    n_draws: int = 128  # quasi-random posterior draws per point (per-objective model)
-    ei: str = "draws"  # per-objective acquisition: "draws" (quasi-MC log-EI) or "moments"
-    tau: float = 1e-3  # softplus width of the "draws" log-EI, normalized objective units
+    acquisition: AcquisitionSettings = AcquisitionSettings()
+    ref_point: tuple | None = None
 
     def __post_init__(self):
         b = np.asarray(self.bounds, dtype=np.float64)
@@ -74,44 +71,29 @@ class MOBOConfig:
                 f"MOBOConfig.bounds: lower >= upper in dimension {i} ({b[0, i]} >= {b[1, i]})"
             )
         object.__setattr__(self, "bounds", tuple(tuple(float(v) for v in row) for row in b))
-        for name in ("n_objectives", "batch_size", "bucket", "n_raw", "n_restarts", "fit_starts", "fit_max_rows", "n_draws"):
+        for name in ("n_objectives", "batch_size"):
             v = getattr(self, name)
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
                 raise ValueError(f"MOBOConfig.{name}: expected a positive integer, got {v!r}")
         if not isinstance(self.n_init, (int, np.integer)) or self.n_init < 2:
             raise ValueError(f"MOBOConfig.n_init: need at least 2 warm-up points, got {self.n_init!r}")
-        if not 0.0 <= float(self.alpha):
-            raise ValueError(f"MOBOConfig.alpha: must be >= 0, got {self.alpha!r}")
-        if self.model not in ("per_objective", "scalarized", "hybrid"):
-            raise ValueError(
-                f"MOBOConfig.model: expected 'per_objective', 'scalarized' or 'hybrid', got {self.model!r}"
-            )
-        if self.ei not in ("draws", "moments"):
-            raise ValueError(f"MOBOConfig.ei: expected 'draws' or 'moments', got {self.ei!r}")
-        if not float(self.tau) > 0.0:
-            raise ValueError(f"MOBOConfig.tau: must be > 0, got {self.tau!r}")
-        if self.n_restarts > self.n_raw:
-            raise ValueError(f"MOBOConfig.n_restarts ({self.n_restarts}) exceeds n_raw ({self.n_raw})")
+        if isinstance(self.acquisition, Mapping):
+            object.__setattr__(self, "acquisition", acquisition_settings(self.acquisition))
+        elif not isinstance(self.acquisition, AcquisitionSettings):
+            raise ValueError(f"MOBOConfig.acquisition: expected AcquisitionSettings or a mapping, got {self.acquisition!r}")
+        if self.ref_point is not None:
+            r = np.asarray(self.ref_point, dtype=np.float64)
+            if r.shape != (self.n_objectives,) or not np.all(np.isfinite(r)):
+                raise ValueError(f"MOBOConfig.ref_point: expected {self.n_objectives} finite numbers, got {self.ref_point!r}")
+            object.__setattr__(self, "ref_point", tuple(float(v) for v in r))
 
     @property
     def dim(self) -> int:
         return len(self.bounds[0])
 
-    def settings(self) -> ProposalSettings:
-        return ProposalSettings(
-            alpha=float(self.alpha),
-            n_raw=int(self.n_raw),
-            n_restarts=int(self.n_restarts),
-            n_opt_steps=int(self.n_opt_steps),
-            fit_starts=int(self.fit_starts),
-            fit_steps=int(self.fit_steps),
-            per_element_fit_max_rows=int(self.per_element_fit_max_rows),
-            fit_max_rows=int(self.fit_max_rows),
-            model=str(self.model),
-            n_draws=int(self.n_draws),
-            ei=str(self.ei),
-            tau=float(self.tau),
-        )
+    def to_dict(self) -> dict:
+        """Plain JSON-able form: the acquisition settings nested as a mapping."""
+        return {**{f.name: getattr(self, f.name) for f in dataclasses.fields(self)}, "acquisition": self.acquisition.to_dict()}
 
 
 class MOBOState(NamedTuple):
@@ -129,7 +111,7 @@ class MOBOResult(NamedTuple):
     pareto_y: np.ndarray  # (p, m)
     state: MOBOState
 
-    # Upper-case aliases used in the issue's examples (res.X, res.pareto_Y).
+    # Upper-case aliases (res.X, res.pareto_Y), the names of the usual MOBO notation.
     @property
     def X(self):
         return self.x
@@ -155,32 +137,51 @@ def init(config: MOBOConfig) -> MOBOState:
     )
 
 
-def _normalized_objectives(y: np.ndarray) -> np.ndarray:
-    """(n, m) objectives scaled to [0, 1] by the observed finite min/max; non-finite -> 1."""
+def _normalization(y: np.ndarray):
+    """Per-objective (lo (m,), span (m,)) of the finite values: y_norm = (y - lo) / span."""
     finite = np.isfinite(y)
-    out = np.ones_like(y)
+    lo, span = np.zeros(y.shape[1]), np.ones(y.shape[1])
     for i in range(y.shape[1]):
         col = y[finite[:, i], i]
-        if col.size == 0:
-            continue
-        lo, hi = col.min(), col.max()
-        span = hi - lo if hi > lo else 1.0
-        out[finite[:, i], i] = (col - lo) / span
-    return out
+        if col.size:
+            lo[i] = col.min()
+            span[i] = col.max() - lo[i] if col.max() > lo[i] else 1.0
+    return lo, span
+
+
+def _normalized_objectives(y: np.ndarray) -> np.ndarray:
+    """(n, m) objectives scaled to [0, 1] by the observed finite min/max; non-finite -> 1."""
+    lo, span = _normalization(y)
+    return np.where(np.isfinite(y), (y - lo) / span, 1.0)
+
+
+def reference_of(state: MOBOState) -> np.ndarray:
+    """(m,) the hypervolume scalarizations' reference point, in objective units: the config's,
+    or inferred as ``acquisition.reference`` says (from the warm-up rows or the current front)."""
+    cfg = state.config
+    if cfg.ref_point is not None:
+        return np.asarray(cfg.ref_point, np.float64)
+    if cfg.acquisition.reference == "warmup":
+        return warmup_reference(state.y[: cfg.n_init], cfg.acquisition.ref_margin)
+    return reference_point(state.y, cfg.acquisition.ref_margin)
 
 
 def _padded_training_set(state: MOBOState):
     cfg = state.config
     lo, hi = np.asarray(cfg.bounds)
     n = len(state.x)
-    size = cfg.bucket * -(-n // cfg.bucket)
+    size = cfg.acquisition.bucket * -(-n // cfg.acquisition.bucket)
     x = np.full((size, cfg.dim), 0.5)
     y = np.zeros((size, cfg.n_objectives))
     mask = np.zeros((size,), bool)
     x[:n] = (state.x - lo) / (hi - lo)
     y[:n] = _normalized_objectives(state.y)
     mask[:n] = True
-    return x, y, mask
+    y_lo, y_span = _normalization(state.y)
+    ref = (reference_of(state) - y_lo) / y_span
+    # No finite value to place it by: just beyond the worst observed (normalized 1).
+    ref = np.where(np.isfinite(ref), ref, 1.0 + cfg.acquisition.ref_margin)
+    return x, y, mask, ref
 
 
 def proposal_key(seed: int, n_observations: int):
@@ -205,9 +206,9 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
         q = min(q, cfg.n_init - n)
         u = np.random.default_rng([cfg.seed, n]).random((q, cfg.dim))
         return lo + u * (hi - lo)
-    x, y, mask = _padded_training_set(state)
+    x, y, mask, ref = _padded_training_set(state)
     with jax.enable_x64(True):
-        points, _, _ = propose_batch(x, y, mask, proposal_key(cfg.seed, n), q=q, settings=cfg.settings())
+        points, _ = propose_batch(x, y, mask, proposal_key(cfg.seed, n), ref, q=q, settings=cfg.acquisition)
         u = np.asarray(points, np.float64)
     return np.clip(lo + u * (hi - lo), lo, hi)
 
@@ -237,13 +238,33 @@ def tell(state: MOBOState, x, y) -> MOBOState:
 
 def save_state(state: MOBOState, path) -> None:
     """Writes the state as NPZ (arrays + the config as JSON); no pickle."""
-    config_json = json.dumps({"format": _STATE_FORMAT, "config": dataclasses.asdict(state.config)})
+    config_json = json.dumps({"format": _STATE_FORMAT, "config": state.config.to_dict()})
     with open(path, "wb") as fh:
         np.savez(fh, x=state.x, y=state.y, config_json=np.array(config_json))
 
 
+_PROBLEM_FIELDS = ("bounds", "n_objectives", "batch_size", "n_init", "seed")
+
+
+def _config_from_json(meta, path) -> MOBOConfig:
+    """The config of a state file: format 2 (nested acquisition) or 1 (flat, converted)."""
+    if not isinstance(meta, dict) or meta.get("format") not in (_STATE_FORMAT, _OLD_FORMAT):
+        raise ValueError(f"load_state: {path} is not an mjxskill optimizer state")
+    raw = dict(meta["config"])
+    if meta["format"] == _OLD_FORMAT:
+        # Format 1 wrote every acquisition field beside the problem fields: regroup them.
+        raw = {**{k: raw.pop(k) for k in _PROBLEM_FIELDS if k in raw}, "acquisition": raw}
+    unknown = set(raw) - {f.name for f in dataclasses.fields(MOBOConfig)}
+    if unknown:
+        raise ValueError(f"load_state: {path} has unknown config fields {sorted(unknown)}")
+    try:
+        return MOBOConfig(**raw)
+    except ValueError as err:
+        raise ValueError(f"load_state: {path}: {err}") from None
+
+
 def load_state(path) -> MOBOState:
-    """Reads a state written by :func:`save_state`, validating it."""
+    """Reads a state written by :func:`save_state` (or by format 1), validating it."""
     path = Path(path)
     with np.load(path, allow_pickle=False) as data:
         missing = {"x", "y", "config_json"} - set(data.files)
@@ -251,15 +272,7 @@ def load_state(path) -> MOBOState:
             raise ValueError(f"load_state: {path} lacks {sorted(missing)}")
         meta = json.loads(str(data["config_json"]))
         x, y = data["x"].astype(np.float64), data["y"].astype(np.float64)
-    if not isinstance(meta, dict) or meta.get("format") != _STATE_FORMAT:
-        raise ValueError(f"load_state: {path} is not an mjxskill optimizer state")
-    known = {f.name for f in dataclasses.fields(MOBOConfig)}
-    raw = meta["config"]
-    unknown = set(raw) - known
-    if unknown:
-        raise ValueError(f"load_state: {path} has unknown config fields {sorted(unknown)}")
-    cfg = MOBOConfig(**raw)
-    state = init(cfg)
+    state = init(_config_from_json(meta, path))
     if x.shape[0] == 0:
         return state
     return tell(state, x, y)
@@ -273,6 +286,8 @@ def minimize(
     n_init: int = 40,
     seed: int = 0,
     callback: Callable[[MOBOState], None] | None = None,
+    acquisition: AcquisitionSettings | Mapping | None = None,
+    ref_point=None,
     **options,
 ) -> MOBOResult:
     """Minimizes the vector objective f over a box with ``budget`` evaluations.
@@ -281,7 +296,10 @@ def minimize(
       f: maps (q, d) points to (q, m) objective values; called once per batch.
       bounds: (2, d) lower and upper bounds.
       budget: total number of evaluations (the last batch is cut to fit).
-      options: further MOBOConfig fields.
+      acquisition: the acquisition settings (default ``AcquisitionSettings()``).
+      ref_point: (m,) reference point of the hypervolume scalarizations (MOBOConfig.ref_point).
+      options: acquisition settings by name, applied over ``acquisition`` (as
+        :func:`acquisition_settings` reads them, e.g. ``n_raw=256``).
     """
     if budget < n_init:
         raise ValueError(f"minimize: budget ({budget}) is smaller than n_init ({n_init})")
@@ -293,10 +311,14 @@ def minimize(
         return y
 
     # The number of objectives is learned from the first warm-up batch.
-    probe = MOBOConfig(bounds=bounds, n_objectives=1, batch_size=batch_size, n_init=n_init, seed=seed, **options)
+    if isinstance(acquisition, Mapping):
+        acquisition = acquisition_settings(acquisition)
+    settings = acquisition_settings(options, base=acquisition)
+    probe = MOBOConfig(bounds=bounds, n_objectives=1, batch_size=batch_size, n_init=n_init, seed=seed,
+                       acquisition=settings)
     x0 = ask(init(probe))
     y0 = evaluate(x0)
-    cfg = dataclasses.replace(probe, n_objectives=y0.shape[1])
+    cfg = dataclasses.replace(probe, n_objectives=y0.shape[1], ref_point=ref_point)
     state = tell(init(cfg), x0, y0)
     if callback:
         callback(state)

@@ -42,36 +42,11 @@ import jax.numpy as jnp
 import optax
 
 from mjxskill.gp import gp as gpm
+from mjxskill.gp import hypervolume_scalarization as hvs
 from mjxskill.gp.acquisition import chebyshev, log_ei, sample_simplex
 from mjxskill.gp.kernels import matern52
 from mjxskill.gp.scalarized_posterior import chebyshev_moments, log_ei_draws, normal_draws
-
-
-class ProposalSettings(NamedTuple):
-    """Static settings of the proposal (hashable: part of the compile cache key)."""
-
-    alpha: float = 0.05  # augmented Chebyshev coefficient
-    n_raw: int = 1024  # random candidates scored per batch element
-    n_restarts: int = 10  # best candidates refined by projected Adam
-    n_opt_steps: int = 100
-    learning_rate: float = 0.02  # unit-cube coordinates per step
-    fit_starts: int = 2
-    fit_steps: int = 50
-    # One GP fit per batch element while the padded training set has at most this many
-    # rows, one shared fit above (a fit costs O(n^3), q of them dominate the proposal time).
-    per_element_fit_max_rows: int = 128
-    # Hyperparameters are fitted on a random subset of at most this many real rows (the
-    # posterior still conditions on all of them): a fit on 448 rows took ~4 s on 2 cores.
-    fit_max_rows: int = 128
-    # Which model each batch element uses (see the module docstring): "scalarized" (a GP on
-    # the element's scalarization), "per_objective" (a GP per objective, scalarized draws),
-    # "hybrid" (the first ceil(q/2) elements scalarized, the rest per-objective).
-    model: str = "hybrid"
-    n_draws: int = 128  # quasi-random posterior draws per point (per-objective model)
-    # Per-objective acquisition: "draws" (quasi-MC log-EI) or "moments" (log-EI of the
-    # moment-matched Gaussian); tau is the softplus width of "draws" (normalized units).
-    ei: str = "draws"
-    tau: float = 1e-3
+from mjxskill.gp.settings import AcquisitionSettings
 
 
 def standardize(s: jnp.ndarray, mask: jnp.ndarray) -> jnp.ndarray:
@@ -83,7 +58,7 @@ def standardize(s: jnp.ndarray, mask: jnp.ndarray) -> jnp.ndarray:
     return jnp.where(mask, (s - mu) / sd, 0.0)
 
 
-def _believer_predictor(post: gpm.GPPosterior, fantasies, fantasy_mask):
+def _believer_predictor(post: gpm.GPPosterior, fantasies, fantasy_mask, deflate: bool = False):
     """Posterior of one GP after the Kriging believer: xs (b, d) -> mean (b,), variance (b,).
 
     The believed values equal the posterior mean, so the mean is that of ``post`` and only
@@ -108,7 +83,10 @@ def _believer_predictor(post: gpm.GPPosterior, fantasies, fantasy_mask):
         c = matern52(xs, fantasies, ls, os) - k_kinv @ k_f.T  # (b, q)
         c = jnp.where(fantasy_mask[None, :], c, 0.0)
         w = jax.scipy.linalg.solve_triangular(s_chol, c.T, lower=True)  # (q, b)
-        return mean, jnp.maximum(var - jnp.sum(w * w, axis=0), 1e-12)
+        var = var - jnp.sum(w * w, axis=0)
+        if deflate:  # static
+            var = var - nv
+        return mean, jnp.maximum(var, 1e-12)
 
     return predict
 
@@ -126,40 +104,100 @@ def _acquisition_for_element(post: gpm.GPPosterior, y_std, fantasies, fantasy_ma
     return acq
 
 
-def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, y_norm, mask, weight, alpha, draws,
-                               fantasies, fantasy_mask, ei="moments", tau=1e-3):
-    """Per-objective model: log-EI of the moment-matched scalarization, xs (b, d) -> (b,).
+class Scalarization(NamedTuple):
+    """What the two models need of the q elements' scalarizations (see ``_scalarization``).
+
+    space: (n, m) objectives the per-objective GPs are fitted to (minimized).
+    targets: (q, n) each element's scalarized observations, to be minimized (scalarized model).
+    log_ei: (j, mean (b, m), variance (b, m), pending (q, m), pending_mask (q,)) -> (b,)
+      log-EI of element j's scalarization of independent Gaussian objectives in ``space``
+      units (per-objective model); with ``settings.pending == "values"`` the incumbent also
+      counts the pending points at their believed (posterior mean) values.
+    """
+
+    space: jnp.ndarray
+    targets: jnp.ndarray
+    log_ei: object
+
+
+def _scalarization(y_norm, mask, ref, key, q: int, settings: AcquisitionSettings) -> Scalarization:
+    """The q elements' random scalarizations: augmented Chebyshev on Dirichlet weights, or
+    hypervolume scalarizations on uniform directions (``hypervolume_scalarization.py``)."""
+    m = y_norm.shape[1]
+    draws = jnp.asarray(normal_draws(settings.n_draws, m))
+    if settings.scalarization == "chebyshev":  # static
+        weights = sample_simplex(key, q, m)
+        targets = jax.vmap(lambda w: chebyshev(y_norm, w, settings.alpha))(weights)
+        best = jnp.min(jnp.where(mask[None], targets, jnp.inf), axis=1)  # (q,)
+
+        def log_ei_of(j, mean, var, pending, pending_mask):
+            b = best[j]
+            if settings.pending == "values":  # static
+                b = jnp.minimum(b, jnp.min(jnp.where(pending_mask, chebyshev(pending, weights[j], settings.alpha), jnp.inf)))
+            if settings.ei == "draws":  # static
+                return log_ei_draws(mean, var, weights[j], settings.alpha, draws, b, settings.tau)
+            s_mean, s_var = chebyshev_moments(mean, var, weights[j], settings.alpha, draws)
+            return log_ei(s_mean, s_var, b)
+
+        return Scalarization(y_norm, targets, log_ei_of)
+    u = hvs.to_reference_units(y_norm, mask, ref)
+    if settings.beyond_reference == "log":  # static
+        u = hvs.compress_beyond_reference(u)
+    k = settings.n_directions
+    directions = hvs.sample_directions(key, q * k, m).reshape(q, k, m)
+    # The scalarized model's GP sees the m-th root (the anchored Chebyshev value, smoother)
+    # of the element's first direction.
+    targets = -jax.vmap(lambda lam: hvs.anchored_chebyshev(u, lam))(directions[:, 0])
+    values = jax.vmap(jax.vmap(lambda lam: hvs.scalarize(u, lam)))(directions)  # (q, k, n)
+    best = jnp.max(jnp.where(mask, values, -jnp.inf), axis=-1)  # (q, k)
+
+    def log_ei_hv(j, mean, var, pending, pending_mask):
+        b = best[j]  # (k,)
+        if settings.pending == "values":  # static
+            believed = jax.vmap(lambda lam: hvs.scalarize(pending, lam))(directions[j])  # (k, q)
+            b = jnp.maximum(b, jnp.max(jnp.where(pending_mask, believed, -jnp.inf), axis=-1))
+        return hvs.log_ei_hv_draws(mean, var, directions[j], draws, b, settings.tau)
+
+    return Scalarization(u, targets, log_ei_hv)
+
+
+def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_of, fantasies, fantasy_mask,
+                               deflate: bool = False):
+    """Per-objective model: log-EI of the element's scalarization, xs (b, d) -> (b,).
 
     posts: the m per-objective posteriors stacked on a leading axis, fitted to the
-    objectives standardized by y_mean, y_sd (m,); y_norm (n, m) the normalized objectives.
+    objectives standardized by y_mean, y_sd (m,); log_ei_of(mean, var, pending, pending_mask)
+    in unstandardized units.
     """
     predictors = [
-        _believer_predictor(jax.tree.map(lambda a, i=i: a[i], posts), fantasies, fantasy_mask)
-        for i in range(y_norm.shape[1])
+        _believer_predictor(jax.tree.map(lambda a, i=i: a[i], posts), fantasies, fantasy_mask, deflate)
+        for i in range(y_mean.shape[0])
     ]
-    best = jnp.min(jnp.where(mask, chebyshev(y_norm, weight, alpha), jnp.inf))
+
+    # The believed values of the pending points: the posterior means (the believer keeps them).
+    pending = jnp.stack([pr(fantasies)[0] for pr in predictors], axis=-1) * y_sd + y_mean  # (q, m)
 
     def acq(xs):
         moments = [pr(xs) for pr in predictors]
         mean = jnp.stack([mu for mu, _ in moments], axis=-1) * y_sd + y_mean  # (b, m)
         var = jnp.stack([v for _, v in moments], axis=-1) * y_sd**2
-        if ei == "draws":  # static
-            val = log_ei_draws(mean, var, weight, alpha, draws, best, tau)
-        else:
-            s_mean, s_var = chebyshev_moments(mean, var, weight, alpha, draws)
-            val = log_ei(s_mean, s_var, best)
+        val = log_ei_of(mean, var, pending, fantasy_mask)
         return jnp.where(jnp.isnan(val), -jnp.inf, val)
 
     return acq
 
 
-def _maximize(acq, key, d: int, settings: ProposalSettings) -> jnp.ndarray:
+def _maximize(acq, key, d: int, settings: AcquisitionSettings) -> jnp.ndarray:
     """Best point in [0, 1]^d: random candidates, then projected Adam from the best ones."""
     raw = jax.random.uniform(key, (settings.n_raw, d), jnp.float64)
     raw_vals = acq(raw)
     _, top = jax.lax.top_k(raw_vals, settings.n_restarts)
     x0 = raw[top]
-    opt = optax.adam(settings.learning_rate)
+    # Adam's steps stay ~learning_rate long near an optimum; a cosine decay to
+    # final_learning_rate lets the starts settle (fronts along steep edges need ~1e-3 precision).
+    lr = optax.cosine_decay_schedule(settings.learning_rate, settings.n_opt_steps,
+                                     settings.final_learning_rate / settings.learning_rate)
+    opt = optax.adam(lr)
     # Starts are independent: the gradient of the sum is each start's own gradient.
     def loss(xs):
         return -jnp.sum(acq(xs))
@@ -178,7 +216,7 @@ def _maximize(acq, key, d: int, settings: ProposalSettings) -> jnp.ndarray:
 
 
 @partial(jax.jit, static_argnames=("q", "settings"))
-def propose_batch(x, y_norm, mask, key, *, q: int, settings: ProposalSettings = ProposalSettings()):
+def propose_batch(x, y_norm, mask, key, ref=None, *, q: int, settings: AcquisitionSettings = AcquisitionSettings()):
     """q new points in the unit cube.
 
     Args:
@@ -186,14 +224,16 @@ def propose_batch(x, y_norm, mask, key, *, q: int, settings: ProposalSettings = 
       y_norm: (n, m) float64 objectives (minimized), normalized to [0, 1] with non-finite
         values already replaced (see optimizer.py).
       mask: (n,) bool, True for real rows (at least 2 of them).
-      key: PRNG key; the weights and all random starts derive from it.
+      key: PRNG key; the scalarizations and all random starts derive from it.
+      ref: (m,) float64 reference point in the units of y_norm (hypervolume scalarization).
     Returns:
-      (points (q, d) float64 in [0, 1]^d, weights (q, m) float64, fitted GPParams).
+      (points (q, d) float64 in [0, 1]^d, fitted GPParams).
     """
     n, d = x.shape
-    m = y_norm.shape[1]
     k_w, k_fit, k_acq = jax.random.split(key, 3)
-    weights = sample_simplex(k_w, q, m)
+    if ref is None:
+        ref = jnp.ones((y_norm.shape[1],), y_norm.dtype)
+    scal = _scalarization(y_norm, mask, ref, k_w, q, settings)
     k_fit, k_subset = jax.random.split(k_fit)
     if n > settings.fit_max_rows:  # static
         # A uniformly random subset of the real rows (padding rows score -inf).
@@ -203,50 +243,50 @@ def propose_batch(x, y_norm, mask, key, *, q: int, settings: ProposalSettings = 
         rows = jnp.arange(n)
 
     def fit(y):
-        return gpm.fit(x[rows], y[rows], mask[rows], k_fit, n_starts=settings.fit_starts, n_steps=settings.fit_steps)
+        return gpm.fit(x[rows], y[rows], mask[rows], k_fit, n_starts=settings.fit_starts, n_steps=settings.fit_steps,
+                       prior=settings.prior)
 
     acq_keys = jax.random.split(k_acq, q)
-    init = (jnp.full((q, d), 0.5, jnp.float64), jnp.zeros((q,), bool))
+    fantasies = (jnp.full((q, d), 0.5, jnp.float64), jnp.zeros((q,), bool))
 
     n_scal = {"scalarized": q, "per_objective": 0, "hybrid": (q + 1) // 2}[settings.model]  # static
-    fantasies = init
     points = []
     params = None
     if n_scal > 0:
-        scal = jax.vmap(lambda w: standardize(chebyshev(y_norm, w, settings.alpha), mask))(weights)  # (q, n)
+        targets = jax.vmap(lambda s: standardize(s, mask))(scal.targets)  # (q, n)
         if n > settings.per_element_fit_max_rows:  # static: decided once per size bucket
-            params = jax.tree.map(lambda a: jnp.broadcast_to(a, (n_scal,) + a.shape), fit(scal[0]))
+            params = jax.tree.map(lambda a: jnp.broadcast_to(a, (n_scal,) + a.shape), fit(targets[0]))
         else:
-            params = jax.lax.map(fit, scal[:n_scal])
-        posts_s = jax.vmap(lambda p, y: gpm.condition(p, x, y, mask))(params, scal[:n_scal])
+            params = jax.lax.map(fit, targets[:n_scal])
+        posts_s = jax.vmap(lambda p, y: gpm.condition(p, x, y, mask))(params, targets[:n_scal])
 
         def choose_s(carry, j):
             fant, fant_mask = carry
             post = jax.tree.map(lambda a: a[j], posts_s)
-            acq = _acquisition_for_element(post, scal[j], fant, fant_mask)
+            acq = _acquisition_for_element(post, targets[j], fant, fant_mask)
             xj = _maximize(acq, acq_keys[j], d, settings)
             return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
 
         fantasies, pts = jax.lax.scan(choose_s, fantasies, jnp.arange(n_scal))
         points.append(pts)
     if n_scal < q:
+        space = scal.space
         cnt = jnp.maximum(jnp.sum(mask), 1)
-        y_mean = jnp.sum(jnp.where(mask[:, None], y_norm, 0.0), axis=0) / cnt
-        y_var = jnp.sum(jnp.where(mask[:, None], (y_norm - y_mean) ** 2, 0.0), axis=0) / jnp.maximum(cnt - 1, 1)
+        y_mean = jnp.sum(jnp.where(mask[:, None], space, 0.0), axis=0) / cnt
+        y_var = jnp.sum(jnp.where(mask[:, None], (space - y_mean) ** 2, 0.0), axis=0) / jnp.maximum(cnt - 1, 1)
         y_sd = jnp.sqrt(jnp.where(y_var > 1e-18, y_var, 1.0))
-        y_std = jax.vmap(lambda col: standardize(col, mask), in_axes=1)(y_norm)  # (m, n)
+        y_std = jax.vmap(lambda col: standardize(col, mask), in_axes=1)(space)  # (m, n)
         params_o = jax.lax.map(fit, y_std)
         posts_o = jax.vmap(lambda p, y: gpm.condition(p, x, y, mask))(params_o, y_std)
-        draws = jnp.asarray(normal_draws(settings.n_draws, m))
 
         def choose_o(carry, j):
             fant, fant_mask = carry
-            acq = _acquisition_per_objective(posts_o, y_mean, y_sd, y_norm, mask, weights[j], settings.alpha, draws,
-                                             fant, fant_mask, settings.ei, settings.tau)
+            acq = _acquisition_per_objective(posts_o, y_mean, y_sd, partial(scal.log_ei, j), fant, fant_mask,
+                                             settings.variance == "deflated")
             xj = _maximize(acq, acq_keys[j], d, settings)
             return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
 
         _, pts = jax.lax.scan(choose_o, fantasies, jnp.arange(n_scal, q))
         points.append(pts)
         params = params_o if params is None else params
-    return jnp.concatenate(points, axis=0), weights, params
+    return jnp.concatenate(points, axis=0), params

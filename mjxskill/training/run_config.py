@@ -17,7 +17,7 @@ import yaml
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import Field, compose_text
 from mjxskill.training.evaluations_csv import FORCE_COLUMNS
-from mjxskill.training.settings import NO_DEFAULT, SETTINGS, cross_problems, optimizer_option_problem
+from mjxskill.training.settings import NO_DEFAULT, SETTINGS, cross_problems, optimizer_option_value
 
 FORMAT = "mjxskill.run/1"
 IDENTITY = ("task", "scenario", "parameter_names", "parameter_units", "bounds", "objective_names")
@@ -28,8 +28,9 @@ class RunConfig:
     """What a run is: the task, its parameter space and objectives, and the training flags.
 
     task: scenario name ("push"); scenario: what ``load_scenario`` was given (a name or a path).
-    bounds: ((lower...), (upper...)) in parameter order. optimizer_options: settings of the GP
-    optimizer other than the defaults (``--optimizer-option``). repeats > 1: this directory holds one
+    bounds: ((lower...), (upper...)) in parameter order. optimizer_options: acquisition settings of
+    the GP optimizer (``mjxskill.gp.AcquisitionSettings`` fields) other than its defaults
+    (``--optimizer-option``). repeats > 1: this directory holds one
     sub-run per seed (``seed-<s>/``) and no evaluations of its own. The fields from ``goal`` on
     are the settings of ``mjxskill.training.settings.SETTINGS``.
     """
@@ -48,7 +49,7 @@ class RunConfig:
     seed: int
     episode_seconds: float
     repeats: int = 1
-    optimizer_options: dict = field(default_factory=dict)  # further mjxskill.gp.MOBOConfig fields
+    optimizer_options: dict = field(default_factory=dict)  # {acquisition setting: value}, see optimizer_config
     engine: str = "mjx"  # the physics engine its batches run on (mjxskill.engines); "mjx" before the setting
 
     def to_yaml(self) -> str:
@@ -95,17 +96,16 @@ class RunConfig:
         options = {}
         if "optimizer_options" in f and not f["optimizer_options"].is_null():
             for key, item in f["optimizer_options"].items():
-                value = item.scalar()
-                problem = optimizer_option_problem(key, value)
-                if problem:
-                    item.fail(problem)
-                options[key] = value
+                try:  # gp's acquisition settings, typed by gp (every key an older run wrote is one)
+                    options[key] = optimizer_option_value(key, item.scalar())
+                except ValueError as err:
+                    item.fail(str(err))
         config = cls(task=f["task"].string(), scenario=f["scenario"].string(), parameter_names=names,
                      parameter_units=units, bounds=(tuple(bounds[0]), tuple(bounds[1])),
                      objective_names=_names(f["objective_names"], "objective"), optimizer_options=options, **values)
         problem = optimizer_problem(config)
         if problem:
-            f["optimizer_options"].fail(problem)
+            f.get("optimizer_options", root).fail(problem)
         return config
 
     def columns(self) -> list[str]:
@@ -138,8 +138,8 @@ def _names(field: Field, what: str) -> tuple[str, ...]:
 
 def optimizer_config(config: RunConfig):
     """The ``mjxskill.gp.MOBOConfig`` of a run: its parameter space, batches and seed, and the
-    further optimizer options it was started with."""
-    from mjxskill.gp import MOBOConfig
+    acquisition settings its optimizer options name (gp's defaults for the others)."""
+    from mjxskill.gp import MOBOConfig, acquisition_settings
 
     return MOBOConfig(
         bounds=config.bounds,
@@ -147,13 +147,14 @@ def optimizer_config(config: RunConfig):
         batch_size=config.batch_size,
         n_init=config.n_init,
         seed=config.seed,
-        **config.optimizer_options,
+        acquisition=acquisition_settings(config.optimizer_options),
     )
 
 
 def optimizer_problem(config: RunConfig) -> str | None:
     """Why the optimizer refuses ``config`` (None: it accepts it). With the run's own fields
-    checked before, what is left to refuse is an optimizer option (MOBOConfig names it)."""
+    checked before, what is left to refuse is an optimizer option, alone or with another (gp
+    names it, e.g. n_restarts beyond n_raw)."""
     try:
         optimizer_config(config)
     except (ValueError, TypeError) as err:

@@ -8,8 +8,9 @@ too (``batch_size: 0`` used to loop forever). A new setting is one row here and 
 ``RunConfig`` (``tests/test_settings.py`` checks that the two agree).
 
 ``cross_problems`` holds the checks that involve several settings, and
-``optimizer_option_problem`` the check of one ``--optimizer-option`` / ``optimizer_options``
-entry, both for either source.
+``optimizer_option_value`` the check of one ``--optimizer-option`` / ``optimizer_options``
+entry, both for either source. The optimizer options are not a table here: they are the
+acquisition settings of ``mjxskill.gp`` (``AcquisitionSettings``), named, typed and checked by gp.
 """
 
 from __future__ import annotations
@@ -121,27 +122,16 @@ def cross_problems(values: dict) -> list[tuple[str, str]]:
     return problems
 
 
-# Set by the run itself (its parameter space, batches and seed), never by an option.
-RUN_DEFINED = ("bounds", "n_objectives", "batch_size", "n_init", "seed")
+def optimizer_option_value(key: str, value):
+    """The checked value of one ``--optimizer-option KEY=VALUE`` / ``optimizer_options`` entry
+    (a number or a string, e.g. ``n_raw=256`` or ``model=scalarized``), as gp types it;
+    ValueError names the key (listing the valid ones) or the value. The options are gp's
+    ``AcquisitionSettings`` fields; the run's parameter space, batches and seed are no option.
+    gp checks what several options must satisfy together when the run's ``MOBOConfig`` is
+    built (``run_config.optimizer_problem``)."""
+    from mjxskill.gp.settings import setting_value
+
+    return setting_value(key, value)
 
 
-def optimizer_option_names() -> list[str]:
-    import dataclasses
-
-    from mjxskill.gp import MOBOConfig
-
-    return [f.name for f in dataclasses.fields(MOBOConfig) if f.name not in RUN_DEFINED]
-
-
-def optimizer_option_problem(key: str, value) -> str | None:
-    """Why ``key: value`` is no optimizer option (None: it is one); MOBOConfig checks ranges."""
-    names = optimizer_option_names()
-    if key not in names:
-        return f"unknown optimizer option {key!r}; expected one of {', '.join(names)}"
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return f"{key}: expected a number, got {value!r}"
-    return None
-
-
-__all__ = ["BY_NAME", "NO_DEFAULT", "RUN_DEFINED", "SEED", "SETTINGS", "Setting", "cross_problems",
-           "optimizer_option_names", "optimizer_option_problem"]
+__all__ = ["BY_NAME", "NO_DEFAULT", "SEED", "SETTINGS", "Setting", "cross_problems", "optimizer_option_value"]

@@ -1,0 +1,174 @@
+"""The acquisition settings: one frozen, validated, hashable object.
+
+``AcquisitionSettings`` holds everything that shapes a model-based proposal (models, fits,
+acquisition search, padding); ``MOBOConfig.acquisition`` carries one. It is a static argument
+of the jitted proposal, so it must stay hashable (a frozen dataclass of scalars and strings).
+
+``acquisition_settings({"n_raw": 256, "model": "hybrid"})`` builds one from the flat
+``{name: number | string}`` mapping that ``train --optimizer-option KEY=VALUE`` stores; every
+check lives in ``__post_init__`` so that the constructor, that function and ``load_state``
+validate the same way.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Mapping
+
+# Allowed values of the string settings (first: what each choice means is in proposal.py).
+CHOICES = {
+    "scalarization": ("chebyshev", "hypervolume"),
+    "reference": ("warmup", "front"),
+    "beyond_reference": ("log", "linear"),
+    "prior": ("gamma", "lognormal"),
+    "pending": ("variance", "values"),
+    "variance": ("latent", "deflated"),
+    "model": ("hybrid", "scalarized", "per_objective"),
+    "ei": ("draws", "moments"),
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class AcquisitionSettings:
+    """Settings of the model-based proposal (hashable: part of the compile cache key)."""
+
+    # The random scalarization of each batch element: "chebyshev" (augmented Chebyshev of
+    # objectives normalized by their observed range, flat Dirichlet weights; ParEGO) or
+    # "hypervolume" (Golovin and Zhang's hypervolume scalarization about a reference point,
+    # uniform directions; hypervolume_scalarization.py).
+    scalarization: str = "chebyshev"
+    alpha: float = 0.05  # augmented Chebyshev coefficient
+    # Where the reference point comes from when MOBOConfig.ref_point is None: "warmup" (the
+    # worst of the n_init warm-up values plus ref_margin times their range, fixed for the run:
+    # the reference mjxskill.train reports the hypervolume against) or "front" (the observed
+    # front's nadir plus ref_margin times its extent at each proposal, as BoTorch's
+    # infer_reference_point).
+    reference: str = "warmup"
+    ref_margin: float = 0.1
+    # Directions averaged per batch element by the per-objective model's hypervolume
+    # scalarization (1: one random scalarization per element; more: a Monte Carlo estimate of
+    # the expected hypervolume improvement over that many random directions).
+    n_directions: int = 1
+    # Objective values beyond the reference point: "log" compressed (1 + log u in reference
+    # units; a heavy tail of bad values no longer sets the GP's mean and scale) or "linear".
+    beyond_reference: str = "log"
+    bucket: int = 64  # training sets are padded to a multiple of this many rows (one compile per bucket)
+    n_raw: int = 1024  # random candidates scored per batch element
+    n_restarts: int = 10  # best candidates refined by projected Adam
+    n_opt_steps: int = 100
+    learning_rate: float = 0.02  # unit-cube coordinates per Adam step
+    final_learning_rate: float = 0.02  # cosine-decayed to this by the last step (equal: constant)
+    fit_starts: int = 2
+    # GP hyperparameter prior (gp.log_prior): "gamma" (Matern 5/2 with BoTorch's former Gamma
+    # priors) or "lognormal" (the dimension-scaled LogNormal lengthscale prior).
+    prior: str = "gamma"
+    fit_steps: int = 50
+    # One GP fit per batch element while the padded training set has at most this many
+    # rows, one shared fit above (a fit costs O(n^3), q of them dominate the proposal time).
+    per_element_fit_max_rows: int = 128
+    # Hyperparameters are fitted on a random subset of at most this many real rows (the
+    # posterior still conditions on all of them): a fit on 448 rows took ~4 s on 2 cores.
+    fit_max_rows: int = 128
+    # Which model each batch element uses (see proposal.py): "scalarized" (a GP on the
+    # element's scalarization), "per_objective" (a GP per objective, scalarized draws),
+    # "hybrid" (the first ceil(q/2) elements scalarized, the rest per-objective).
+    model: str = "hybrid"
+    n_draws: int = 128  # quasi-random posterior draws per point (per-objective model)
+    # What the points already chosen for the batch change for the later elements of the
+    # per-objective model (Kriging believer): "variance" (only the posterior variance shrinks
+    # around them) or "values" (also the incumbent counts them at their believed values, so
+    # a gap in the front that an earlier element fills offers no improvement again).
+    pending: str = "variance"
+    # The per-objective posterior variance the acquisition sees: "latent" (noise excluded)
+    # or "deflated" (minus the fitted noise variance as well: ~0 at observed points of a
+    # noiseless objective, where the latent variance stays ~noise and gives a re-evaluation
+    # of the incumbent a spurious EI).
+    variance: str = "latent"
+    # Per-objective acquisition: "draws" (quasi-MC log-EI) or "moments" (log-EI of the
+    # moment-matched Gaussian); tau is the softplus width of "draws" (normalized units).
+    ei: str = "draws"
+    tau: float = 1e-3
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            problem = _field_problem(f.name, f.type, getattr(self, f.name))
+            if problem:
+                raise ValueError(f"acquisition setting {f.name}: {problem}")
+            if f.type == "float":
+                object.__setattr__(self, f.name, float(getattr(self, f.name)))
+        if self.scalarization == "hypervolume" and self.ei != "draws":
+            raise ValueError("acquisition setting ei: the hypervolume scalarization has only the 'draws' estimate")
+        if self.n_restarts > self.n_raw:
+            raise ValueError(f"acquisition setting n_restarts ({self.n_restarts}) exceeds n_raw ({self.n_raw})")
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+NAMES = tuple(f.name for f in dataclasses.fields(AcquisitionSettings))
+_KINDS = {f.name: f.type for f in dataclasses.fields(AcquisitionSettings)}
+_NONNEGATIVE = ("alpha", "ref_margin")
+_POSITIVE = ("tau", "learning_rate", "final_learning_rate")
+
+
+def _field_problem(name: str, kind: str, v) -> str | None:
+    """Why ``v`` is no value of the one setting ``name`` (None: it is one); the checks that
+    involve several settings are ``AcquisitionSettings.__post_init__``'s."""
+    if kind == "int":
+        if not isinstance(v, int) or isinstance(v, bool):
+            return f"expected an integer, got {v!r}"
+        if v < 1:
+            return f"expected a positive integer, got {v!r}"
+    elif kind == "float":
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+            return f"expected a finite number, got {v!r}"
+        if name in _NONNEGATIVE and v < 0.0:
+            return f"must be >= 0, got {v!r}"
+        if name in _POSITIVE and not v > 0.0:
+            return f"must be > 0, got {v!r}"
+    elif name in CHOICES and v not in CHOICES[name]:
+        return f"expected one of {', '.join(map(repr, CHOICES[name]))}, got {v!r}"
+    return None
+
+
+def _coerce(name: str, kind: str, value):
+    """A number or string from the command line or JSON, as the field's type."""
+    if isinstance(value, str) and kind in ("int", "float"):
+        text = value.strip()
+        try:
+            return int(text) if kind == "int" else float(text)
+        except ValueError:
+            raise ValueError(f"acquisition setting {name}: expected {'an integer' if kind == 'int' else 'a number'}, "
+                             f"got {value!r}") from None
+    if kind == "float" and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if kind == "int" and isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
+
+
+def setting_value(name: str, value):
+    """The checked value of the one setting ``name`` from a number or a string (the text of
+    ``--optimizer-option KEY=VALUE`` or a YAML/JSON scalar), as the field's type. Raises
+    ValueError naming an unknown key (with the valid ones) or the setting and its bad value.
+    What several settings must satisfy together is checked by :func:`acquisition_settings`."""
+    if name not in _KINDS:
+        raise ValueError(f"unknown acquisition setting {name!r}; valid settings: {', '.join(NAMES)}")
+    value = _coerce(name, _KINDS[name], value)
+    problem = _field_problem(name, _KINDS[name], value)
+    if problem:
+        raise ValueError(f"acquisition setting {name}: {problem}")
+    return float(value) if _KINDS[name] == "float" else value
+
+
+def acquisition_settings(options: Mapping[str, object] | None = None, base: AcquisitionSettings | None = None
+                         ) -> AcquisitionSettings:
+    """Settings from a flat ``{name: number | string}`` mapping; unnamed fields keep ``base``'s.
+
+    Numeric strings ("256", "1e-3") are parsed; integral floats are accepted for integer
+    fields. Raises ValueError naming the bad key (and listing the valid ones) or value.
+    """
+    base = AcquisitionSettings() if base is None else base
+    values = {key: setting_value(key, value) for key, value in dict(options or {}).items()}
+    return dataclasses.replace(base, **values)
