@@ -5,6 +5,7 @@ and the files, not on wall-clock (benchmarks/throughput.py --cache-check times i
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -16,7 +17,7 @@ import pytest
 
 from mjxskill import compile_rollout, load_scenario
 from mjxskill.rollout.program_cache import program_key
-from scenario_texts import shipped_text
+from scenario_texts import library_text, write_library_copy
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -73,17 +74,19 @@ def test_the_key_names_everything_the_program_depends_on():
     assert _key(load_scenario("peg")) == base  # the same content loaded again
     others = [_key(peg, seconds=0.4), _key(peg, batch=3), _key(peg, worlds=3), _key(load_scenario("push"))]
     assert len({base, *others}) == 5
-    # The scenario's content counts: the same file with another goal threshold gets another key.
-    text = shipped_text("peg")
-    assert "threshold: {type: float, unit: m, default: 0.04}" in text
-    copy = Path(os.environ.get("TMPDIR", "/tmp")) / f"peg-key-{os.getpid()}.yaml"
+    # The scenario's content counts, the skill library it includes too: the same files with
+    # another approach threshold (a tree constant, not in the MuJoCo model) get another key.
+    old = 'threshold: {type: float, unit: m, default: 0.05, description: "done when the tool is this close'
+    library = library_text()
+    assert library.count(old) == 1
+    folder = Path(os.environ.get("TMPDIR", "/tmp")) / f"peg-key-{os.getpid()}"
+    folder.mkdir(exist_ok=True)
     try:
-        copy.write_text(text)
-        same = _key(load_scenario(str(copy)))
-        copy.write_text(text.replace("default: 0.04}", "default: 0.05}"))
-        assert _key(load_scenario(str(copy))) != same
+        same = _key(load_scenario(str(write_library_copy(folder, "peg", library))))
+        changed = write_library_copy(folder, "peg", library.replace(old, old.replace("default: 0.05", "default: 0.06")))
+        assert _key(load_scenario(str(changed))) != same
     finally:
-        copy.unlink(missing_ok=True)
+        shutil.rmtree(folder, ignore_errors=True)
     np.testing.assert_equal(len(base), 64)
 
 

@@ -28,6 +28,7 @@ def obs(**overrides) -> Observation:
         slot_quat=jnp.array([QUAT_Z90, [1.0, 0.0, 0.0, 0.0]]),
         wrench=jnp.array([1.0, -2.0, -7.0, 5.0, 5.0, 5.0]),
         bt_succeeded=jnp.array(True),
+        contact_force=jnp.array(0.0),  # N: the tool touches nothing
     )
     fields.update(overrides)
     return Observation(**fields)
