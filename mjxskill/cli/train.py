@@ -4,6 +4,7 @@
     python -m mjxskill.train peg --budget 200 --batch-size 8 --init 40 --worlds 7 --seed 3 --out runs/peg-3
     python -m mjxskill.train push --resume runs/push-0
     python -m mjxskill.train push --repeats 10 --out runs/push-x10
+    python -m mjxskill.train push --optimizer random --out runs/push-random   # the random-search baseline
 
 The flags over the scenario's defaults make the run's configuration (``config.yaml``); the
 loop itself is ``mjxskill.training.loop.train``, which this command drives with a progress bar
@@ -137,8 +138,10 @@ def resolve_config(args: argparse.Namespace, scn, task) -> RunConfig:
     return config
 
 
-def _resumed_config(args: argparse.Namespace) -> RunConfig:
-    run = Run(args.resume)
+def resumed_config(args: argparse.Namespace, run_path: Path | None = None) -> RunConfig:
+    """The configuration of the run ``--resume`` names (or ``run_path``, a run inside it),
+    refusing flags that would change it."""
+    run = Run(run_path or args.resume)
     config = run.config()
     if args.optimizer_option and dict(args.optimizer_option) != config.optimizer_options:
         raise CommandError(f"--resume continues {args.resume} with its own optimizer options {config.optimizer_options}; drop --optimizer-option")
@@ -156,7 +159,7 @@ def _main(args: argparse.Namespace) -> int:
     from mjxskill.training.run_task import load_run_task, scenario_and_task
 
     if args.resume is not None:
-        config = _resumed_config(args)
+        config = resumed_config(args)
         run = Run(args.resume)
         lock = run.lock()  # before anything is read for resuming: one writer per run
         with lock:
@@ -178,7 +181,8 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
     print(f"objectives (larger is better): {', '.join(config.objective_names)}")
     print(f"budget {config.budget} evaluations, batches of {config.batch_size}, {config.n_init} random warm-up, "
           f"{config.worlds} worlds, {config.episode_seconds:g} s episodes, seed {config.seed}"
-          + (f", {config.repeats} repeats" if config.repeats > 1 else ""))
+          + (f", {config.repeats} repeats" if config.repeats > 1 else "")
+          + (", uniform random search after the warm-up" if config.optimizer == "random" else ""))
     print(f"run directory: {run.path}", flush=True)
     why = "the run's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
     print(f"engine: {config.engine} ({why})", flush=True)

@@ -21,6 +21,7 @@ from typing import Any, Callable
 from mjxskill.scenario.schema import MAX_EPISODE_SECONDS, MAX_SEED, MIN_N_INIT
 
 NO_DEFAULT = object()
+OPTIMIZERS = ("mobo", "random")
 
 
 @dataclass(frozen=True)
@@ -105,6 +106,11 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("engine", "--engine", "text", "physics engine: mjx (compiled MJX), native (native MuJoCo, one process "
             "per core) or auto (MJX on a GPU/TPU, native on a CPU)", scenario=lambda scn: "auto", default="mjx",
             choices=("mjx", "native", "auto"), default_text="auto"),
+    # Random search is a run like any other, to compare the optimizer with (mjxskill.experiment):
+    # the same batches, the same warm-up, then uniform draws instead of the model's proposals.
+    Setting("optimizer", "--optimizer", "text", "what proposes the batches after the warm-up: mobo (the "
+            "multi-objective Bayesian optimizer) or random (uniform random search, a baseline)",
+            default="mobo", choices=OPTIMIZERS),
 )
 BY_NAME = {s.name: s for s in SETTINGS}
 SEED = BY_NAME["seed"]  # evaluate's and select's --seed have the same bounds
@@ -143,5 +149,5 @@ def optimizer_option_problem(key: str, value) -> str | None:
     return None
 
 
-__all__ = ["BY_NAME", "NO_DEFAULT", "RUN_DEFINED", "SEED", "SETTINGS", "Setting", "cross_problems",
+__all__ = ["BY_NAME", "NO_DEFAULT", "OPTIMIZERS", "RUN_DEFINED", "SEED", "SETTINGS", "Setting", "cross_problems",
            "optimizer_option_names", "optimizer_option_problem"]
