@@ -45,7 +45,7 @@ def test_the_experiment_writes_every_repetition_and_the_report(experiment):
     assert report["status"] == {"repetitions_done": 2, "repetitions": 2}
     assert set(report["front_size"]) >= {"mean", "sd"} and set(report["groups"]["random"]) == {"known", "unseen"}
     assert len(report["hypervolume"]["optimizer"]) == len(report["hypervolume"]["random_search"]) == 2
-    assert set(report["mann_whitney"]) == {"planner", "random", "manual"}
+    assert set(report["mann_whitney"]) == {"pareto", "planner", "random", "manual"}
     times = json.loads((out / "state.json").read_text())["times"]
     assert set(times) == {f"{k}/seed-{s}" for k in ("optimizer", "random_search") for s in (0, 1)}
     assert all(t["train_seconds_evaluations"] == 4 for t in times.values())
@@ -74,6 +74,26 @@ def test_a_killed_experiment_resumes_to_the_same_results(experiment, tmp_path):
         assert (cut / name).read_text() == (out / name).read_text(), name
     a, b = (json.loads((d / "report.json").read_text()) for d in (out, cut))
     assert a["groups"] == b["groups"] and a["hypervolume"]["optimizer"] == b["hypervolume"]["optimizer"]
+
+
+def test_ctrl_c_says_where_the_work_is_and_how_to_continue(tmp_path):
+    cut = tmp_path / "interrupted"
+    proc = subprocess.Popen(command("experiment", "push", *TINY, "--out", cut), cwd=ROOT, env=subprocess_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        target = cut / "optimizer" / "seed-0" / "evaluations.csv"
+        deadline = time.monotonic() + 600
+        while time.monotonic() < deadline and not (target.is_file() and len(target.read_text().splitlines()) >= 3):
+            assert proc.poll() is None, "the experiment ended before it could be interrupted"
+            time.sleep(0.1)
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, stderr[-2000:]
+    assert f"interrupted: every finished batch and evaluated chunk is in {cut}; continue with " \
+           f"python -m mjxskill.experiment push --resume {cut}" in stderr
+    assert "Traceback" not in stderr
 
 
 def test_evaluate_and_select_take_the_experiment(experiment, capsys, tmp_path):

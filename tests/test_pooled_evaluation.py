@@ -144,6 +144,7 @@ def test_pooled_samples_are_one_per_run_candidate_and_configuration():
     np.testing.assert_array_equal(samples["picked"][1], [0.0, 0.5])
     assert len(samples["pareto"][0]) == 2 * 3 * 2 and len(samples["random"][1]) == 2 * 2 * 1
     tests = pooled_tests(samples)
+    assert set(tests) == {"pareto", "planner", "random", "manual"}
     for baseline in ("planner", "random", "manual"):
         for side in (0, 1):
             direct = mannwhitneyu(samples["picked"][side], samples[baseline][side], alternative="two-sided").pvalue

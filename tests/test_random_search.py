@@ -12,13 +12,18 @@ from mjxskill import gp
 from mjxskill.cli.train import Progress
 from mjxskill.training.loop import train
 from mjxskill.training.run_dir import EVALUATIONS, RunConfig
-from test_train_loop import CONFIG, Recorder, new_run, toy_objective, uninterrupted  # noqa: F401  (a fixture)
+from test_train_loop import CONFIG, Recorder, new_run, toy_objective
 
 RANDOM = replace(CONFIG, optimizer="random")
 
 
-def test_random_search_shares_the_warm_up_then_draws_without_the_model(tmp_path, monkeypatch, uninterrupted):
-    _, optimizer_ev, _ = uninterrupted
+@pytest.fixture(scope="module")
+def optimizer_ev(tmp_path_factory):
+    """The Bayesian optimizer's rows of the same configuration and seed."""
+    return train(new_run(tmp_path_factory.mktemp("mobo"), "mobo"), CONFIG, toy_objective)
+
+
+def test_random_search_shares_the_warm_up_then_draws_without_the_model(tmp_path, monkeypatch, optimizer_ev):
     asked = []
     real_ask = gp.ask
     monkeypatch.setattr(gp, "ask", lambda state, num=None: asked.append(len(state.x)) or real_ask(state, num))

@@ -14,17 +14,15 @@ figures in the experiment directory, rewritten after each repetition. The flags 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 from typing import Sequence
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
-from mjxskill.cli.train import Progress, optimizer_option, resolve_config, resumed_config
+from mjxskill.cli.train import Progress, add_setting_arguments, resolve_config, resumed_config
 from mjxskill.engines import build_rollout, resolve_engine
 from mjxskill.errors import CommandError
-from mjxskill.training.settings import SETTINGS
 
 # The evaluation's flags: name -> (default, what the protocol field is called)
 EVALUATION_DEFAULTS = {"per_config": 5, "random": 10, "max_force": None}
@@ -36,23 +34,13 @@ def build_parser() -> argparse.ArgumentParser:
         description="Repeat training (optimizer and random search), evaluate every repetition against the baselines "
                     "and report side by side with the paper.")
     cli_args.add_task_argument(parser)
-    for setting in SETTINGS:
-        if setting.name == "optimizer":  # the experiment runs both
-            continue
-        default = ("the scenario's repetitions" if setting.name == "repeats" else
-                   setting.default_text or ("the scenario's" if setting.scenario is not None else setting.default))
-        parser.add_argument(setting.flag, dest=setting.name, type=cli_args.setting_type(setting),
-                            help=f"{setting.help} (default: {default})")
-    parser.set_defaults(optimizer=None)
+    add_setting_arguments(parser, skip=("optimizer",), defaults={"repeats": "the scenario's repetitions"})  # it runs both
     parser.add_argument("--per-config", type=cli_args.positive_int, help="evaluation worlds per start configuration (default 5)")
     parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets per evaluation (default 10)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N",
                         help="force bound of the picked solution, N (default: the largest force an operator set commands)")
     parser.add_argument("--out", type=Path, help="experiment directory (default runs/<task>-experiment-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="EXP_DIR", help="continue the experiment in EXP_DIR")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar: one log line per batch")
-    parser.add_argument("--optimizer-option", action="append", type=optimizer_option, metavar="KEY=VALUE", default=None,
-                        help="a further mjxskill.gp.MOBOConfig setting (repeatable; stored with the runs)")
     return parser
 
 
@@ -126,14 +114,8 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
 
         run_experiment(exp, rollout, task, progress_for=progress_for, log=lambda text: print(text, flush=True),
                        evaluation_progress=evaluation_progress)
-    except KeyboardInterrupt:
-        cli.interrupt.acknowledge()
-        try:  # the report of what is finished; every batch and chunk is on disk already
-            write_report(exp)
-        except Exception:  # noqa: BLE001  (a second Ctrl-C or a plotting problem must not hide the message)
-            pass
-        print(f"\nmjxskill.experiment: {cli.interrupt.message()}", file=sys.stderr)
-        return cli.EXIT_INTERRUPTED
+    except KeyboardInterrupt:  # the report of what is finished; every batch and chunk is on disk already
+        return cli.interrupt.stopped("mjxskill.experiment", lambda: write_report(exp))
     finally:
         if "rollout" in locals():
             getattr(rollout, "close", lambda: None)()

@@ -79,16 +79,27 @@ def build_parser() -> argparse.ArgumentParser:
         description="Learn the free skill parameters of a task (multi-objective Bayesian optimization in MJX).",
     )
     cli_args.add_task_argument(parser)
-    for setting in SETTINGS:  # the same checks as config.yaml's (mjxskill.training.settings)
-        default = setting.default_text or ("the scenario's" if setting.scenario is not None else setting.default)
-        parser.add_argument(setting.flag, dest=setting.name, type=cli_args.setting_type(setting),
-                            help=f"{setting.help} (default: {default})")
+    add_setting_arguments(parser)
     parser.add_argument("--out", type=Path, help="run directory (default runs/<task>-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue the run in RUN_DIR to its budget")
+    return parser
+
+
+def add_setting_arguments(parser: argparse.ArgumentParser, skip: tuple[str, ...] = (), defaults: dict | None = None) -> None:
+    """One flag per run setting but ``skip`` (the same checks as config.yaml's,
+    mjxskill.training.settings; ``defaults``: name -> the default's text for the help), and
+    --quiet and --optimizer-option: the flags of every command that trains."""
+    for setting in SETTINGS:
+        if setting.name in skip:
+            parser.set_defaults(**{setting.name: None})
+            continue
+        default = (defaults or {}).get(setting.name) or setting.default_text or (
+            "the scenario's" if setting.scenario is not None else setting.default)
+        parser.add_argument(setting.flag, dest=setting.name, type=cli_args.setting_type(setting),
+                            help=f"{setting.help} (default: {default})")
     parser.add_argument("--quiet", action="store_true", help="no progress bar: one log line per batch")
     parser.add_argument("--optimizer-option", action="append", type=optimizer_option, metavar="KEY=VALUE", default=None,
                         help="a further mjxskill.gp.MOBOConfig setting, e.g. n_raw=256 (repeatable; stored with the run)")
-    return parser
 
 
 def optimizer_option(text: str) -> tuple[str, int | float]:
@@ -205,15 +216,10 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
                 report.write_run_figures(sub, sub_config, ev)
                 print(report.summary(sub, sub_config, ev), flush=True)
     except KeyboardInterrupt:
-        cli.interrupt.acknowledge()
-        try:  # figures of what is done; the CSV already holds every finished batch
-            from mjxskill.training import report
+        from mjxskill.training import report
 
-            report.write_run_figures(sub, sub_config, sub.evaluations(sub_config))
-        except Exception:  # noqa: BLE001  (a second Ctrl-C or a plotting problem must not hide the message)
-            pass
-        print(f"\nmjxskill.train: {cli.interrupt.message()}", file=sys.stderr)
-        return cli.EXIT_INTERRUPTED
+        # figures of what is done; the CSV already holds every finished batch
+        return cli.interrupt.stopped("mjxskill.train", lambda: report.write_run_figures(sub, sub_config, sub.evaluations(sub_config)))
     finally:
         if "rollout" in locals():
             getattr(rollout, "close", lambda: None)()  # the native engine's worker processes

@@ -30,6 +30,7 @@ from mjxskill.training.selection import choose
 POOLED_GROUPS = ("picked", *GROUPS)
 POOLED_LABELS = {"picked": "picked (learned)", **GROUP_LABELS}
 BASELINES = ("planner", "random", "manual")
+TESTED = ("pareto", *BASELINES)  # what the picked solutions are tested against: the baselines and their own fronts
 
 
 class Pick(NamedTuple):
@@ -91,12 +92,12 @@ def pooled_samples(evals: list[Evaluation], picks: list[Pick]) -> dict[str, tupl
 
 
 def pooled_tests(samples: dict) -> dict[str, dict[str, float | None]]:
-    """baseline -> {"known": p, "unseen": p}: two-sided Mann-Whitney U of the picked samples
-    against the baseline's (None where a side has no samples)."""
+    """group -> {"known": p, "unseen": p}: two-sided Mann-Whitney U of the picked samples
+    against each baseline's and the whole Pareto group's (None where a side has no samples)."""
     tests = {}
     if "picked" not in samples:
         return tests
-    for baseline in BASELINES:
+    for baseline in TESTED:
         if baseline not in samples:
             continue
         tests[baseline] = {side: (significance(samples["picked"][i], samples[baseline][i])[0]
@@ -147,5 +148,5 @@ def pooled_table(samples: dict, tests: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["BASELINES", "POOLED_GROUPS", "POOLED_LABELS", "Pick", "force_bound", "group_force_and_time", "group_means",
+__all__ = ["BASELINES", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "force_bound", "group_force_and_time", "group_means",
            "pick", "picked_row", "plot_pooled", "pooled_samples", "pooled_table", "pooled_tests"]

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import json
 import os
-import secrets
-import shutil
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -22,7 +20,7 @@ from pathlib import Path
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import compose_text, read_text
 from mjxskill.training.evaluate_run import evaluation_settings
-from mjxskill.training.run_dir import Run, RunConfig
+from mjxskill.training.run_dir import Run, RunConfig, created_whole
 from mjxskill.training.run_lock import RunLock, lock_run
 from mjxskill.training.runs import EXPERIMENT, OPTIMIZER_RUNS, RANDOM_RUNS
 
@@ -82,23 +80,10 @@ class Experiment:
         if self.path.exists() and (not self.path.is_dir() or os.listdir(self.path)):
             raise RunError(f"{self.path} is not empty and holds no mjxskill experiment; refusing to write into it: "
                            f"choose another --out")
-        try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            staging = self.path.parent / f".{self.path.name}.{os.getpid()}.{secrets.token_hex(4)}.creating"
-            staging.mkdir()
-        except OSError as err:
-            raise RunError(f"cannot write the experiment directory {str(self.path)!r}: {err.strerror}") from None
-        try:
+        with created_whole(self.path, "experiment directory") as staging:
             Run(staging / OPTIMIZER_RUNS).create(replace(config, optimizer="mobo"), scenario_source, texts)
             Run(staging / RANDOM_RUNS).create(random_search_config(config), scenario_source, texts)
             (staging / EXPERIMENT).write_text(protocol.to_yaml(config.task))
-            os.replace(staging, self.path)
-        except OSError as err:
-            shutil.rmtree(staging, ignore_errors=True)
-            raise RunError(f"cannot write the experiment directory {str(self.path)!r}: {err.strerror}") from None
-        except BaseException:
-            shutil.rmtree(staging, ignore_errors=True)
-            raise
 
     def protocol(self) -> Protocol:
         path = self.path / EXPERIMENT

@@ -135,9 +135,11 @@ def markdown(s: dict, figures: bool = True) -> str:
     rows = []
     for seed, kinds in s["wall_time"].items():
         o, r = kinds["optimizer"], kinds["random_search"]
+        total = sum(e.get(k, 0.0) for e, k in ((o, "train_seconds"), (r, "train_seconds"), (o, "evaluate_seconds")))
         rows.append([seed, _secs(o, "train_seconds"), _secs(o, "simulation_seconds"), _secs(r, "train_seconds"),
-                     _num(o.get("evaluate_seconds"), "{:.0f} s")])
-    lines += _table(["seed", "optimizer run (evaluations)", "of it simulation", "random search run", "evaluation"], rows)
+                     _num(o.get("evaluate_seconds"), "{:.0f} s"), f"{total:.0f} s"])
+    lines += _table(["seed", "optimizer run (evaluations)", "of it simulation", "random search run", "evaluation",
+                     "repetition"], rows)
     sessions = s["sessions"]
     lines += ["", f"{len(sessions)} session(s); start-up (planning, engine start, compilation) "
               + ", ".join(f"{x['startup_seconds']:.0f} s ({x['engine']}, {x['cpus']} CPUs)" for x in sessions)
