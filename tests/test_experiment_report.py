@@ -147,3 +147,13 @@ def test_hypervolume_in_the_space_normalized_by_every_run():
     assert normalized_curve(a, lo, hi)[1][-1] == pytest.approx(2 * 1.1 * 0.1 - 0.01)  # two strips, overlap counted once
     assert normalized_curve(b, lo, hi)[1][-1] == pytest.approx(0.6 * 0.6)
     assert normalized_curve(b, lo, hi)[1][-1] == pytest.approx(hypervolume(np.array([[0.5, 0.5]]), [1.1, 1.1]))
+
+
+def test_select_lists_the_runs_trained_so_far(experiment, capsys, tmp_path):
+    from mjxskill.cli.select import main
+
+    exp, _ = experiment
+    assert main([str(exp.path), "--min-success", "0", "--no-render", "--out", str(tmp_path / "sel")]) == 0
+    out = capsys.readouterr().out
+    assert "Pareto fronts of the 3 trained runs in" in out and "random_search seed 5" not in out
+    assert json.loads((tmp_path / "sel" / "parameters.json").read_text())["success_rate"] == 1.0

@@ -43,17 +43,25 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _fronts(path: Path):
-    """(run, its config, its front) of every run ``path`` holds (a run, a repeated run or an
-    experiment: ``mjxskill.training.runs``), each front checked to have rows."""
-    from mjxskill.training.run_dir import Run
+    """([(ref, run, its config, its front)], whether ``path`` holds several runs) for the runs
+    ``path`` holds (a run, a repeated run or an experiment: ``mjxskill.training.runs``). Of several,
+    those not trained yet are left out (an experiment in progress lists the runs done so far); a
+    damaged file is refused as ever."""
+    from mjxskill.training.run_dir import PARETO, Run
     from mjxskill.training.runs import runs_in
 
+    refs = runs_in(path)
     out = []
-    for ref in runs_in(path):
+    for ref in refs:
         run = Run(ref.path)
         config = run.config()
+        if len(refs) > 1 and (not (run.path / PARETO).is_file() or len(run.pareto(config)) == 0):
+            continue
         out.append((ref, run, config, run.front(config)))
-    return out
+    if not out:  # none trained: what a single run says
+        run = Run(refs[0].path)
+        run.front(run.config())
+    return out, len(refs) > 1
 
 
 def _main(args: argparse.Namespace) -> int:
@@ -64,15 +72,14 @@ def _main(args: argparse.Namespace) -> int:
     from mjxskill.training.run_dir import concat_all
     from mjxskill.training.selection import choose, export_document, write_export
 
-    fronts = _fronts(args.run)
+    fronts, several = _fronts(args.run)
     if args.min_success is not None and args.min_success > 1:
         raise CommandError(f"--min-success is a rate between 0 and 1, got {args.min_success}")
-    several = len(fronts) > 1
     _, run, config, _ = fronts[0]
     union = concat_all([f for *_, f in fronts], len(config.parameter_names), len(config.objective_names))
     owner = [(ref, sub, c, k) for ref, sub, c, f in fronts for k in range(len(f))]  # union row -> its run and row
     if several:
-        print(f"Pareto fronts of the {len(fronts)} runs in {args.run} ({len(union)} solutions; # numbers them all, "
+        print(f"Pareto fronts of the {len(fronts)} trained runs in {args.run} ({len(union)} solutions; # numbers them all, "
               f"'run' names the run and its row of pareto.csv):")
         labels = [f"{ref.kind} seed {ref.seed} row {k}" for ref, _, _, k in owner]
         table = front_table(config, union).splitlines()
