@@ -143,7 +143,8 @@ def test_hypervolume_in_the_space_normalized_by_every_run():
     a = Evaluations(np.array([0, 0]), np.zeros((2, 1)), np.array([[1.0, 0.0], [0.0, 1.0]]), np.zeros(2), np.zeros(2))
     b = Evaluations(np.array([0]), np.zeros((1, 1)), np.array([[0.5, 0.5]]), np.zeros(1), np.zeros(1))
     lo, hi = normalization([a, b])
-    np.testing.assert_array_equal(lo, [-1, -1]) and np.testing.assert_array_equal(hi, [0, 0])
+    np.testing.assert_array_equal(lo, [-1, -1])
+    np.testing.assert_array_equal(hi, [0, 0])
     assert normalized_curve(a, lo, hi)[1][-1] == pytest.approx(2 * 1.1 * 0.1 - 0.01)  # two strips, overlap counted once
     assert normalized_curve(b, lo, hi)[1][-1] == pytest.approx(0.6 * 0.6)
     assert normalized_curve(b, lo, hi)[1][-1] == pytest.approx(hypervolume(np.array([[0.5, 0.5]]), [1.1, 1.1]))
@@ -157,3 +158,126 @@ def test_select_lists_the_runs_trained_so_far(experiment, capsys, tmp_path):
     out = capsys.readouterr().out
     assert "Pareto fronts of the 3 trained runs in" in out and "random_search seed 5" not in out
     assert json.loads((tmp_path / "sel" / "parameters.json").read_text())["success_rate"] == 1.0
+
+
+def test_report_json_holds_the_fields_the_issue_names_as_plain_data(experiment):
+    exp, _ = experiment
+
+    def no_nan(name):
+        raise AssertionError(f"report.json holds {name}: not plain JSON")
+
+    report = json.loads((exp.path / "report.json").read_text(), parse_constant=no_nan)
+    done = report["status"]["repetitions_done"]
+    assert report["task"] == "push"
+    # protocol: every setting of train and of the evaluation, as stored in the run and the experiment
+    settings = {"task", "goal", "scenario", "budget", "batch_size", "n_init", "worlds", "seed", "episode_seconds",
+                "repeats", "engine", "optimizer_options", "per_config", "random_sets", "max_force",
+                "known_configs", "unseen_configs", "parameters", "objectives"}
+    assert settings <= set(report["protocol"]), settings - set(report["protocol"])
+    assert set(report["protocol"]["parameters"]) == set(TASK.parameter_names)
+    assert set(report["front_size"]) >= {"mean", "sd"}
+    assert isinstance(report["front_size"]["mean"], float) and report["front_size"]["sd"] is None  # sd of 1: none
+    groups = report["groups"]
+    assert set(groups) == {"picked", "pareto", "planner", "random", "manual"}
+    for name, rates in groups.items():
+        assert set(rates) == {"known", "unseen"} and all(0 <= v <= 1 for v in rates.values()), name
+    assert set(report["mann_whitney"]) == {"pareto", "planner", "random", "manual"}  # picked vs each
+    for name, tests in report["mann_whitney"].items():
+        assert set(tests) == {"known", "unseen"} and all(0 < p <= 1 for p in tests.values()), name
+    hv = report["hypervolume"]
+    assert len(hv["optimizer"]) == len(hv["random_search"]) == done
+    assert all(0 <= v <= 1.1 ** 2 for v in hv["optimizer"] + hv["random_search"])
+    assert [len(c) for c in hv["curves"]["optimizer"]] == [len(hv["evaluations"])] * done
+    assert hv["evaluations"][-1] == CONFIG.budget
+    assert set(report["wall_time"]) == {"6"} and set(report["wall_time"]["6"]) == {"optimizer", "random_search"}
+    assert [row["paper"] for row in report["paper"]][0] == 8.3  # push front size
+
+
+# Samples whose Mann-Whitney p (scipy) falls in each band of the paper's four levels.
+PICKED = np.array([1.0, 1.0, 1.0, 0.5, 1.0, 0.5, 1.0, 1.0, 0.5, 1.0, 0.0, 1.0])
+
+
+def _baseline(ones: int) -> np.ndarray:
+    rest = 12 - ones
+    return np.array([1.0] * ones + [0.5] * (rest // 2) + [0.0] * (rest - rest // 2))
+
+
+BANDS = {  # (group, side) -> (baseline sample, expected stars)
+    ("pareto", "known"): (_baseline(8), "ns"),
+    ("planner", "known"): (_baseline(4), "*"),
+    ("random", "known"): (_baseline(3), "**"),
+    ("manual", "known"): (_baseline(1), "***"),
+    ("pareto", "unseen"): (np.zeros(12), "****"),
+    ("planner", "unseen"): (_baseline(12), "**"),
+    ("random", "unseen"): (_baseline(2), "**"),
+    ("manual", "unseen"): (PICKED.copy(), "ns"),  # identical samples: no difference
+}
+
+
+def _band(p: float) -> str:
+    """The paper's levels written out: * p < 0.1, ** p < 0.05, *** p < 0.01, **** p < 0.001."""
+    return "****" if p < 0.001 else "***" if p < 0.01 else "**" if p < 0.05 else "*" if p < 0.1 else "ns"
+
+
+def test_mann_whitney_stars_at_the_four_levels_agree_with_scipy(experiment, tmp_path):
+    from mjxskill.training.experiment.report import markdown
+    from mjxskill.training.pooled import POOLED_LABELS, plot_pooled, pooled_tests
+
+    samples = {"picked": (PICKED, PICKED)}
+    for group in ("pareto", "planner", "random", "manual"):
+        samples[group] = (BANDS[(group, "known")][0], BANDS[(group, "unseen")][0])
+    tests = pooled_tests(samples)
+    plotted = plot_pooled(samples, tmp_path / "success.png", "bands")
+    exp, _ = experiment
+    summary = json.loads((exp.path / "report.json").read_text())
+    summary.update(mann_whitney=tests, groups={g: {"known": float(k.mean()), "unseen": float(u.mean())} for g, (k, u) in samples.items()},
+                   samples={g: {"known": len(k), "unseen": len(u)} for g, (k, u) in samples.items()})
+    text = markdown(summary)
+    for (group, side), (baseline, stars) in BANDS.items():
+        p = mannwhitneyu(PICKED, baseline, alternative="two-sided").pvalue if np.ptp(np.r_[PICKED, baseline]) else 1.0
+        assert _band(p) == stars, (group, side, p)  # the samples are in the band they are meant for
+        assert tests[group][side] == pytest.approx(p), (group, side)
+        assert plotted[(side, POOLED_LABELS[group])] == (pytest.approx(p), stars)  # the box plot's stars
+        row = next(line for line in text.splitlines() if line.startswith(f"| {POOLED_LABELS[group]} |"))
+        assert f"| {p:.3g} {stars} |" in row, (row, p, stars)
+    assert {stars for _, stars in BANDS.values()} == {"ns", "*", "**", "***", "****"}
+
+
+def _rows(*batches) -> Evaluations:
+    """Evaluations from batches of objective rows (larger is better)."""
+    objectives = np.array([row for batch in batches for row in batch], np.float64)
+    iteration = np.concatenate([np.full(len(b), i) for i, b in enumerate(batches)])
+    n = len(objectives)
+    return Evaluations(iteration, np.zeros((n, 1)), objectives, np.zeros(n), np.zeros(n))
+
+
+def test_hypervolume_of_repetitions_is_taken_in_the_space_of_their_union():
+    from mjxskill.training.experiment.stats import Repetition, hypervolumes
+
+    # objective 0 spans [0, 3] and objective 1 [0, 4] over the four runs together (no single run
+    # spans both): scaled minimized point s = ((3 - o0) / 3, (4 - o1) / 4), reference (1.1, 1.1)
+    runs = {"opt-0": _rows([(2, 0)], [(0, 4)]), "rnd-0": _rows([(1, 2)], [(0, 0)]),
+            "opt-1": _rows([(3, 4)], [(1, 1)]), "rnd-1": _rows([(1, 3)], [(0.5, 2)])}
+    reps = [Repetition(0, runs["opt-0"], runs["rnd-0"], None, None, None),
+            Repetition(1, runs["opt-1"], runs["rnd-1"], None, None, None)]
+    hv = hypervolumes(reps)
+    assert hv["normalization"] == {"min": [-3.0, -4.0], "max": [0.0, 0.0]} and hv["reference_point"] == [1.1, 1.1]
+    box = lambda s0, s1: (1.1 - s0) * (1.1 - s1)  # noqa: E731  the region one point dominates
+    # opt-0: (1/3, 1) then (1, 0), overlapping in [1, 1.1]^2; rnd-0: (2/3, 1/2), then (1, 1) dominated;
+    # opt-1: (0, 0) at once; rnd-1: (2/3, 1/4), then (5/6, 1/2) dominated
+    first = box(1 / 3, 1)
+    expected = {"opt-0": [first, first + box(1, 0) - 0.01], "rnd-0": [box(2 / 3, 0.5)] * 2,
+                "opt-1": [1.21, 1.21], "rnd-1": [box(2 / 3, 0.25)] * 2}
+    assert hv["evaluations"] == [1, 2]
+    for i in (0, 1):
+        np.testing.assert_allclose(hv["curves"]["optimizer"][i], expected[f"opt-{i}"])
+        np.testing.assert_allclose(hv["curves"]["random_search"][i], expected[f"rnd-{i}"])
+        assert hv["optimizer"][i] == pytest.approx(expected[f"opt-{i}"][-1])
+        assert hv["random_search"][i] == pytest.approx(expected[f"rnd-{i}"][-1])
+    assert hv["mann_whitney_p_final"] == pytest.approx(
+        mannwhitneyu(hv["optimizer"], hv["random_search"], alternative="two-sided").pvalue)
+    # the first repetition alone spans objective 0 over [0, 2] only: its own space gives other numbers
+    alone = hypervolumes(reps[:1])
+    assert alone["optimizer"][0] == pytest.approx(box(0, 1) + box(1, 0) - 0.01)
+    assert alone["optimizer"][0] != pytest.approx(hv["optimizer"][0])
+    assert hypervolumes([]) == {"optimizer": [], "random_search": []}
