@@ -20,6 +20,7 @@ from mjxskill.training.experiment.stats import normalization, normalized_curve
 from mjxskill.training.front import pareto_mask_of
 from mjxskill.training.run_dir import Evaluations, RunConfig, batch_sizes
 from mjxskill.training.runs import directory_kind, runs_in
+from cli_helpers import error_line, invoke, snapshot
 from scripted import ScriptedRollout, expected
 
 SCN = load_scenario("push")
@@ -281,3 +282,45 @@ def test_hypervolume_of_repetitions_is_taken_in_the_space_of_their_union():
     assert alone["optimizer"][0] == pytest.approx(box(0, 1) + box(1, 0) - 0.01)
     assert alone["optimizer"][0] != pytest.approx(hv["optimizer"][0])
     assert hypervolumes([]) == {"optimizer": [], "random_search": []}
+
+
+GOOD_PROTOCOL = "format: mjxskill.experiment/1\ntask: push\nper_config: 2\nrandom_sets: 3\nmax_force: null\n"
+DAMAGED = (  # (file, its text, what the one error line says)
+    ("experiment.yaml", GOOD_PROTOCOL.replace("per_config: 2", "per_config: 0"),
+     "experiment.yaml: per_config (line 3): expected an integer >= 1, got 0"),
+    ("experiment.yaml", GOOD_PROTOCOL.replace("max_force: null", "max_force: -1"),
+     "experiment.yaml: max_force (line 5): expected a number >= 0, got -1"),
+    ("experiment.yaml", GOOD_PROTOCOL.replace("max_force: null\n", ""), "experiment.yaml: <top level> (line 1): missing key 'max_force'"),
+    ("experiment.yaml", GOOD_PROTOCOL.replace("mjxskill.experiment/1", "other"),
+     "experiment.yaml: format (line 1): not an mjxskill experiment"),
+    ("experiment.yaml", "format: mjxskill.experiment/1\nper_config: [\n", "experiment.yaml (line 3, column 1): not valid YAML"),
+    ("state.json", "{not json", "state.json is not an experiment state"),
+)
+
+
+@pytest.mark.parametrize("name, text, message", DAMAGED)
+def test_a_damaged_experiment_file_is_one_error_line_naming_file_key_and_line(experiment, tmp_path, capsys, name, text, message):
+    import shutil
+
+    exp, _ = experiment
+    copy = tmp_path / "exp"
+    shutil.copytree(exp.path, copy)
+    (copy / name).write_text(text)
+    before = snapshot(copy)
+    code, stderr = invoke(capsys, "experiment", "push", "--resume", copy)
+    error_line(code, stderr, "experiment", str(copy / name), message)
+    assert snapshot(copy) == before
+
+
+@pytest.mark.parametrize("args, message", (
+    (["push", "--optimizer", "random"], "the experiment runs both the optimizer and random search; drop --optimizer random"),
+    (["push", "--repeats", "x"], "argument --repeats: expected an integer, got 'x'"),
+    (["push", "--random", "-1"], "argument --random: must be at least 0, got -1"),
+    (["push", "--seed", "-1"], "argument --seed:"),
+    (["nosuch"], "unknown task 'nosuch'"),
+    (["push", "--resume", "{tmp}/missing"], "missing is not an experiment directory (no experiment.yaml)"),
+))
+def test_bad_flags_are_one_error_line_before_anything_runs(tmp_path, capsys, args, message):
+    code, stderr = invoke(capsys, "experiment", *(a.format(tmp=tmp_path) for a in args))
+    error_line(code, stderr, "experiment", message)
+    assert list(tmp_path.iterdir()) == []

@@ -35,6 +35,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "and report side by side with the paper.")
     cli_args.add_task_argument(parser)
     add_setting_arguments(parser, skip=("optimizer",), defaults={"repeats": "the scenario's repetitions"})  # it runs both
+    # train's --optimizer, refused by name (argparse would otherwise read it as --optimizer-option)
+    parser.add_argument("--optimizer", type=_runs_both, help=argparse.SUPPRESS)
     parser.add_argument("--per-config", type=cli_args.positive_int, help="evaluation worlds per start configuration (default 5)")
     parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets per evaluation (default 10)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N",
@@ -42,6 +44,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, help="experiment directory (default runs/<task>-experiment-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="EXP_DIR", help="continue the experiment in EXP_DIR")
     return parser
+
+
+def _runs_both(text: str) -> str:
+    raise argparse.ArgumentTypeError(f"the experiment runs both the optimizer and random search; drop --optimizer {text}")
 
 
 def _protocol_conflicts(args: argparse.Namespace, protocol) -> list[str]:
