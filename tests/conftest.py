@@ -1,11 +1,17 @@
 """Shared test settings.
 
 mjxskill is imported first so that its XLA CPU flag and the persistent compilation cache are in
-place before any test touches JAX. Expensive compiled functions are session fixtures in the
-test modules that need them (compiling MJX code costs seconds to tens of seconds).
+place before any test touches JAX. MuJoCo's GL backend is chosen before any test module imports
+mujoco (it is fixed at that import: collected first, a module without rendering would otherwise
+leave the renderer on GLFW, which has no display here). Expensive compiled functions are session
+fixtures in the test modules that need them (compiling MJX code costs seconds to tens of
+seconds).
 """
 
 import mjxskill  # noqa: F401  (side effect: XLA flags and compilation cache)
+from mjxskill.training.render import default_gl
+
+default_gl()  # MUJOCO_GL=egl when headless
 
 import jax
 

@@ -130,7 +130,7 @@ def test_no_import_cycles():
     assert cycles == []
 
 
-CORE = ("scenario", "planner", "ebt", "task", "bt_compiled", "sim", "rollout", "gp", "native", "errors", "_runtime")
+CORE = ("scenario", "planner", "ebt", "task", "bt_compiled", "sim", "rollout", "gp", "native", "engines", "errors", "_runtime")
 ROBOT = ("scenario", "planner", "ebt", "task", "bt_compiled", "sim", "rollout", "native", "training", "cli")
 COMPILED_ROLLOUT = {
     f"mjxskill.rollout.{m}" for m in ("compiled", "episode", "leaves", "rewards", "program_cache", "sharding")

@@ -4,6 +4,7 @@ what one process computes for the same halves, bit for bit. And batches that fil
 are accepted by both engines."""
 
 import json
+import os
 import socket
 import subprocess
 import sys
@@ -28,8 +29,11 @@ def _free_port() -> int:
 def test_two_processes_gather_what_one_process_computes(tmp_path):
     out = tmp_path / "gathered.json"
     args = ["--sets", "2", "--worlds", "2", "--episode-seconds", "0.3", "--seed", "5"]
+    # An empty cache: each process traces its own program, as on a fresh cluster (a warm cache
+    # hid that MJX put every process's model on process 0's device).
+    env = dict(os.environ, MJXSKILL_CACHE_DIR=str(tmp_path / "cache"))
     done = subprocess.run([sys.executable, str(EXAMPLE), "--local", "2", "--coordinator", f"127.0.0.1:{_free_port()}",
-                           *args, "--json", str(out)], capture_output=True, text=True, timeout=900)
+                           *args, "--json", str(out)], capture_output=True, text=True, timeout=900, env=env)
     assert done.returncode == 0, done.stderr[-3000:]
     gathered = json.loads(out.read_text())
 

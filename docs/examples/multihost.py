@@ -20,7 +20,19 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
+
+
+def wait_for_all(name: str, minutes: float = 60.0) -> None:
+    """A barrier of the coordination service (no collective): the processes' compiles and
+    rollouts take different times, and the gloo collectives below give up on a peer that is more
+    than 30 s late. JAX's own checkpointing waits the same way (its client is not public API)."""
+    from jax._src import distributed
+
+    client = distributed.global_state.client
+    if client is not None:
+        client.wait_at_barrier(name, timeout_in_ms=int(minutes * 60_000))
 
 
 def evaluate(args) -> None:
@@ -34,9 +46,6 @@ def evaluate(args) -> None:
     jax.config.update("jax_cpu_collectives_implementation", "gloo")
     jax.distributed.initialize(coordinator_address=args.coordinator, num_processes=args.processes,
                                process_id=args.process_id)
-    # Meet once now, while all processes are at the same point: the collectives' connections are
-    # made within a 30 s rendezvous, and the compile below may take one process longer than that.
-    multihost_utils.process_allgather(np.zeros(1), tiled=True)
     rollout = mjxskill.compile_rollout(mjxskill.load_scenario(args.task), worlds=args.worlds,
                                        episode_seconds=args.episode_seconds)
     lo, hi = rollout.bounds
@@ -44,6 +53,7 @@ def evaluate(args) -> None:
     key = jax.random.key(args.seed)
     mine = np.array_split(params, jax.process_count())[jax.process_index()]              # this process's share
     out = rollout(mine, jax.random.fold_in(key, jax.process_index()))                     # local devices only
+    wait_for_all("rollouts done")
     objectives = multihost_utils.process_allgather(out.objectives, tiled=True)           # (B, O) everywhere
     success = multihost_utils.process_allgather(out.success.mean(axis=1), tiled=True)    # (B,)
     if jax.process_index() == 0 and args.json:
@@ -51,6 +61,20 @@ def evaluate(args) -> None:
                                                "success_rate": np.asarray(success).tolist()}))
     print(f"process {jax.process_index()}/{jax.process_count()}: {len(mine)} of {len(params)} parameter sets; "
           f"gathered objectives {np.asarray(objectives).shape}", flush=True)
+
+
+def wait_all_or_stop(procs: list[subprocess.Popen]) -> int:
+    """The worst exit code of the local processes; once one fails, the others are stopped (they
+    would wait for it at the next barrier until its timeout)."""
+    while True:
+        codes = [p.poll() for p in procs]
+        if any(c not in (None, 0) for c in codes) or all(c == 0 for c in codes):
+            break
+        time.sleep(0.5)
+    for p in procs:
+        if p.poll() is None:
+            p.terminate()
+    return max(abs(p.wait()) for p in procs)
 
 
 def main(argv=None) -> int:
@@ -72,7 +96,7 @@ def main(argv=None) -> int:
         base += ["--episode-seconds", str(args.episode_seconds)] if args.episode_seconds else []
         base += ["--json", args.json] if args.json else []
         procs = [subprocess.Popen(base + ["--process-id", str(i)], env=dict(os.environ)) for i in range(args.local)]
-        return max(p.wait() for p in procs)
+        return wait_all_or_stop(procs)
     evaluate(args)
     return 0
 

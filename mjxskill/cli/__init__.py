@@ -1,4 +1,4 @@
-"""The command line: one module per command (``plan``, ``train``, ``evaluate``, ``select``) over
+"""The command line: one module per command (``plan``, ``train``, ``evaluate``, ``select``, ``explore``) over
 the library, and the one edge where bad input becomes a message.
 
 ``run`` parses the arguments, switches on the compile caches and runs the command; any

@@ -58,3 +58,11 @@ def seed_type() -> Callable[[str], int]:
     from mjxskill.training.settings import SEED
 
     return setting_type(SEED)
+
+
+def port(text: str) -> int:
+    """A TCP port, 0 (any free one) to 65535."""
+    value = int_at_least(0)(text)
+    if value > 65535:
+        raise argparse.ArgumentTypeError(f"must be a port number 0-65535, got {value}")
+    return value

@@ -109,18 +109,15 @@ def _main(args: argparse.Namespace) -> int:
         return 0
 
     from mjxskill.engines import build_rollout
-    from mjxskill.training.render import RenderUnavailable, render_episode
+    from mjxskill.training.render import RenderUnavailable, render_episode, render_world
     from mjxskill.training.run_task import load_run_task
 
     scn, task = load_run_task(run, config)
     n_known = len(scn.robot.start_configs)
     if args.config_index >= n_known:
         raise CommandError(f"--config-index {args.config_index}: the task has known start configurations 0-{n_known - 1}")
-    import jax
-
     rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
-    worlds = rollout.worlds_per_config(jax.random.PRNGKey(args.seed), 1)
-    world = jax.tree.map(lambda x: x[args.config_index], worlds)
+    world = render_world(rollout, args.config_index, args.seed)
     print(f"rendering from start configuration {args.config_index} ({config.engine} engine) ...", flush=True)
     try:
         paths = render_episode(rollout, front.params[k], world, folder / ("episode" if args.format == "mp4" else "frames"),

@@ -209,7 +209,10 @@ def compile_rollout(
     )
     data = mujoco.MjData(mj_model)
     mujoco.mj_forward(mj_model, data)
-    model, template = mjx.put_model(mj_model), mjx.put_data(mj_model, data)
+    # MJX places the model on jax.devices()[0] unless told: under jax.distributed that is process
+    # 0's device, which the other processes cannot use; this process's first device is.
+    device = jax.local_devices()[0]
+    model, template = mjx.put_model(mj_model, device=device), mjx.put_data(mj_model, data, device=device)
     sampler = make_sampler(scn, setup.bindings, start_configs)
     weights = objective_matrix(terms, len(scn.objective_names))
     reward_names = tuple(t.name for t in terms)

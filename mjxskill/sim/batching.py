@@ -106,5 +106,5 @@ def put_worlds(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray | None 
         if mocap_pos is not None:
             data.mocap_pos[:] = mocap_pos[w]
         mujoco.mj_forward(model, data)
-        worlds.append(mjx.put_data(model, data))
+        worlds.append(mjx.put_data(model, data, device=jax.local_devices()[0]))  # see rollout.compiled
     return jax.tree.map(lambda *xs: jnp.stack(xs), *worlds)

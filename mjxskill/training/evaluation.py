@@ -79,8 +79,9 @@ CHUNK_FIELDS = ("success", "position_error", "max_force", "success_seconds")
 
 
 def evaluation_worlds(rollout, per_config: int, seed: int):
-    """The explicit worlds every candidate runs in: ``per_config`` from each known, then each
-    unseen start configuration (configuration-major), drawn from ``seed``; and their count C."""
+    """The worlds every candidate runs in: ``per_config`` from each known, then each unseen
+    start configuration (configuration-major, leading shape (C * per_config,)). Returns
+    (worlds, config_names (C,), known (C,) bool)."""
     import jax
 
     scn = rollout.scenario
@@ -90,7 +91,9 @@ def evaluation_worlds(rollout, per_config: int, seed: int):
     if len(unseen_cfg):
         parts.append(rollout.worlds_per_config(key_unseen, per_config, unseen_cfg))
     worlds = jax.tree.map(lambda *xs: np.concatenate([np.asarray(x) for x in xs]), *parts)
-    return worlds, len(known_cfg), len(unseen_cfg)
+    names = tuple([f"known-{i}" for i in range(len(known_cfg))] + [f"unseen-{j}" for j in range(len(unseen_cfg))])
+    known = np.array([True] * len(known_cfg) + [False] * len(unseen_cfg))
+    return worlds, names, known
 
 
 def evaluate_chunk(rollout, chunk: np.ndarray, worlds, n_cfg: int, per_config: int, batch_size: int) -> dict:
@@ -124,8 +127,8 @@ def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: 
     chunks of ``batch_size`` candidates. ``done``: chunk start -> a chunk's results computed
     before (skipped: an evaluation resumes); ``on_chunk(start, result)`` is called after each
     new chunk (to keep it on disk)."""
-    worlds, n_known, n_unseen = evaluation_worlds(rollout, per_config, seed)
-    n_cfg = n_known + n_unseen
+    worlds, names, known = evaluation_worlds(rollout, per_config, seed)
+    n_cfg = len(names)
     params = candidates.params
     chunks = []
     for start in range(0, len(params), batch_size):
@@ -135,8 +138,6 @@ def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: 
             if on_chunk is not None:
                 on_chunk(start, result)
         chunks.append(result)
-    names = tuple([f"known-{i}" for i in range(n_known)] + [f"unseen-{j}" for j in range(n_unseen)])
-    known = np.array([True] * n_known + [False] * n_unseen)
     joined = {f: np.concatenate([c[f] for c in chunks]) if chunks and all(f in c for c in chunks) else None
               for f in CHUNK_FIELDS}
     if joined["success"] is None:

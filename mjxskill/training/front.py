@@ -34,9 +34,10 @@ def hypervolume_history(ev: Evaluations, ref: np.ndarray) -> tuple[np.ndarray, n
     return ends, np.array([hypervolume(-ev.objectives[:e], ref) for e in ends])
 
 
-def reference_from(run: Run, config: RunConfig, ev: Evaluations) -> np.ndarray | None:
-    """The stored reference point, or the one the warm-up defines (written once known). ``ev``
-    in batch order; the warm-up is its rows of the warm-up batches, once all are there."""
+def reference_from(run: Run, config: RunConfig, ev: Evaluations, store: bool = True) -> np.ndarray | None:
+    """The stored reference point, or the one the warm-up defines (written once known, unless
+    ``store`` is False: a reader such as the explore page leaves the run directory as it is).
+    ``ev`` in batch order; the warm-up is its rows of the warm-up batches, once all are there."""
     state = run.run_state()
     if "hv_reference" in state:
         ref = np.asarray(state["hv_reference"], np.float64)
@@ -48,7 +49,8 @@ def reference_from(run: Run, config: RunConfig, ev: Evaluations) -> np.ndarray |
     if warmup.sum() < min(config.n_init, config.budget):
         return None
     ref = hypervolume_reference(ev.objectives[warmup])
-    run.write_run_state({**state, "hv_reference": ref.tolist(), "hv_space": "negated objectives (minimized)"})
+    if store:
+        run.write_run_state({**state, "hv_reference": ref.tolist(), "hv_space": "negated objectives (minimized)"})
     return ref
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import shutil
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -21,13 +22,18 @@ from mjxskill.errors import UserError
 GL_HELP = (
     "MuJoCo's offscreen renderer found no OpenGL backend (MUJOCO_GL={gl!r}: {err}). "
     "Headless Linux: install Mesa's EGL (apt-get install libegl1 libgl1-mesa-dri) and run with MUJOCO_GL=egl, "
-    "or software OSMesa (apt-get install libosmesa6) with MUJOCO_GL=osmesa; with a display, MUJOCO_GL=glfw. "
-    "The parameters were exported; pass --no-render to skip rendering."
+    "or software OSMesa (apt-get install libosmesa6) with MUJOCO_GL=osmesa; with a display, MUJOCO_GL=glfw."
 )
+AFTER_SELECT = "The parameters were exported; pass --no-render to skip rendering."
 
 
 class RenderUnavailable(UserError):
-    """No OpenGL backend (or no video encoder) for rendering."""
+    """No OpenGL backend (or no video encoder) for rendering. ``reason``: what is missing and how
+    to get it; the message adds ``next_step``, what the command can do about it."""
+
+    def __init__(self, reason: str, next_step: str = ""):
+        super().__init__(f"{reason} {next_step}" if next_step else reason)
+        self.reason = reason
 
 
 def default_gl() -> None:
@@ -48,7 +54,11 @@ def _camera(model, data):
     return cam
 
 
-def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480) -> np.ndarray:
+# (frames done, frames in all) after each drawn frame
+FrameProgress = Callable[[int, int], None]
+
+
+def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progress: FrameProgress | None = None) -> np.ndarray:
     """(T, height, width, 3) uint8 images of the native ``model`` at each row of qpos (T, nq)."""
     import mujoco
 
@@ -56,7 +66,8 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480) -> np.n
     try:
         renderer = mujoco.Renderer(model, height, width)
     except Exception as err:  # the GL backends raise a variety of errors when no context exists
-        raise RenderUnavailable(GL_HELP.format(gl=os.environ.get("MUJOCO_GL", ""), err=f"{type(err).__name__}: {err}")) from None
+        raise RenderUnavailable(GL_HELP.format(gl=os.environ.get("MUJOCO_GL", ""), err=f"{type(err).__name__}: {err}"),
+                                AFTER_SELECT) from None
     images = []
     try:
         cam = None
@@ -66,6 +77,8 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480) -> np.n
             cam = cam or _camera(model, data)
             renderer.update_scene(data, camera=cam)
             images.append(renderer.render().copy())
+            if progress:
+                progress(len(images), len(qpos))
     finally:
         renderer.close()
     return np.stack(images)
@@ -110,12 +123,22 @@ def write_mp4(images: np.ndarray, path: Path, fps: float) -> Path:
     return path
 
 
-def render_episode(rollout, params: np.ndarray, world, out: Path, fmt: str = "png", width: int = 640, height: int = 480) -> list[Path]:
+def render_world(rollout, config_index: int, seed: int = 0):
+    """The one world an episode is rendered in: start configuration ``config_index`` (a known
+    one) with the objects randomized from ``seed`` (unbatched fields)."""
+    import jax
+
+    worlds = rollout.worlds_per_config(jax.random.PRNGKey(seed), 1)
+    return jax.tree.map(lambda x: x[config_index], worlds)
+
+
+def render_episode(rollout, params: np.ndarray, world, out: Path, fmt: str = "png", width: int = 640, height: int = 480,
+                   progress: FrameProgress | None = None) -> list[Path]:
     """Traces ``params`` (P,) in ``world`` (one unbatched world) and writes PNG frames into
     ``out/`` or ``out.mp4``. Returns the written paths."""
     _, record = rollout.trace(params, world)
     qpos = np.asarray(record.qpos)
-    images = frames(rollout.mj_model, qpos, width, height)
+    images = frames(rollout.mj_model, qpos, width, height, progress)
     if fmt == "mp4":
         return [write_mp4(images, out.with_suffix(".mp4"), fps=rollout.scenario.bt_hz)]
     return write_png_frames(images, out)

@@ -62,14 +62,20 @@ def export_document(config, front, k: int, run_path: Path) -> dict:
     }
 
 
-def write_export(doc: dict, folder: Path) -> list[Path]:
+def export_texts(doc: dict) -> dict[str, str]:
+    """File name -> text of the export of ``doc``."""
     import yaml
 
+    return {"parameters.yaml": yaml.safe_dump(doc, sort_keys=False), "parameters.json": json.dumps(doc, indent=2) + "\n"}
+
+
+def write_export(doc: dict, folder: Path) -> list[Path]:
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        paths = [folder / "parameters.yaml", folder / "parameters.json"]
-        paths[0].write_text(yaml.safe_dump(doc, sort_keys=False))
-        paths[1].write_text(json.dumps(doc, indent=2) + "\n")
+        paths = []
+        for name, text in export_texts(doc).items():
+            (folder / name).write_text(text)
+            paths.append(folder / name)
     except OSError as err:
         raise CommandError(f"cannot write the export to {str(folder)!r}: {err.strerror}") from None
     return paths
