@@ -5,16 +5,18 @@ worlds on MJX and on native MuJoCo.
     python benchmarks/agreement.py --task peg --worlds 50 --run runs/peg-0 --json peg.json
 
 Parameter sets: the planner's defaults, the scenario's operator sets, the hand-found push
-(push only), 5 uniform random sets (seed 0) and, with ``--run DIR``, the most successful Pareto
-solution of that run (ties: the first objective). Every set runs in the same ``--worlds``
+(push only), 5 uniform random sets (seed 0) and, with ``--run DIR`` (repeatable: e.g. one run
+trained on each engine), the most successful Pareto solution of each run (ties: the first
+objective). Every set runs in the same ``--worlds``
 worlds (drawn from ``--key``), once on each engine. Per set: ``mjx_success_rate``,
 ``native_success_rate``, ``n`` (worlds), the worlds where the two agree, the mean final
 position error on each engine and the relative difference of the mean objectives. A user's
 question, does a solution learned on one engine succeed as often on the other, is the ratio
-of the two rates for the run's solution (``transfer``).
+of the two rates for each run's solution (``transfer``: one entry per run).
 
 The JSON: ``{"task", "worlds", "seconds", "sets": [{"name", "mjx_success_rate",
-"native_success_rate", "n", ...}], "max_rate_difference", "transfer"}``.
+"native_success_rate", "n", ...}], "max_rate_difference", "transfer": [{"set", "trained_on",
+"kept_on_the_other"}]}``.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ if str(ROOT) not in sys.path:
 HAND_FOUND_PUSH = (-0.05, -0.15, 0.07, -0.10)
 
 
-def parameter_sets(scn, task, run: Path | None, n_random: int = 5) -> dict:
+def parameter_sets(scn, task, runs: list[Path], n_random: int = 5) -> dict:
     import numpy as np
 
     sets = {"planner": task.defaults}
@@ -43,7 +45,7 @@ def parameter_sets(scn, task, run: Path | None, n_random: int = 5) -> dict:
     rng = np.random.default_rng(0)
     for i, row in enumerate(rng.uniform(*task.bounds, size=(n_random, len(task.parameter_names)))):
         sets[f"random-{i}"] = row
-    if run is not None:
+    for run in runs:
         from mjxskill.training.run_dir import Run
         from mjxskill.training.selection import choose
 
@@ -62,10 +64,15 @@ def main(argv=None) -> dict:
     parser.add_argument("--worlds", type=int, default=50)
     parser.add_argument("--seconds", type=float, default=None, help="episode length (default: the scenario's)")
     parser.add_argument("--key", type=int, default=123, help="PRNG key of the worlds")
-    parser.add_argument("--run", type=Path, help="a run directory: its best Pareto solution joins the sets")
+    parser.add_argument("--run", type=Path, action="append", default=[],
+                        help="a run directory: its best Pareto solution joins the sets (repeatable)")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
 
+    if "jax" not in sys.modules:  # MJX over every core: one host device per core (before jax starts)
+        flags = os.environ.get("XLA_FLAGS", "")
+        if "xla_force_host_platform_device_count" not in flags:
+            os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={os.cpu_count()}".strip()
     import mjxskill  # noqa: F401
     import jax
     import numpy as np
@@ -87,7 +94,11 @@ def main(argv=None) -> dict:
     native.close()
     compiled = compile_rollout(scn, task, worlds=args.worlds, episode_seconds=args.seconds)
     t0 = time.perf_counter()
-    out_mjx = jax.tree.map(np.asarray, compiled.run_worlds(params, worlds))
+    # One parameter set per call: on the CPU (jax 0.10.2) a call of 300 or more episodes
+    # (6 sets x 50 worlds) never finished here, every XLA thread parked on a condition variable
+    # with no CPU used, while 100 (2 x 50) ran; see NOTES.md section 13.
+    calls = [jax.tree.map(np.asarray, compiled.run_worlds(params[i:i + 1], worlds)) for i in range(len(params))]
+    out_mjx = jax.tree.map(lambda *xs: np.concatenate(xs), *calls)
     mjx_s = time.perf_counter() - t0
     print(f"native {native_s:.0f} s, MJX {mjx_s:.0f} s (compile included), load average {os.getloadavg()[0]:.2f}")
 
@@ -110,12 +121,11 @@ def main(argv=None) -> dict:
     result = dict(task=scn.name, worlds=args.worlds, seconds=native.episode_seconds, key=args.key, sets=rows,
                   max_rate_difference=max(abs(r["mjx_success_rate"] - r["native_success_rate"]) for r in rows),
                   load_avg=os.getloadavg()[0])
-    trained = [r for r in rows if "trained on" in r["name"]]
-    if trained:
-        r = trained[0]
+    result["transfer"] = []
+    for r in (r for r in rows if "trained on" in r["name"]):
         own, other = ("mjx", "native") if "trained on mjx" in r["name"] else ("native", "mjx")
         kept = r[f"{other}_success_rate"] / r[f"{own}_success_rate"] if r[f"{own}_success_rate"] else float("nan")
-        result["transfer"] = dict(set=r["name"], trained_on=own, kept_on_the_other=kept)
+        result["transfer"].append(dict(set=r["name"], trained_on=own, kept_on_the_other=kept))
 
     width = max(len(r["name"]) for r in rows)
     print(f"\n{'set':<{width}}  {'MJX':>5}  {'native':>6}  agree  pos.err MJX/native [mm]  objectives rel. diff")
@@ -125,8 +135,7 @@ def main(argv=None) -> dict:
               f"{1000 * r['native_position_error_m']:<8.1f}      "
               + " ".join(f"{d:.1e}" for d in r["objective_relative_difference"]))
     print(f"\nlargest success-rate difference: {result['max_rate_difference']:.2f} (must be <= 0.15)")
-    if "transfer" in result:
-        t = result["transfer"]
+    for t in result["transfer"]:
         print(f"{t['set']}: keeps {t['kept_on_the_other']:.0%} of its success rate on the other engine (must be >= 90 %)")
     if args.json:
         args.json.write_text(json.dumps(result, indent=2))

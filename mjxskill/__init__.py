@@ -6,7 +6,7 @@ PDDL, plan (``planner``) -> eBT (``ebt``), joined in ``task.plan_task`` -> compi
 MuJoCo engine) -> objectives -> GP optimizer (``gp``) -> next batch, driven by ``training`` and
 the command line (``cli``).
 
-    from mjxskill import load_scenario, plan_task, compile_rollout
+    from mjxskill import load_scenario, plan_task, build_model, compile_rollout
 """
 
 from mjxskill._runtime import configure_xla_flags as _configure_xla_flags
@@ -22,6 +22,7 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "load_scenario": "mjxskill.scenario",
     "plan_task": "mjxskill.task",
+    "build_model": "mjxskill.sim.model",
     "compile_rollout": "mjxskill.rollout.compiled",
 }
 

@@ -39,7 +39,8 @@ def evaluations(config: RunConfig, seed: int) -> Evaluations:
     success = rng.integers(0, config.worlds + 1, config.budget) / config.worlds
     force = rng.uniform(1.0, 30.0, config.budget)
     objectives = np.stack([700 * success - 40 * rng.random(config.budget), 120 - 3 * force + rng.random(config.budget)], axis=1)
-    return Evaluations(iteration, params, objectives, success, force)
+    # force: the measured peak contact force; its mean and the commanded force are made up beside it
+    return Evaluations(iteration, params, objectives, success, force, force / 4, np.minimum(force, 7.0))
 
 
 def write_run(run: Run, config: RunConfig, seed: int, create: bool = True) -> Evaluations:

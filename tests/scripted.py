@@ -43,12 +43,14 @@ class ScriptedRollout:
         cfg = np.where(np.arange(len(worlds.config_index)) >= n_known * per_config, worlds.config_index + n_known,
                        worlds.config_index)
         out = np.array([[self.outcome(p, c, r) for c, r in zip(cfg, worlds.world)] for p in params], np.float64)
-        return SimpleNamespace(success=out[..., 0] > 0, metrics={"max_force": out[..., 1], "bt_done_tick": out[..., 2],
-                                                                 "position_error": 0.001 * (1 - out[..., 0])})
+        return SimpleNamespace(success=out[..., 0] > 0, metrics={"peak_commanded_force": out[..., 1], "bt_done_tick": out[..., 2],
+                                                                 "position_error": 0.001 * (1 - out[..., 0]),
+                                                                 "peak_contact_force": 1.5 * out[..., 1],
+                                                                 "mean_contact_force": 0.5 * out[..., 1]})
 
 
 def expected(rollout: ScriptedRollout, params, n_cfg: int, per_config: int, bt_hz: float):
-    """Brute force: (success (N, C), max_force (N,), success_seconds (N, C)) of ``params``."""
+    """Brute force: (success (N, C), peak_commanded_force (N,), success_seconds (N, C)) of ``params``."""
     n = len(params)
     success, force, seconds = np.zeros((n, n_cfg)), np.zeros(n), np.full((n, n_cfg), np.nan)
     for i, p in enumerate(params):

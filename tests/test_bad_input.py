@@ -40,13 +40,14 @@ def push_run(folder, **settings) -> Run:
     return run
 
 
-def front_rows(run: Run, n: int, max_force=None) -> None:
-    """``n`` Pareto rows in pareto.csv of ``run`` (max_force: their forces, NaN allowed)."""
+def front_rows(run: Run, n: int, peak_force=None) -> None:
+    """``n`` Pareto rows in pareto.csv of ``run`` (peak_force: their peak contact forces, NaN allowed)."""
     config = run.config()
     rng = np.random.default_rng(0)
     lo, hi = np.asarray(config.bounds)
     ev = Evaluations(np.zeros(n, int), lo + rng.random((n, len(lo))) * (hi - lo), rng.normal(size=(n, 2)),
-                     np.full(n, 0.5), np.asarray(max_force if max_force is not None else np.full(n, 3.0), float))
+                     np.full(n, 0.5), np.asarray(peak_force if peak_force is not None else np.full(n, 3.0), float),
+                     np.full(n, 1.0), np.full(n, 7.0))
     write_csv(run.path / PARETO, config.columns(), ev)
 
 
@@ -247,9 +248,10 @@ def test_a_cache_dir_that_is_a_file_is_said_once(tmp_path, capsys, monkeypatch):
 
 def test_select_by_force_on_a_front_without_forces(tmp_path, capsys):
     run = push_run(tmp_path / "run")
-    front_rows(run, 3, max_force=[math.nan, math.nan, 7.0])
+    front_rows(run, 3, peak_force=[math.nan, math.nan, 7.0])
     code, stderr = invoke(capsys, "select", run.path, "--max-force", "5", "--no-render")
-    error_line(code, stderr, "select", "no Pareto solution meets --max-force 5", "peak forces 7.0-7.0 N (2 not a number: a diverged world)")
+    error_line(code, stderr, "select", "no Pareto solution meets --max-force 5",
+               "peak contact forces 7.0-7.0 N (2 not a number: a diverged world)")
     assert not list(run.path.glob("selected-*"))
 
 

@@ -74,7 +74,8 @@ def test_front_is_pareto_csv_and_evaluations_are_evaluations_csv(push_run):
         for k, row in enumerate(doc["rows"]):
             assert (row["run"], row["k"]) == (0, k)
             assert row["params"] == front.params[k].tolist() and row["objectives"] == front.objectives[k].tolist()
-            assert (row["success_rate"], row["max_force"]) == (front.success_rate[k], front.max_force[k])
+            assert (row["success_rate"], row["peak_contact_force"], row["peak_commanded_force"]) == (
+                front.success_rate[k], front.peak_contact_force[k], front.peak_commanded_force[k])
             assert ev.params[row["index"]].tolist() == row["params"]  # the point's row in evaluations.csv
         status, doc = get_json(base, "/api/evaluations")
         assert status == 200 and len(doc["rows"]) == len(ev)
@@ -281,7 +282,8 @@ def test_a_point_is_rolled_out_on_demand_without_blocking_the_server(tmp_path):
         got = doc["worlds"]
         assert [c["name"] for c in got["configs"]] == list(names) and [c["known"] for c in got["configs"]] == known.tolist()
         assert [w["success"] for c in got["configs"] for w in c["worlds"]] == np.asarray(out.success)[0].tolist()
-        np.testing.assert_allclose([w["max_force"] for c in got["configs"] for w in c["worlds"]], out.metrics["max_force"][0])
+        np.testing.assert_allclose([w["peak_contact_force"] for c in got["configs"] for w in c["worlds"]],
+                                   out.metrics["peak_contact_force"][0])
         assert (run.path / "explore" / f"evaluation-{index}" / "worlds.json").is_file()
 
         if doc["video"] is None:  # no OpenGL here: the page says so and the rest works

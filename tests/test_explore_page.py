@@ -88,7 +88,7 @@ def test_selecting_a_point_shows_its_parameters_with_units(tmp_path, open_page):
             assert cells[0] == name and cells[2] == unit
             assert float(cells[1]) == pytest.approx(front.params[2, i], rel=1e-5)
         text = page.locator("#objectives").inner_text()
-        assert f"{round(100 * front.success_rate[2])} %" in text and f"{front.max_force[2]:.1f} N" in text
+        assert f"{round(100 * front.success_rate[2])} %" in text and f"{front.peak_contact_force[2]:.1f} N" in text
 
 
 def test_filters_highlight_the_solutions_meeting_them(tmp_path, open_page):
@@ -99,7 +99,7 @@ def test_filters_highlight_the_solutions_meeting_them(tmp_path, open_page):
         assert page.locator("#pareto circle.front.meets").count() == 0
         page.fill("#min-success", "0.5")
         page.fill("#max-force", "20")
-        meets = (front.success_rate >= 0.5) & (front.max_force <= 20)
+        meets = (front.success_rate >= 0.5) & (front.peak_contact_force <= 20)
         assert 0 < meets.sum() < len(front)
         drawn = sorted(int(k) for k in page.locator("#pareto circle.front.meets").evaluate_all("cs => cs.map(c => c.dataset.k)"))
         assert drawn == np.flatnonzero(meets).tolist()

@@ -133,7 +133,7 @@ def test_no_import_cycles():
 CORE = ("scenario", "planner", "ebt", "task", "bt_compiled", "sim", "rollout", "gp", "native", "engines", "errors", "_runtime")
 ROBOT = ("scenario", "planner", "ebt", "task", "bt_compiled", "sim", "rollout", "native", "training", "cli")
 COMPILED_ROLLOUT = {
-    f"mjxskill.rollout.{m}" for m in ("compiled", "episode", "leaves", "rewards", "program_cache", "sharding")
+    f"mjxskill.rollout.{m}" for m in ("compiled", "episode", "leaves", "rewards", "success", "program_cache", "sharding")
 }
 
 

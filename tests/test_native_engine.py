@@ -18,6 +18,7 @@ import pytest
 from mjxskill import load_scenario, plan_task
 from mjxskill.engines import ENGINES, build_rollout, resolve_engine
 from mjxskill.native import NativeRollout
+from scenario_texts import shipped_text
 
 HAND_FOUND = [-0.05, -0.15, 0.07, -0.10]  # the push into the goal corner (test_rollout_push.py)
 
@@ -78,7 +79,7 @@ def test_worker_processes_give_one_process_results_bit_for_bit(push):
 def test_a_worker_that_cannot_start_says_why(tmp_path, push):
     scn, task, params = push
     copy = tmp_path / "push.yaml"
-    copy.write_text(open(scn.source).read().replace("scene: ../push.xml", f"scene: {scn.scene}"))
+    copy.write_text(shipped_text("push"))
     moved = load_scenario(copy)
     engine = NativeRollout(moved, plan_task(moved), worlds=1, episode_seconds=0.2, workers=2)
     copy.write_text(copy.read_text() + "\n# edited after the engine was built\n")

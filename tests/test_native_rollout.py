@@ -53,7 +53,7 @@ def test_same_discrete_outcomes(rollouts):
 def test_the_episodes_reach_the_push(rollouts):
     # Guards the horizon: the comparison must include the push into the corner.
     compiled, native = rollouts
-    assert np.all(compiled.metrics["max_force"][0] > 1.0)  # ApplyForce was active
+    assert np.all(compiled.metrics["peak_commanded_force"][0] > 1.0)  # ApplyForce was active
     assert compiled.success[0].all() and not compiled.success[1].any()
 
 
@@ -66,7 +66,11 @@ def test_rewards_and_final_poses_agree(rollouts):
     np.testing.assert_allclose(native.objectives, compiled.objectives, rtol=5e-3)
     np.testing.assert_allclose(native.metrics["position_error"], compiled.metrics["position_error"], atol=0.004)
     np.testing.assert_allclose(native.metrics["orientation_error_deg"], compiled.metrics["orientation_error_deg"], atol=1.5)
-    np.testing.assert_allclose(native.metrics["max_force"], compiled.metrics["max_force"], atol=1e-3)
+    np.testing.assert_allclose(native.metrics["peak_commanded_force"], compiled.metrics["peak_commanded_force"], atol=1e-3)
+    # The measured contact force: both engines read MuJoCo's touch sensors, MJX's own collision
+    # code against MuJoCo's; the push presses the prism for seconds, so the means are comparable.
+    assert np.all(compiled.metrics["mean_contact_force"][0] > 1.0)
+    np.testing.assert_allclose(native.metrics["mean_contact_force"], compiled.metrics["mean_contact_force"], rtol=0.1, atol=0.05)
 
 
 def _unit(v):

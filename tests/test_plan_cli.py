@@ -1,13 +1,16 @@
 """The ``plan`` and ``train`` commands through the real CLI (subprocesses): what they print, the
 exported PDDL, and bad input as one line on stderr with exit code 2 and no traceback."""
 
+import re
 import subprocess
+from pathlib import Path
 
 import pytest
 from fast_downward import fast_downward_plan
 
 from cli_helpers import run_cli
 from mjxskill.scenario import SCENARIO_DIR
+from scenario_texts import shipped_text
 
 
 def cli(module: str, *args: str) -> subprocess.CompletedProcess:
@@ -35,6 +38,35 @@ def test_plan_push_prints_goal_plan_tree_and_parameters():
     assert "Push.offset_x_start  [-0.3, 0.3] m" in out and "Push.offset_y_goal   [-0.3, 0.3] m" in out
 
 
+DATA = Path(__file__).resolve().parent / "data"
+
+
+@pytest.mark.parametrize("task", ["push", "peg"])
+def test_the_trees_from_the_yaml_skill_library_are_the_trees_python_built(task):
+    # tests/data/plan_<task>.txt: the command's output (after its first line, which names the
+    # scenario's path) when the skills' trees were built in Python (commit f26d09d)
+    run = cli("mjxskill.plan", task)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.splitlines()[1:] == (DATA / f"plan_{task}.txt").read_text().splitlines()
+
+
+def test_no_skill_is_named_in_the_python_package():
+    # every skill, tree included, comes from YAML: no Python module under mjxskill/ names one
+    import yaml
+
+    files = [*SCENARIO_DIR.glob("*.yaml"), *(SCENARIO_DIR.parent / "skills").glob("*.yaml")]
+    names = set()
+    for path in files:
+        document = yaml.safe_load(path.read_text())
+        names |= set(document.get("skills") or {})
+    assert {"GoToLinear", "Push", "PegInsertion"} <= names
+    package = Path(__file__).resolve().parents[1] / "mjxskill"
+    pattern = re.compile(r"\b(" + "|".join(map(re.escape, sorted(names))) + r")\b")
+    found = [f"{path.relative_to(package.parent)}:{i}: {line.strip()}" for path in sorted(package.rglob("*.py"))
+             for i, line in enumerate(path.read_text().splitlines(), start=1) if pattern.search(line)]
+    assert found == []
+
+
 def test_plan_peg_with_a_goal_exports_pddl_fast_downward_solves(tmp_path):
     out_dir = tmp_path / "out"
     run = cli("mjxskill.plan", "peg", "--goal", "(skiros:at skiros:Peg-1 skiros:BoxWithHole-1)", "--export", str(out_dir))
@@ -55,7 +87,7 @@ def test_unknown_task():
 
 def test_invalid_scenario_names_file_key_and_line(tmp_path):
     path = tmp_path / "mine.yaml"
-    path.write_text((SCENARIO_DIR / "push.yaml").read_text().replace("    mass: 2.5", "    mass: -2.5"))
+    path.write_text(shipped_text("push").replace("    mass: 2.5", "    mass: -2.5"))
     assert_bad_input(cli("mjxskill.plan", str(path)), str(path), "objects.ObjectToBePushed-1.mass (line", "positive")
 
 

@@ -44,7 +44,7 @@ def test_an_evaluation_measures_success_force_and_time_per_configuration(run):
     assert [len(c) for c in rollout.calls] == [3, 3, 3, 3]  # chunks of 3, the last one padded
     success, force, seconds = expected(rollout, ev.candidates.params, N_KNOWN + N_UNSEEN, 3, SCN.bt_hz)
     np.testing.assert_allclose(ev.success, success)
-    np.testing.assert_allclose(ev.max_force, force)
+    np.testing.assert_allclose(ev.peak_commanded_force, force)
     np.testing.assert_allclose(ev.success_seconds, seconds)  # NaN where no world succeeded
     assert ev.config_names[N_KNOWN] == "unseen-0" and ev.known.sum() == N_KNOWN
     # the mean time over several candidates weights each configuration by its successes
@@ -113,13 +113,14 @@ def toy_evaluation(pareto_success, manual_force, pareto_force=None) -> Evaluatio
     success = np.concatenate([pareto_success, np.zeros((1, c)), np.full((2, c), 0.25), np.full((m, c), 0.5)])
     force = np.concatenate([np.full(k, 3.0) if pareto_force is None else pareto_force, [0.0, 1.0, 2.0], manual_force])
     return Evaluation(Candidates(names, groups, params), success, np.array([True, True, False]), ("known-0", "known-1", "unseen-0"),
-                      max_force=force)
+                      peak_commanded_force=force)
 
 
-def front_of(ev: Evaluation, success_rate, max_force, first_objective) -> Evaluations:
+def front_of(ev: Evaluation, success_rate, commanded_force, first_objective) -> Evaluations:
     k = len(success_rate)
     return Evaluations(np.zeros(k, int), ev.candidates.params[:k], np.stack([first_objective, -np.arange(k)], axis=1),
-                       np.asarray(success_rate, float), np.asarray(max_force, float))
+                       np.asarray(success_rate, float), np.full(k, np.nan), np.full(k, np.nan),
+                       np.asarray(commanded_force, float))  # the pick reads the commanded force only
 
 
 def test_the_pick_is_the_most_successful_training_solution_within_the_operators_force():

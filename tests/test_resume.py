@@ -54,11 +54,11 @@ def test_a_bad_line_in_the_first_batch_costs_that_batch_only(tmp_path, reference
     rows = set_aside(run)
     assert [(r["line"], r["file"]) for r in rows] == [("2", f"{EVALUATIONS}.orig-1"), ("3", f"{EVALUATIONS}.orig-1"),
                                                       ("4", f"{EVALUATIONS}.orig-1"), ("5", f"{EVALUATIONS}.orig-1")]
-    assert rows[2]["reason"] == "has 3 fields, expected 7" and rows[2]["text"] == "0,0.5,0.25"
+    assert rows[2]["reason"] == "has 3 fields, expected 9" and rows[2]["text"] == "0,0.5,0.25"
     assert all(r["reason"] == "batch 0 is incomplete (3 of 4 rows), so it is evaluated again" for r in rows[:2] + rows[3:])
     (note,) = notices
     assert re.search(rf"4 rows of \S*{EVALUATIONS} set aside in {SET_ASIDE}: 3 rows: batch 0 is incomplete .*; "
-                     rf"line 4: has 3 fields, expected 7; the file as it was is kept as {EVALUATIONS}.orig-1", note), note
+                     rf"line 4: has 3 fields, expected 9; the file as it was is kept as {EVALUATIONS}.orig-1", note), note
 
 
 def test_batches_out_of_order_are_used_and_rewritten_in_order(tmp_path, reference):
@@ -74,8 +74,8 @@ def test_batches_out_of_order_are_used_and_rewritten_in_order(tmp_path, referenc
 
 def test_a_second_copy_of_a_batch_and_unreadable_rows_are_set_aside(tmp_path, reference):
     lines, pareto = reference
-    damaged = lines[:8] + lines[5:7] + ["1,abc,0.1,0.2,0.3,0.5,1.0\n", "9,0.1,0.1,0.2,0.3,0.5,1.0\n",
-                                        "2,5.0,0.1,0.2,0.3,0.5,1.0\n"]  # batch 2 lost; 2 writers; junk
+    damaged = lines[:8] + lines[5:7] + ["1,abc,0.1,0.2,0.3,0.5,1.0,0.5,7.0\n", "9,0.1,0.1,0.2,0.3,0.5,1.0,0.5,7.0\n",
+                                        "2,5.0,0.1,0.2,0.3,0.5,1.0,0.5,7.0\n"]  # batch 2 lost; 2 writers; junk
     run, evaluated, notices, _ = resume(tmp_path, damaged)
     assert evaluated == [2]
     assert (run.path / EVALUATIONS).read_text() == "".join(lines) and (run.path / PARETO).read_text() == pareto
@@ -128,3 +128,34 @@ def test_a_second_resume_keeps_every_earlier_original(tmp_path, reference):
     files = {r["file"] for r in set_aside(run)}
     assert files == {f"{EVALUATIONS}.orig-1", f"{EVALUATIONS}.orig-2"}
     np.testing.assert_array_equal(run.evaluations().iteration, [0] * 4 + [1] * 2 + [2] * 4)
+
+
+def _legacy(lines: list[str]) -> list[str]:
+    """The same rows as a run written before contact forces were measured writes them: one force
+    column, max_force (the commanded force), where the contact forces now stand."""
+    out = [lines[0].replace("peak_contact_force,mean_contact_force,peak_commanded_force", "max_force")]
+    for line in lines[1:]:
+        fields = line.rstrip("\n").split(",")
+        out.append(",".join(fields[:-3] + fields[-1:]) + "\n")
+    return out
+
+
+def test_a_run_from_before_contact_forces_resumes_with_them_unknown(tmp_path, reference):
+    lines, _ = reference
+    assert lines[0].rstrip().endswith("success_rate,peak_contact_force,mean_contact_force,peak_commanded_force")
+    old = _legacy(lines[:7])  # batches 0 and 1 finished
+    run, evaluated, notices, original = resume(tmp_path, old)
+    assert evaluated == [2]  # the finished batches are kept
+    text = (run.path / EVALUATIONS).read_text().splitlines(keepends=True)
+    assert text[0] == lines[0] and text[7:] == lines[7:]  # the new columns; batch 2 as uninterrupted
+    for new, ref in zip(text[1:7], lines[1:7]):
+        new_fields, ref_fields = new.rstrip().split(","), ref.rstrip().split(",")
+        assert new_fields[-3:-1] == ["nan", "nan"]  # not measured then
+        assert new_fields[:-3] + new_fields[-1:] == ref_fields[:-3] + ref_fields[-1:]
+    assert (run.path / f"{EVALUATIONS}.orig-1").read_text() == original
+    (note,) = notices
+    assert "written before contact forces were measured" in note and "6 rows" in note and "peak_commanded_force" in note
+    # evaluate and select read such files too (pareto.csv as it was written then)
+    (run.path / PARETO).write_text("".join(_legacy((run.path / PARETO).read_text().splitlines(keepends=True))))
+    front = run.front(CONFIG)
+    assert len(front) and np.isnan(front.peak_contact_force).any()

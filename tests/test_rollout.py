@@ -79,7 +79,7 @@ def test_planner_parameters_need_an_aligned_hole_and_the_spiral_finds_an_offset_
     # The BT reports success exactly when the peg is in (its distance check is the success test).
     np.testing.assert_array_equal(np.asarray(out.metrics["bt_success"]), success)
     # Force objective: the wrench cost grows with the time the force is applied.
-    assert np.all(np.asarray(out.metrics["max_force"]) == pytest.approx(5.0))
+    assert np.all(np.asarray(out.metrics["peak_commanded_force"]) == pytest.approx(5.0))
 
 
 def test_a_diverging_world_is_contained(peg):

@@ -23,9 +23,9 @@ BINDINGS = SceneBindings(
     slot_of={"Box-1": 0},
     arm_qpos=tuple(range(7)),
     randomized_pairs=(),
-    hole_top_local=None,
+    force_sensors=(),
 )
-# A PegInsertion-like tree: set the goal, then move there with stiffness, force and spiral.
+# An insertion-like tree: set the goal, then move there with stiffness, force and spiral.
 TREE = sequence(
     "insert",
     action("ElementToBBPose", "set_goal_from_object", args={"object": "Box-1", "offset": (0.0, 0.0, 0.02)}, params={"offset_x": "dx"}),

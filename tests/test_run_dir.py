@@ -38,7 +38,8 @@ def make_run(tmp_path, config=None) -> Run:
 def rows(iterations, p=2, o=2, seed=0) -> Evaluations:
     rng = np.random.default_rng(seed)
     n = len(iterations)
-    return Evaluations(np.asarray(iterations), rng.random((n, p)), rng.normal(size=(n, o)), rng.random(n), rng.random(n) * 30)
+    return Evaluations(np.asarray(iterations), rng.random((n, p)), rng.normal(size=(n, o)), rng.random(n),
+                       rng.random(n) * 30, rng.random(n) * 10, rng.random(n) * 7)
 
 
 def assert_same(a: Evaluations, b: Evaluations):
@@ -48,7 +49,8 @@ def assert_same(a: Evaluations, b: Evaluations):
 
 def test_columns_follow_the_issue():
     assert evaluation_columns(("Push.a", "Push.b"), ("success", "applied_force")) == [
-        "iteration", "Push.a", "Push.b", "objective_success", "objective_applied_force", "success_rate", "max_force"]
+        "iteration", "Push.a", "Push.b", "objective_success", "objective_applied_force", "success_rate",
+        "peak_contact_force", "mean_contact_force", "peak_commanded_force"]
 
 
 def test_batch_sizes_match_the_optimizer_warmup_cut():
@@ -78,11 +80,12 @@ finite = st.floats(allow_nan=False, width=64)
 
 
 @settings(max_examples=50, deadline=None)
-@given(values=st.lists(st.tuples(finite, finite, st.floats(width=64), finite, finite, finite), min_size=1, max_size=5))
+@given(values=st.lists(st.tuples(finite, finite, st.floats(width=64), finite, finite, st.floats(width=64), finite, finite),
+                       min_size=1, max_size=5))
 def test_csv_round_trips_float64_exactly(tmp_path_factory, values):
     path = tmp_path_factory.mktemp("csv") / "e.csv"
     v = np.array(values, np.float64)
-    ev = Evaluations(np.arange(len(v)), v[:, :2], v[:, 2:4], v[:, 4], v[:, 5])
+    ev = Evaluations(np.arange(len(v)), v[:, :2], v[:, 2:4], v[:, 4], v[:, 5], v[:, 6], v[:, 7])
     cols = evaluation_columns(("a", "b"), ("o1", "o2"))
     from mjxskill.training.run_dir import write_csv
 

@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from mjxskill.scenario import SCENARIO_DIR, ScenarioError, load_scenario
 from mjxskill.task import plan_task
-from scenario_texts import shipped_text
+from scenario_texts import library_text, shipped_text, write_library_copy
 
 PUSH_YAML = SCENARIO_DIR / "push.yaml"
 PUSH_TEXT = shipped_text("push")  # the scene path absolute: edited copies load from tmp_path
@@ -160,35 +160,12 @@ MUTATIONS = {
         "default_stiffness: [400, 400, 400, 50, 50, 50]", "default_stiffness: [400, 400]",
         "robot.default_stiffness", "expected a list of 6 numbers, got 2",
     ),
-    "lower bound above upper": (
-        "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3]",
-        "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [0.4, 0.3]",
-        "skills.Push.parameters.offset_x_start.bounds", "lower bound 0.4 is above the upper bound 0.3",
-    ),
-    "default outside bounds": (
-        "force: {type: float, unit: N, default: -5.0,", "force: {type: float, unit: N, default: 5.0,",
-        "skills.PegInsertion.parameters.force.default", r"default 5.0 is outside the bounds \[-10.0, 0.0\]",
-    ),
-    "learnable without bounds": (
-        "offset_y_goal: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3], learnable: true}",
-        "offset_y_goal: {type: float, unit: m, default: 0.0, learnable: true}",
-        "skills.Push.parameters.offset_y_goal", "a learnable parameter needs bounds",
-    ),
-    "unknown skill": ("  PegInsertion:\n", "  PegInsert:\n", "skills.PegInsert", "unknown skill 'PegInsert'"),
     "unknown object in randomization": (
         "xy_sigma: {ObjectToBePushed-1: 0.007,", "xy_sigma: {ObjectToBePushed-2: 0.007,",
         "randomization.xy_sigma.ObjectToBePushed-2", "unknown object 'ObjectToBePushed-2'",
     ),
     "unknown object in a relation": (
         "    - (can-push iiwa-1)", "    - (can-push iiwa-2)", r"robot.relations\[1\]", "unknown object 'iiwa-2'.*did you mean iiwa-1",
-    ),
-    "unknown predicate in a condition": (
-        'holdconditions: ["(can-push ?robot)"]', 'holdconditions: ["(can-pusher ?robot)"]',
-        r"skills.Push.holdconditions\[0\]", "unknown predicate 'can-pusher'; did you mean can-push",
-    ),
-    "unknown variable in a condition": (
-        'postconditions: ["(at ?peg ?box)"]', 'postconditions: ["(at ?peg ?hole)"]',
-        r"skills.PegInsertion.postconditions\[0\]", r"unknown parameter '\?hole'",
     ),
     "wrong arity": (
         "      - (pushable ObjectToBePushed-1)", "      - (pushable ObjectToBePushed-1 Home-1)",
@@ -223,28 +200,109 @@ MUTATIONS = {
                           "goal", "unbalanced parentheses"),
 }
 
+# The same for the shipped skill library (assets/skills/library.yaml), included by a push.yaml
+# copy: the error names the library file. Bad templates: an unknown kind, primitive or input, a
+# reference to no parameter, a value of the wrong kind, a learnable parameter where the leaf
+# fixes its value or that no leaf reads, an input missing.
+LIBRARY_MUTATIONS = {
+    "lower bound above upper": (
+        "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3]",
+        "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [0.4, 0.3]",
+        "skills.Push.parameters.offset_x_start.bounds", "lower bound 0.4 is above the upper bound 0.3",
+    ),
+    "default outside bounds": (
+        "force: {type: float, unit: N, default: -5.0,", "force: {type: float, unit: N, default: 5.0,",
+        "skills.PegInsertion.parameters.force.default", r"default 5.0 is outside the bounds \[-10.0, 0.0\]",
+    ),
+    "learnable without bounds": (
+        "offset_y_goal: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3], learnable: true}",
+        "offset_y_goal: {type: float, unit: m, default: 0.0, learnable: true}",
+        "skills.Push.parameters.offset_y_goal", "a learnable parameter needs bounds",
+    ),
+    "unknown predicate in a condition": (
+        'holdconditions: ["(can-push ?robot)"]', 'holdconditions: ["(can-pusher ?robot)"]',
+        r"skills.Push.holdconditions\[0\]", "unknown predicate 'can-pusher'; did you mean can-push",
+    ),
+    "unknown variable in a condition": (
+        'postconditions: ["(at ?peg ?box)"]', 'postconditions: ["(at ?peg ?hole)"]',
+        r"skills.PegInsertion.postconditions\[0\]", r"unknown parameter '\?hole'",
+    ),
+    "unknown processor": ("    tree:\n      sequence: $label\n      children:\n        - action: ElementToBBPose\n          primitive: set_goal_from_object\n          args: {object: $target",
+                          "    tree:\n      sequnce: $label\n      children:\n        - action: ElementToBBPose\n          primitive: set_goal_from_object\n          args: {object: $target",
+                          "skills.GoToLinear.tree", "exactly one of sequence, serial_star", "tree:\n      sequnce"),
+    "unknown primitive": ("    - {action: MGSetGoalPose, primitive: goal_pose}\n            - {action: ChangeStiffness",
+                          "    - {action: MGSetGoalPose, primitive: goal_poses}\n            - {action: ChangeStiffness",
+                          r"skills.PegInsertion.tree.children\[1\].children\[0\].primitive", "unknown primitive 'goal_poses'"),
+    "unknown input": ("args: {radius: $radius, path_velocity: $path_velocity, pitch: $pitch}",
+                      "args: {radius: $radius, path_speed: $path_velocity, pitch: $pitch}",
+                      r"skills.PegInsertion.tree.children\[1\].children\[3\].args.path_speed", "overlay_spiral has no input 'path_speed'"),
+    "unknown parameter": ("force_z: $force}", "force_z: $forse}",
+                          r"skills.PegInsertion.tree.children\[1\].children\[2\].args.force_z", r"\$forse names no parameter"),
+    "wrong argument": ("args: {stiffness: $stiffness}}\n            - {action: ApplyForce, primitive: apply_force, args: {wrench: [0",
+                       "args: {stiffness: $threshold}}\n            - {action: ApplyForce, primitive: apply_force, args: {wrench: [0",
+                       r"skills.PegInsertion.tree.children\[1\].children\[1\].args.stiffness", r"\$threshold is a number; expected 6 values"),
+    "learnable read by no leaf": ("force_z: $force}", "force_z: -5.0}", r"skills.PegInsertion.tree", "'force' is not read by the tree",
+                                  "    tree:\n      sequence: $label\n      children:\n        - action: ElementToBBPose\n          primitive: set_goal_from_object\n          args: {object: $box"),
+    "learnable in a fixed input": ("$label.start.move\n                  children:\n                    - {action: MGSetGoalPose, primitive: goal_pose}\n                    - {action: EEPoseDistance, primitive: ee_pose_distance, args: {threshold: $threshold}}",
+                                   "$label.start.move\n                  children:\n                    - {action: MGSetGoalPose, primitive: goal_pose}\n                    - {action: EEPoseDistance, primitive: ee_pose_distance, args: {threshold: $offset_x_goal}}",
+                                   r"skills.Push.tree.children\[0\].children\[0\].children\[1\].children\[1\].args.threshold",
+                                   "offset_x_goal is learnable: this input is fixed when the tree is built", "threshold: $offset_x_goal"),
+    "input missing": ("{action: ChangeStiffness, primitive: change_stiffness, args: {stiffness: $stiffness}}\n        - parallel_fs: $label.goal",
+                      "{action: ChangeStiffness, primitive: change_stiffness}\n        - parallel_fs: $label.goal",
+                      r"skills.Push.tree.children\[0\].children\[1\]", "change_stiffness needs the input 'stiffness'",
+                      "{action: ChangeStiffness, primitive: change_stiffness}"),
+    "not a plan argument": ("args: {object: $box, offset: [0, 0, 0]", "args: {object: $force, offset: [0, 0, 0]",
+                            r"skills.PegInsertion.tree.children\[0\].args.object", "expected a plan argument naming an object"),
+    "attribute of a number": ("offset: [0, 0, $push_height - $workpiece.position.z]", "offset: [0, 0, $push_height - $threshold.position.z]",
+                              r"skills.Push.tree.children\[0\].children\[0\].children\[0\].args.offset\[2\]",
+                              "only a plan argument .an object. has attributes"),
+}
 
-@pytest.mark.parametrize("kind", list(MUTATIONS))
-def test_invalid_file_fails_naming_file_key_and_line(kind, tmp_path):
-    old, new, key_path, message, *anchor = MUTATIONS[kind]
-    text = PUSH_TEXT
-    assert text.count(old) == 1, f"mutation anchor for {kind!r} must occur once"
-    mutated = text.replace(old, new)
-    path = tmp_path / "push.yaml"
-    path.write_text(mutated)
-    with pytest.raises(ScenarioError) as info:
-        plan_task(load_scenario(path))  # most fail to load; a goal no plan reaches fails to plan
-    error = str(info.value)
-    assert error.startswith(f"{path}: "), error
+
+def assert_located(error: str, file, key_path: str, message: str, mutated: str, anchor: str) -> None:
+    """``error`` is one line naming ``file``, ``key_path`` and the line of the last ``anchor`` in
+    ``mutated`` (no anchor: the document's first line), and says ``message``."""
+    assert error.startswith(f"{file}: ") and "\n" not in error, error
     assert re.search(rf": {key_path} \(line (\d+)\): ", error), error
     assert re.search(message, error), error
     line = int(re.search(r"\(line (\d+)\)", error).group(1))
-    anchor = anchor[0] if anchor else new.strip()
     if anchor:
         assert line == mutated[: mutated.rindex(anchor)].count("\n") + 1, error
     else:  # a missing top-level key is reported at the document's start
         assert line == 1 + next(i for i, l in enumerate(mutated.splitlines()) if l and not l.startswith("#")), error
-    assert "\n" not in error
+
+
+@pytest.mark.parametrize("kind", list(MUTATIONS))
+def test_invalid_file_fails_naming_file_key_and_line(kind, tmp_path):
+    old, new, key_path, message, *anchor = MUTATIONS[kind]
+    assert PUSH_TEXT.count(old) == 1, f"mutation anchor for {kind!r} must occur once"
+    mutated = PUSH_TEXT.replace(old, new)
+    path = tmp_path / "push.yaml"
+    path.write_text(mutated)
+    with pytest.raises(ScenarioError) as info:
+        plan_task(load_scenario(path))  # most fail to load; a goal no plan reaches fails to plan
+    assert_located(str(info.value), path, key_path, message, mutated, anchor[0] if anchor else new.strip())
+
+
+@pytest.mark.parametrize("kind", list(LIBRARY_MUTATIONS))
+def test_an_invalid_skill_library_fails_naming_its_file_key_and_line(kind, tmp_path):
+    old, new, key_path, message, *anchor = LIBRARY_MUTATIONS[kind]
+    text = library_text()
+    assert text.count(old) == 1, f"mutation anchor for {kind!r} must occur once"
+    mutated = text.replace(old, new)
+    path = write_library_copy(tmp_path, "push", mutated)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    assert_located(str(info.value), tmp_path / "library.yaml", key_path, message, mutated, anchor[0] if anchor else new.strip())
+
+
+def test_a_skill_in_the_scenario_and_in_its_library_is_named_twice(tmp_path):
+    extra = "skills:\n  GoToLinear:\n    parameters: {}\n    preconditions: []\n    postconditions: []\n    tree: {}\n"
+    path = write_library_copy(tmp_path, "push", library_text())
+    path.write_text(path.read_text() + extra)
+    with pytest.raises(ScenarioError, match=r"skills.GoToLinear \(line \d+\): skill 'GoToLinear' is defined twice; "
+                                            r"the first is at .*library.yaml: skills.GoToLinear \(line \d+\)"):
+        load_scenario(path)
 
 
 def test_not_yaml_at_all(tmp_path):

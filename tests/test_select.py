@@ -17,7 +17,9 @@ FRONT = Evaluations(
     params=np.array([[0.1, 0.0], [0.2, 0.5], [0.3, -0.5], [0.4, 1.0]]),
     objectives=np.array([[5.0, -1.0], [7.0, -2.0], [7.5, -3.0], [9.0, -4.0]]),
     success_rate=np.array([0.2, 0.6, 0.6, 1.0]),
-    max_force=np.array([2.0, 5.0, 8.0, 12.0]),
+    peak_contact_force=np.array([2.0, 5.0, 8.0, 12.0]),
+    mean_contact_force=np.array([0.5, 1.0, 2.0, 3.0]),
+    peak_commanded_force=np.full(4, 7.0),
 )
 
 
@@ -44,7 +46,24 @@ def test_export_names_every_parameter_with_its_unit(tmp_path):
     doc = export_document(make_config(), FRONT, 2, tmp_path)
     assert doc["parameters"] == {"S.x": {"value": 0.3, "unit": "m"}, "S.y": {"value": -0.5, "unit": "N"}}
     assert doc["objectives"] == {"reach": 7.5, "force": -3.0}
-    assert doc["success_rate"] == 0.6 and doc["max_force_N"] == 8.0 and doc["pareto_index"] == 2
+    assert doc["success_rate"] == 0.6 and doc["pareto_index"] == 2
+    assert (doc["peak_contact_force_N"], doc["mean_contact_force_N"], doc["peak_commanded_force_N"]) == (8.0, 2.0, 7.0)
+
+
+def frames_or_skip(*args, **kwargs):
+    """``frames``, or a skip naming why (no OpenGL backend here); where rendering must work (CI
+    sets MJXSKILL_REQUIRE_RENDER=1 after installing Mesa's EGL: .ci/run) a failure."""
+    import os
+
+    from mjxskill.training.render import RenderUnavailable, frames
+
+    try:
+        return frames(*args, **kwargs)
+    except RenderUnavailable as err:
+        assert "MUJOCO_GL=egl" in str(err) and "--no-render" in str(err)
+        if os.environ.get("MJXSKILL_REQUIRE_RENDER"):
+            pytest.fail(f"rendering must work here (MJXSKILL_REQUIRE_RENDER): {err}")
+        pytest.skip(f"no OpenGL backend here: {err}")
 
 
 def test_frames_match_the_scene_or_explain_how_to_get_gl():
@@ -52,19 +71,68 @@ def test_frames_match_the_scene_or_explain_how_to_get_gl():
     GL backend the error says how to get one."""
     import mujoco
 
-    from mjxskill.training.render import RenderUnavailable, frames
-
     model = mujoco.MjModel.from_xml_string(
         '<mujoco><worldbody><light pos="0 0 3"/><geom type="plane" size="2 2 .1"/>'
         '<body pos="0.5 0 0.1"><freejoint/><geom type="box" size=".1 .1 .1" rgba="1 0 0 1"/></body></worldbody></mujoco>'
     )
     qpos = np.array([[0.5, 0, 0.1, 1, 0, 0, 0], [0.2, 0.3, 0.1, 1, 0, 0, 0]])
-    try:
-        images = frames(model, qpos, width=96, height=64)
-    except RenderUnavailable as err:
-        assert "MUJOCO_GL=egl" in str(err) and "--no-render" in str(err)
-        pytest.skip(f"no OpenGL backend here: {err}")
+    images = frames_or_skip(model, qpos, width=96, height=64)
     assert images.shape == (2, 64, 96, 3) and images.dtype == np.uint8
     red = lambda im: (im[..., 0] > 150) & (im[..., 1] < 80)  # noqa: E731
     assert red(images[0]).any() and red(images[1]).any()
     assert not np.array_equal(red(images[0]), red(images[1]))
+
+
+def test_a_force_limit_on_a_run_without_measured_forces_is_refused():
+    # a run written before contact forces were measured: its commanded force is no measure of
+    # what the tool did, so --max-force says so instead of choosing by it
+    old = Evaluations(*FRONT[:4], np.full(4, np.nan), np.full(4, np.nan), FRONT.peak_commanded_force)
+    with pytest.raises(CommandError, match="written before contact forces were measured"):
+        choose(old, 5.0)
+    assert choose(old, None, 0.5) == 3
+
+
+def test_a_rendered_episode_shows_the_worlds_randomized_poses(tmp_path):
+    """render_episode (as select and the explorer call it) draws each world as it was: the prism
+    where the world started it, the goal corner where the world put it. Reference: the same
+    frame drawn from a model whose bodies sit at those poses."""
+    import jax
+    import mujoco
+
+    from mjxskill import load_scenario, plan_task
+    from mjxskill.native import NativeRollout
+    from mjxskill.training.render import render_episode
+
+    scn = load_scenario("push")
+    engine = NativeRollout(scn, plan_task(scn), worlds=1, episode_seconds=0.2, workers=1)
+    world = jax.tree.map(lambda x: np.asarray(x)[0], engine.worlds_per_config(jax.random.key(0), 1))
+    slots = engine.spec.bindings.slot_of
+    moved = world.object_pos.copy()
+    moved[slots["ObjectToBePushed-1"], :2] += (-0.08, 0.05)
+    moved[slots["ObjectGoalPose-1"], :2] += (0.10, -0.06)
+    world = world._replace(object_pos=moved)
+    _, record = engine.trace(engine.task.defaults, world)
+    goal = engine.mj_model.body("goal").mocapid[0]
+    np.testing.assert_allclose(record.mocap_pos[0, goal], moved[slots["ObjectGoalPose-1"]], atol=1e-6)
+    images = frames_or_skip(engine.mj_model, record.qpos[:1], 160, 120, mocap_pos=record.mocap_pos[:1],
+                            mocap_quat=record.mocap_quat[:1])
+    reference_model = engine.mj_model.__copy__()
+    reference_model.body_pos[engine.mj_model.body("goal").id] = moved[slots["ObjectGoalPose-1"]]
+    reference = frames_or_skip(reference_model, record.qpos[:1], 160, 120)
+    nominal = frames_or_skip(engine.mj_model, record.qpos[:1], 160, 120)  # the goal at its nominal pose
+    # the same picture (a grey level here and there: the world's float32 pose against the model's)
+    assert np.abs(images[0].astype(int) - reference[0].astype(int)).max() <= 2
+    assert np.abs(images[0].astype(int) - nominal[0].astype(int)).sum() > 1000  # the corner is elsewhere
+    paths = render_episode(engine, engine.task.defaults, world, tmp_path / "frames", "png", 160, 120)
+    assert len(paths) == engine.spec.ticks and all(p.stat().st_size > 0 for p in paths)
+    first = plt_read(paths[0])
+    np.testing.assert_allclose(first[..., :3], images[0] / 255.0, atol=1.5 / 255)
+
+
+def plt_read(path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt.imread(path)

@@ -117,9 +117,9 @@ def test_select_exports_the_picked_solution(repeated_run, tmp_path):
 
 
 def bad_scenario(tmp_path) -> Path:
-    from mjxskill.scenario import scenario_path
+    from scenario_texts import shipped_text
 
-    text = scenario_path("push").read_text().replace("bt_hz: 10", "bt_hz: -3")
+    text = shipped_text("push").replace("bt_hz: 10", "bt_hz: -3")
     assert "bt_hz: -3" in text
     path = tmp_path / "broken.yaml"
     path.write_text(text)

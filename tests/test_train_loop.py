@@ -22,7 +22,7 @@ def toy_objective(x: np.ndarray, iteration: int) -> BatchResult:
     the way the real rollout's worlds do."""
     reach = -(x[:, 0] - 0.3) ** 2 - 0.01 * iteration
     force = -np.abs(x[:, 1]) - x[:, 0]
-    return BatchResult(np.stack([reach, force], axis=1), (x[:, 0] > 0.5).astype(float), 10 * x[:, 0])
+    return BatchResult(np.stack([reach, force], axis=1), (x[:, 0] > 0.5).astype(float), 10 * x[:, 0], 3 * x[:, 0], 7 + 0 * x[:, 0])
 
 
 class Recorder:

@@ -11,7 +11,7 @@ from mjxskill.native.rewards import build_native_terms
 from mjxskill.rollout.leaves import LEAF_PROGRAMS as COMPILED_LEAVES
 from mjxskill.rollout.rewards import build_terms
 from mjxskill.scenario import load_scenario
-from mjxskill.scenario.schema import REQUIRED, REWARD_KINDS
+from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS
 from scenario_texts import shipped_text
 
 
@@ -41,9 +41,9 @@ def test_the_loader_accepts_cap_and_rejects_an_unknown_constant(tmp_path):
     reward = next(r for r in loaded.rewards if r.name == "commanded_force")
     assert reward.constant("cap") == 20.0
     from mjxskill.rollout.bindings import bind_scene, referenced_objects
-    from mjxskill.sim.model import load_model
+    from mjxskill.sim.model import build_model
 
-    bindings = bind_scene(loaded, load_model(loaded), referenced_objects(loaded, []))
+    bindings = bind_scene(loaded, build_model(loaded), referenced_objects(loaded, []))
     compiled = next(t for t in build_terms(loaded, bindings) if t.name == "commanded_force")
     native = next(t for t in build_native_terms(loaded, bindings.slot_of) if t.name == "commanded_force")
     assert compiled.worst_raw == native.worst_raw == 20.0  # the cap is what a diverged world is charged

@@ -11,7 +11,7 @@ Each node gets an ``enabled`` flag (is it ticked this tick?) from its parent; a 
 is only ever used behind its ``enabled`` flag, so disabled subtrees compute harmless garbage.
 The result is straight-line, branch-free code (about 20 scalar ops per node) that vmaps over
 batches of independent state machines; op count, compile time and run time grow linearly with
-the number of nodes (benchmarks/bt_tick.py: the 8-node Push tree compiles in well under a
+the number of nodes (benchmarks/bt_tick.py: the push skill's 8-node tree compiles in well under a
 second, and a tick costs well under a microsecond per machine on CPU inside a scan). A variant
 that writes each composite as vector ops over its children (cumsum for "first child that
 stops") was measured too: no faster at batch 1024 and 2-5x slower at batch 1 on CPU.

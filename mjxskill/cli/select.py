@@ -2,7 +2,7 @@
 
     python -m mjxskill.select runs/push-0                    # list the Pareto front
     python -m mjxskill.select runs/push-0 --pick 2           # row 2 of pareto.csv
-    python -m mjxskill.select runs/push-0 --max-force 20     # the most successful under 20 N
+    python -m mjxskill.select runs/push-0 --max-force 20     # the most successful whose tool pressed < 20 N
     python -m mjxskill.select runs/push-0 --pick 2 --format mp4 --config-index 1
     python -m mjxskill.select runs/peg-exp --max-force 5     # over every run of an experiment
 
@@ -31,7 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("run", type=Path, help="run, repeated run or experiment directory")
     pick = parser.add_argument_group("choice (none: list the front)")
     pick.add_argument("--pick", type=cli_args.int_at_least(0), metavar="K", help="row K of the listed front (of pareto.csv for one run)")
-    pick.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="largest commanded force (mean over worlds) at most N newtons")
+    pick.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="peak measured contact force of the tool (mean over worlds) at most N newtons")
     pick.add_argument("--min-success", type=cli_args.nonnegative_float, metavar="RATE", help="success rate at least RATE (0-1)")
     parser.add_argument("--out", type=Path, help="export folder (default RUN_DIR/selected-<K>)")
     parser.add_argument("--no-render", action="store_true", help="export the parameters only")

@@ -100,7 +100,7 @@ class Node:
     count: n of Repeat/Retry/Timeout (ticks for Timeout), 0 otherwise.
     primitive: leaf program name (leaves only).
     args: fixed leaf arguments, e.g. {"stiffness": (500, 500, 0, 50, 50, 50)}.
-    params: leaf input -> skill parameter name, e.g. {"offset_x": "Push.offset_x_start"}.
+    params: leaf input -> skill parameter name, e.g. {"offset_x": "Slide.offset_x_start"}.
     """
 
     kind: Kind

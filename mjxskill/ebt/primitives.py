@@ -8,43 +8,95 @@ exactly this tuple.
 "Holds" leaves keep their effect in force while they are ticked and return RUNNING; a ParallelFs
 ends when its distance check succeeds, which halts them.
 
-``set_goal_from_object`` (SUCCESS at once): writes the motion goal = position of ``args.object``
-    (scenario object name; ``args.mjcf_body`` its MJCF body or None for a pose without one, whose
-    position comes from the scenario) + ``args.offset`` (3,) m world frame + the values of
-    ``params.offset_x`` / ``params.offset_y``; orientation (tool z along world -z):
-    ``args.orientation`` = "tool_down_aligned" (the square tool's faces turned to the element's
-    yaw) or "tool_down" (the tool's yaw kept, so the move is a pure translation).
+``set_goal_from_object`` (SUCCESS at once): writes the motion goal = position of ``object``
+    (a scenario object; its MJCF body is written beside it as ``mjcf_body`` for the reader of
+    the tree) + ``offset`` (3,) m world frame + ``offset_x`` / ``offset_y`` m. The tool's
+    orientation: pointing down (its z along world -z), turned about world z by ``orientation``
+    = "tool_down_aligned" (the square tool's faces turned to the object's yaw) or "tool_down"
+    (the tool's current yaw kept, so the move is a pure translation), plus ``tool_yaw`` deg, and
+    tilted by ``tool_roll`` / ``tool_pitch`` deg about the axes of that turned frame (x, then
+    y, world-fixed): the goal orientation is Rz(yaw + tool_yaw) Ry(tool_pitch) Rx(tool_roll)
+    times the tool pointing down.
 ``goal_pose`` (holds, RUNNING): the motion generator drives the reference toward the goal.
-``change_stiffness`` (holds, RUNNING): ``args.stiffness`` (6,) N/m x3, Nm/rad x3.
-``apply_force`` (holds, RUNNING): ``args.wrench`` (6,) N, Nm in the world frame; a component named
-    in ``params`` (``force_x``, ``force_y``, ``force_z``) is replaced by that parameter's value.
-``overlay_spiral`` (holds, RUNNING): Archimedes spiral on the reference in the xy plane;
-    ``params.radius`` (m, cap), ``params.path_velocity`` (m/s), ``params.pitch`` (m per turn).
-``ee_pose_distance``: RUNNING until the tool is within ``args.threshold`` m of the goal, then
+``change_stiffness`` (holds, RUNNING): ``stiffness`` (6,) N/m x3, Nm/rad x3.
+``apply_force`` (holds, RUNNING): ``wrench`` (6,) N, Nm in the world frame; ``force_x``,
+    ``force_y``, ``force_z`` (N), when given, replace its force components.
+``overlay_spiral`` (holds, RUNNING): Archimedes spiral added to the reference in the plane
+    normal to ``normal`` (3,) (world frame, default z: the table's plane); ``radius`` (m,
+    cap), ``path_velocity`` (m/s), ``pitch`` (m per turn).
+``ee_pose_distance``: RUNNING until the tool is within ``threshold`` m of the goal, then
     SUCCESS.
-``wait``: RUNNING until ``args.seconds`` have passed since its first tick, then SUCCESS.
+``wait``: RUNNING until ``seconds`` have passed since its first tick, then SUCCESS.
 
 A leaf input comes from ``params`` (the name of a learnable parameter, looked up in the parameter
-vector) when named there, otherwise from ``args`` (a fixed value): a skill parameter the world
-model does not mark learnable is written into ``args`` under the input's name.
+vector at run time) when named there, otherwise from ``args`` (a fixed value) or its default
+(``INPUTS``). Only the inputs marked learnable in ``INPUTS`` may name a learnable parameter; a
+skill parameter the world model does not mark learnable is written into ``args``. Skills build
+trees over this vocabulary in the YAML (``mjxskill.ebt.template``).
 """
 
 from __future__ import annotations
 
-import numpy as np
+from types import MappingProxyType
+from typing import Mapping, NamedTuple
 
-PRIMITIVES = (
-    "set_goal_from_object",
-    "goal_pose",
-    "change_stiffness",
-    "apply_force",
-    "overlay_spiral",
-    "ee_pose_distance",
-    "wait",
-)
 
 ORIENTATIONS = ("tool_down_aligned", "tool_down")  # set_goal_from_object's ``args.orientation``
-SPIRAL_NORMAL = np.array([0.0, 0.0, 1.0], np.float32)  # overlay_spiral's search plane is horizontal
+SPIRAL_NORMAL = (0.0, 0.0, 1.0)  # overlay_spiral's default ``normal``: the search plane is horizontal
+
+
+class _Required:
+    def __repr__(self) -> str:
+        return "REQUIRED"
+
+
+REQUIRED = _Required()  # an input's default when the tree must give it
+
+
+class Input(NamedTuple):
+    """One input of a primitive. kind: "object" (a scenario object's name), "number", "vector3",
+    "vector6" or "choice" (one of ``choices``). default: its value when the tree gives none
+    (``REQUIRED``: it must give one; None: the leaf does without it). learnable: the input may
+    name a learnable parameter (the leaf program reads it from the parameter vector at run
+    time). unit: for the reader."""
+
+    kind: str
+    default: object = REQUIRED
+    learnable: bool = False
+    choices: tuple[str, ...] = ()
+    unit: str = ""
+
+
+_ZERO = Input("number", 0.0, learnable=True)
+
+# primitive -> input name -> Input: what a skill's tree may give each leaf (the template reader,
+# mjxskill.scenario.skill_tree, checks every leaf against it; the leaf programs read the same
+# names and defaults).
+INPUTS: Mapping[str, Mapping[str, Input]] = MappingProxyType({
+    "set_goal_from_object": MappingProxyType({
+        "object": Input("object", REQUIRED),
+        "offset": Input("vector3", (0.0, 0.0, 0.0), unit="m"),
+        "orientation": Input("choice", "tool_down_aligned", choices=ORIENTATIONS),
+        "offset_x": _ZERO._replace(unit="m"), "offset_y": _ZERO._replace(unit="m"),
+        "tool_roll": _ZERO._replace(unit="deg"), "tool_pitch": _ZERO._replace(unit="deg"),
+        "tool_yaw": _ZERO._replace(unit="deg"),
+    }),
+    "goal_pose": MappingProxyType({}),
+    "change_stiffness": MappingProxyType({"stiffness": Input("vector6", REQUIRED, unit="N/m, Nm/rad")}),
+    "apply_force": MappingProxyType({
+        "wrench": Input("vector6", (0.0,) * 6, unit="N, Nm"),
+        **{f"force_{c}": Input("number", None, learnable=True, unit="N") for c in "xyz"},
+    }),
+    "overlay_spiral": MappingProxyType({
+        "radius": _ZERO._replace(unit="m"), "path_velocity": _ZERO._replace(unit="m/s"),
+        "pitch": _ZERO._replace(unit="m"), "normal": Input("vector3", SPIRAL_NORMAL),
+    }),
+    "ee_pose_distance": MappingProxyType({"threshold": Input("number", REQUIRED, unit="m")}),
+    "wait": MappingProxyType({"seconds": Input("number", REQUIRED, unit="s")}),
+})
+
+
+PRIMITIVES = tuple(INPUTS)
 
 
 def goal_orientation(leaf) -> str:
@@ -76,4 +128,4 @@ class LeafRegistry(dict):
         return builder(i, leaf, context)
 
 
-__all__ = ["ORIENTATIONS", "PRIMITIVES", "SPIRAL_NORMAL", "LeafRegistry", "goal_orientation"]
+__all__ = ["INPUTS", "ORIENTATIONS", "PRIMITIVES", "REQUIRED", "SPIRAL_NORMAL", "Input", "LeafRegistry", "goal_orientation"]

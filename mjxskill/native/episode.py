@@ -19,8 +19,8 @@ from mjxskill.ebt.interpreter import Interpreter, TickResult
 from mjxskill.ebt.nodes import Status
 from mjxskill.native.controller import NativeControllerState, native_impedance_control
 from mjxskill.native.leaves import NativeBlackboard
-from mjxskill.native.motion import quat_angle
 from mjxskill.native.rewards import NativeObservation
+from mjxskill.native.success import success
 from mjxskill.rollout.bindings import FREE, MOCAP
 from mjxskill.rollout.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, TickRecord
 from mjxskill.sim.controller_config import N_ARM
@@ -94,7 +94,11 @@ class NativeEpisode:
         self.done, self.diverged = False, False
         self.status, self.done_tick = Status.RUNNING, -1
         self.totals = np.zeros(len(engine.terms))
-        self.max_force = 0.0
+        self.peak_commanded_force = 0.0
+        # measured contact force (the tool's touch sensors): this tick's sum and peak over its
+        # control steps (written by the stepping code), and the episode's
+        self.tick_force = (0.0, 0.0)
+        self.force_sum, self.force_peak = 0.0, 0.0
         self.default_stiffness = np.asarray(spec.default_stiffness, float)
         self.records: list[TickRecord] = []
         self.root, self.active = Status.RUNNING, [False] * self.n_leaves
@@ -158,14 +162,19 @@ class NativeEpisode:
         """The tick's control steps one at a time: reference, numpy controller, ``mj_step``."""
         model, data, bb, cfg = self.model, self.data, self.bb, self.engine.spec.ctrl
         cstate = self.cstate
+        sensors = list(self.engine.spec.bindings.force_sensors)
+        force_sum = force_peak = 0.0
         for _ in range(self.engine.spec.steps_per_tick):
             ref_pos, ref_quat = bb.reference()
             command = np.concatenate([ref_pos, ref_quat, bb.wrench, bb.stiffness])
             tau, cstate = native_impedance_control(cfg, model, data, command, self.nullspace_target, cstate)
             data.ctrl[:N_ARM] = tau
             mujoco.mj_step(model, data)
+            force = float(np.sum(data.sensordata[sensors]))  # computed by mj_step: this step's contact force
+            force_sum, force_peak = force_sum + force, max(force_peak, force)
             bb.advance(cfg.dt)
         self.cstate = cstate
+        self.tick_force = (force_sum, force_peak)
 
     def end_tick(self, t: int) -> bool:
         """Divergence check and the tick's rewards; False when the episode has ended (diverged:
@@ -182,14 +191,17 @@ class NativeEpisode:
         self.status = root
         tool_pos, tool_quat = self.tool_pose()
         slot_pos, slot_quat = self.slot_poses()
+        force_sum, force_peak = self.tick_force
+        self.force_sum, self.force_peak = self.force_sum + force_sum, max(self.force_peak, force_peak)
         obs = NativeObservation(tool_pos, tool_quat, self.bb.reference()[0], slot_pos, slot_quat,
-                                self.cstate.wrench, root == Status.SUCCESS)
+                                self.cstate.wrench, root == Status.SUCCESS, force_sum / self.engine.spec.steps_per_tick)
         raw = [term.raw(obs) for term in self.engine.terms]
         self.totals += raw
         if self.record:
-            self.records.append(TickRecord(self.data.qpos.copy(), tool_pos, obs.ref_pos, int(root),
+            self.records.append(TickRecord(self.data.qpos.copy(), self.data.mocap_pos.copy(), self.data.mocap_quat.copy(),
+                                           tool_pos, obs.ref_pos, int(root),
                                            np.array(self.active), np.array(raw)))
-        self.max_force = max(self.max_force, float(np.linalg.norm(self.cstate.wrench[:3])))
+        self.peak_commanded_force = max(self.peak_commanded_force, float(np.linalg.norm(self.cstate.wrench[:3])))
         return True
 
     # -- the end ----------------------------------------------------------------------------
@@ -208,7 +220,10 @@ class NativeEpisode:
             position_error=pos_err,
             orientation_error=rot_err,
             insertion_depth=depth,
-            max_force=self.max_force,
+            peak_commanded_force=self.peak_commanded_force,
+            # a diverged world's forces are not known: NaN, which meets no force limit
+            peak_contact_force=math.nan if self.diverged else self.force_peak,
+            mean_contact_force=math.nan if self.diverged else self.force_sum / (spec.ticks * spec.steps_per_tick),
         )
 
     def trace(self) -> TickRecord | None:
@@ -216,15 +231,6 @@ class NativeEpisode:
         return TickRecord(*(np.array(f) for f in zip(*self.records))) if self.records else None
 
     def _success(self):
-        spec = self.engine.spec
         slot_pos, slot_quat = self.slot_poses()
-        if spec.success_kind == "object_at_pose":
-            d_pos = float(np.linalg.norm(slot_pos[spec.success_object, :2] - slot_pos[spec.success_target, :2]))
-            d_rot = quat_angle(slot_quat[spec.success_object], slot_quat[spec.success_target])
-            return d_pos < spec.position_tolerance and d_rot < spec.orientation_tolerance, d_pos, d_rot, 0.0
-        tool_pos = self.data.site_xpos[spec.ctrl.site_id]
-        hole_top = slot_pos[spec.success_target] + np.asarray(spec.hole_top_local)
-        lateral = float(np.linalg.norm(tool_pos[:2] - hole_top[:2]))
-        depth = float(hole_top[2] - tool_pos[2])
-        inside = bool(np.all(np.abs(tool_pos[:2] - hole_top[:2]) < spec.hole_half_width))
-        return inside and depth > spec.depth, lateral, 0.0, depth
+        spec = self.engine.spec
+        return success(spec.success, self.data.site_xpos[spec.ctrl.site_id].copy(), slot_pos, slot_quat)

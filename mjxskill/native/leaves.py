@@ -15,7 +15,6 @@ from mjxskill.ebt.nodes import Node, Status
 from mjxskill.native.motion import LinearMotion, plane_basis, quat_mul, spiral_step
 from mjxskill.ebt.primitives import SPIRAL_NORMAL, LeafRegistry, goal_orientation
 
-_E1, _E2 = plane_basis(SPIRAL_NORMAL)
 TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # rotation by pi about y: the tool's z along world -z
 
 
@@ -24,7 +23,7 @@ class NativeBlackboard:
 
     goal_pos (3,), goal_quat (4,); motion: the current LinearMotion; mg_time s; stiffness (6,),
     wrench (6,); spiral_theta, spiral_radius, spiral_on, spiral_params (radius cap, velocity,
-    pitch); leaf_ticks: list of L ints.
+    pitch), spiral_axes (two (3,) unit vectors spanning its plane); leaf_ticks: list of L ints.
     """
 
     def __init__(self, tool_pos, tool_quat, default_stiffness, n_leaves: int):
@@ -38,6 +37,7 @@ class NativeBlackboard:
         self.spiral_radius = 0.0
         self.spiral_on = False
         self.spiral_params = (0.0, 0.0, 0.0)
+        self.spiral_axes = plane_basis(SPIRAL_NORMAL)
         self.leaf_ticks = [0] * n_leaves
 
     def copy(self) -> "NativeBlackboard":
@@ -51,7 +51,8 @@ class NativeBlackboard:
         pos, quat = self.motion.at(self.mg_time)
         if self.spiral_on:
             r, th = self.spiral_radius, self.spiral_theta
-            pos = pos + r * (math.cos(th) * _E1 + math.sin(th) * _E2)
+            e1, e2 = self.spiral_axes
+            pos = pos + r * (math.cos(th) * e1 + math.sin(th) * e2)
         return pos, quat
 
     def references(self, n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -64,9 +65,10 @@ class NativeBlackboard:
         if self.spiral_on:
             radius_max, velocity, pitch = self.spiral_params
             offsets = np.empty((n, 3))
+            e1, e2 = self.spiral_axes
             for k in range(n):
                 r, th = self.spiral_radius, self.spiral_theta
-                offsets[k] = r * (math.cos(th) * _E1 + math.sin(th) * _E2)
+                offsets[k] = r * (math.cos(th) * e1 + math.sin(th) * e2)
                 self.spiral_theta, self.spiral_radius = spiral_step(th, r, radius_max, velocity, pitch, dt)
             pos = pos + offsets
         return pos, quat
@@ -110,14 +112,21 @@ def tool_yaw(quat) -> float:
     return math.atan2(-2.0 * (x * y + w * z), -(1.0 - 2.0 * (y * y + z * z)))
 
 
-def tool_down_aligned(current_quat, object_yaw: float) -> np.ndarray:
+def tool_down_aligned(current_quat, object_yaw: float, tilt=None) -> np.ndarray:
     """(4,) tool pointing down (rotation by pi about y, then ``yaw`` about world z), with the
     yaw among the square tool's quarter-turn symmetric ones that aligns its faces with
-    ``object_yaw`` (rad) nearest the current orientation (4,)."""
+    ``object_yaw`` (rad) nearest the current orientation (4,), tilted by ``tilt`` (roll, pitch)
+    rad about the turned frame's x then y axes (None: not tilted)."""
     yaw = tool_yaw(current_quat)
     quarter = math.pi / 2
     target = yaw + (object_yaw - yaw + quarter / 2) % quarter - quarter / 2
-    return quat_mul([math.cos(target / 2), 0.0, 0.0, math.sin(target / 2)], TOOL_DOWN)
+    down = TOOL_DOWN
+    if tilt is not None:
+        roll, pitch = tilt
+        about_x = [math.cos(roll / 2), math.sin(roll / 2), 0.0, 0.0]
+        about_y = [math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0]
+        down = quat_mul(quat_mul(about_y, about_x), down)
+    return quat_mul([math.cos(target / 2), 0.0, 0.0, math.sin(target / 2)], down)
 
 
 def build_native_leaves(leaves: list[Node], parameter_names, slot_of: dict, nominal_pos: np.ndarray,
@@ -151,6 +160,8 @@ def _set_goal_from_object(i: int, leaf, ctx: _Context):
         raise ValueError(f"leaf {leaf.name!r}: object {obj!r} is not bound to the scene")
     base = np.asarray(nominal_pos[slot_of[obj]], float) + np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), float)
     dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
+    roll, pitch, yaw = (_input(leaf, f"tool_{k}", index) for k in ("roll", "pitch", "yaw"))
+    tilted = any(f"tool_{k}" in leaf.args or f"tool_{k}" in leaf.params for k in ("roll", "pitch"))
     w, x, y, z = nominal_quat[slot_of[obj]]
     object_yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     aligned = goal_orientation(leaf) == "tool_down_aligned"
@@ -158,7 +169,9 @@ def _set_goal_from_object(i: int, leaf, ctx: _Context):
     def set_goal(bb, fresh, params):
         bb.goal_pos = base + np.array([dx(params), dy(params), 0.0])
         current = bb.reference()[1]
-        bb.goal_quat = tool_down_aligned(current, object_yaw if aligned else tool_yaw(current))
+        target = (object_yaw if aligned else tool_yaw(current)) + math.radians(yaw(params))
+        tilt = (math.radians(roll(params)), math.radians(pitch(params))) if tilted else None
+        bb.goal_quat = tool_down_aligned(current, target, tilt)
 
     return (lambda bb, tool_pos, live: Status.SUCCESS), set_goal
 
@@ -205,12 +218,14 @@ def _apply_force(i: int, leaf, ctx: _Context):
 def _overlay_spiral(i: int, leaf, ctx: _Context):
     index = ctx.index
     radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
+    axes = plane_basis(leaf.args.get("normal", SPIRAL_NORMAL))
 
     def overlay(bb, fresh, params):
         if fresh:
             bb.spiral_theta, bb.spiral_radius = 0.0, 0.0
         bb.spiral_on = True
         bb.spiral_params = (radius(params), velocity(params), pitch(params))
+        bb.spiral_axes = axes
 
     return _running, overlay
 

@@ -71,6 +71,11 @@ def _control_steps(episodes: list[NativeEpisode], cfg, site: int, steps: int, nv
          e.data.qfrc_bias[:N_ARM], e.data.ctrl[:N_ARM])
         for e in episodes
     ]
+    # The measured contact force: the tool's touch sensors, which mj_step computes; one read per
+    # episode and step (of the sensor when there is one, as there is for a single tool body).
+    sensors = list(episodes[0].engine.spec.bindings.force_sensors) if episodes else []
+    readings = [e.data.sensordata[sensors[0]:sensors[0] + 1] if len(sensors) == 1 else None for e in episodes]
+    force = np.zeros((steps, m))
     for k in range(steps):
         for i, (model, data, xpos, xmat, qpos, qvel, qbias, _) in enumerate(views):
             mujoco.mj_jacSite(model, data, jac_full[i, :3], jac_full[i, 3:], site)
@@ -83,8 +88,13 @@ def _control_steps(episodes: list[NativeEpisode], cfg, site: int, steps: int, nv
             cfg, jac, site_pos, site_quat, q, qd, bias, ref_pos[k], ref_quat[k], cmd_wrench, cmd_stiffness,
             nullspace_target, state,
         )
+        row = force[k]
         for i, (model, data, *_, ctrl) in enumerate(views):
             ctrl[:] = tau[i]
             mujoco.mj_step(model, data)
+            reading = readings[i]
+            row[i] = reading[0] if reading is not None else data.sensordata[sensors].sum()
+    sums, peaks = force.sum(axis=0), force.max(axis=0, initial=0.0)
     for i, e in enumerate(episodes):
         e.cstate = NativeControllerState(state.torque[i], state.stiffness[i], state.wrench[i])
+        e.tick_force = (float(sums[i]), float(peaks[i]))

@@ -49,6 +49,13 @@ def rotvec_to_quat(r) -> np.ndarray:
     return np.array([math.cos(0.5 * angle), r[0] * scale, r[1] * scale, r[2] * scale])
 
 
+def quat_rotate(q, v) -> np.ndarray:
+    """(3,) v rotated by unit quaternion q (4,): q v q*."""
+    u = np.asarray(q[1:], float)
+    t = 2.0 * np.cross(u, v)
+    return np.asarray(v, float) + q[0] * t + np.cross(u, t)
+
+
 def quat_angle(a, b) -> float:
     """Angle (rad) of the rotation between unit quaternions a and b (4,)."""
     return 2.0 * math.acos(min(abs(float(np.dot(a, b))), 1.0))

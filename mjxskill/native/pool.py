@@ -4,7 +4,7 @@ A native episode is single-threaded Python and C, so a 2-core machine runs two a
 two processes. Each worker (``python -m mjxskill.native.worker``, a fresh interpreter: nothing
 inherited from a parent that has started JAX's threads, and no re-import of the user's main
 script as ``multiprocessing``'s spawn would do) rebuilds the engine once from a recipe: the
-scenario file (checked by its sha256), the goal, the settings and the MuJoCo model (an MJB
+scenario file and its skill libraries (checked by their sha256), the goal, the settings and the MuJoCo model (an MJB
 file). It then runs contiguous slices of the episodes in lockstep (``mjxskill.native.lockstep``).
 Episodes are deterministic and never interact, so the results equal one process's bit for bit
 (tests/test_native_engine.py).

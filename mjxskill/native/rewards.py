@@ -1,6 +1,6 @@
 """The reward terms of ``mjxskill.rollout.rewards`` in numpy, for the native-MuJoCo baseline.
 
-Same kinds, constants and defaults (``mjxskill.scenario.schema.REWARD_KINDS``); a term maps one :class:`NativeObservation` (end of a BT tick)
+Same kinds, constants and defaults (``mjxskill.scenario.vocabulary.REWARD_KINDS``); a term maps one :class:`NativeObservation` (end of a BT tick)
 to a raw float, and knows the worst raw value a diverged world is charged per tick.
 """
 
@@ -12,12 +12,14 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from mjxskill.native.motion import quat_angle
-from mjxskill.scenario.schema import REWARD_KINDS, Reward, Scenario
+from mjxskill.scenario.schema import Reward, Scenario
+from mjxskill.scenario.vocabulary import REWARD_KINDS
 
 
 class NativeObservation(NamedTuple):
     """tool_pos (3,), tool_quat (4,), ref_pos (3,), slot_pos (K, 3), slot_quat (K, 4), wrench (6,)
-    (after the controller's rate limits), bt_succeeded: bool."""
+    (after the controller's rate limits), bt_succeeded: bool, contact_force: N, the tool's measured
+    normal contact force, mean over the tick's control steps."""
 
     tool_pos: np.ndarray
     tool_quat: np.ndarray
@@ -26,6 +28,7 @@ class NativeObservation(NamedTuple):
     slot_quat: np.ndarray
     wrench: np.ndarray
     bt_succeeded: bool
+    contact_force: float
 
 
 class NativeRewardTerm(NamedTuple):
@@ -72,6 +75,9 @@ def _raw_term(reward: Reward, slot_of: dict):
     if kind == "applied_wrench":
         cap = reward.constant("cap")
         return (lambda obs: min(float(np.sum(np.abs(obs.wrench[:3]))), cap)), 0.0, cap
+    if kind == "contact_force":
+        cap = reward.constant("cap")
+        return (lambda obs: min(float(obs.contact_force), cap)), 0.0, cap
     sigma_w, d_o = reward.constant("sigma_w"), reward.constant("d_o")
     best = math.exp(-d_o / (2.0 * sigma_w**2))
     if kind == "exp_ee_to_goal":

@@ -36,6 +36,14 @@ from mjxskill.rollout.types import EpisodeResult, RolloutOutput, episode_setup, 
 from mjxskill.rollout.worlds import Worlds, make_sampler, sample_worlds, worlds_per_config
 
 
+def sources_sha256(scn) -> str:
+    """sha256 over the bytes of the scenario file and of the skill libraries it includes."""
+    digest = hashlib.sha256()
+    for path in (scn.source, *scn.libraries):
+        digest.update(hashlib.sha256(Path(path).read_bytes()).digest())
+    return digest.hexdigest()
+
+
 def default_workers() -> int:
     """One worker process per core this process may run on."""
     try:
@@ -57,17 +65,18 @@ class NativeRollout:
 
             task = plan_task(scn)
         if mj_model is None:
-            from mjxskill.sim.model import load_model
+            from mjxskill.sim.model import build_model
 
-            mj_model = load_model(scn)
+            mj_model = build_model(scn)
         seconds = scn.episode_seconds if episode_seconds is None else float(episode_seconds)
         self.scenario, self.task = scn, task
         self.episode_seconds = seconds
         self.start_configs = None if start_configs is None else np.asarray(start_configs)
         self.workers = default_workers() if workers is None else max(1, int(workers))
         self._pool = None
-        # The scenario file as this engine read it: workers rebuild from it and check it is unchanged.
-        self.scenario_sha256 = hashlib.sha256(Path(scn.source).read_bytes()).hexdigest()
+        # The scenario and skill library files as this engine read them: workers rebuild from
+        # them and check they are unchanged.
+        self.scenario_sha256 = sources_sha256(scn)
         self.spec = episode_setup(scn, task, mj_model, seconds)
         self.worlds = scn.randomization.n_worlds if worlds is None else int(worlds)
         self.sampler = make_sampler(scn, self.spec.bindings, start_configs)

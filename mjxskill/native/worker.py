@@ -7,7 +7,6 @@ EpisodeResult fields). Any failure is answered with an ``E`` frame holding the t
 
 from __future__ import annotations
 
-import hashlib
 import json
 import signal
 import sys
@@ -20,14 +19,14 @@ import numpy as np
 def _build(spec: dict):
     import mujoco
 
-    from mjxskill.native.rollout import NativeRollout
+    from mjxskill.native.rollout import NativeRollout, sources_sha256
     from mjxskill.scenario import load_scenario
     from mjxskill.task import plan_task
 
     source = Path(spec["scenario"])
-    if hashlib.sha256(source.read_bytes()).hexdigest() != spec["sha256"]:
-        raise RuntimeError(f"{source} changed since the engine was built; build it again")
     scn = load_scenario(source)
+    if sources_sha256(scn) != spec["sha256"]:
+        raise RuntimeError(f"{source} or a skill library it includes changed since the engine was built; build it again")
     configs = spec["start_configs"]
     return NativeRollout(scn, plan_task(scn, spec["goal"]), worlds=spec["worlds"],
                          episode_seconds=spec["episode_seconds"],

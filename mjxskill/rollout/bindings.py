@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 
 from mjxskill.scenario.schema import Scenario
+from mjxskill.sim.tool_force import tool_force_addresses
 
 FREE, MOCAP, NOMINAL = 0, 1, 2
 
@@ -51,17 +52,18 @@ class SceneBindings:
     slots: one per referenced scenario object; ``slot_of`` maps names to indices.
     arm_qpos: (7,) qpos addresses of the arm joints (0..6 in our scenes).
     randomized_pairs: contact pair ids whose friction follows the world's friction sample.
-    hole_top_local: (3,) position of the ``hole_top`` site in its body frame, when present.
+    force_sensors: ``sensordata`` addresses of the tool's touch sensors; their sum is the
+    measured contact force (``mjxskill.sim.tool_force``).
     """
 
     slots: tuple[ObjectSlot, ...]
     slot_of: dict
     arm_qpos: tuple[int, ...]
     randomized_pairs: tuple[int, ...]
-    hole_top_local: tuple[float, float, float] | None
+    force_sensors: tuple[int, ...]
 
     def __hash__(self):
-        return hash((self.slots, self.arm_qpos, self.randomized_pairs, self.hole_top_local))
+        return hash((self.slots, self.arm_qpos, self.randomized_pairs, self.force_sensors))
 
 
 def referenced_objects(scn: Scenario, leaf_object_names) -> list[str]:
@@ -117,14 +119,12 @@ def bind_scene(scn: Scenario, model: mujoco.MjModel, object_names) -> SceneBindi
         if model.geom_bodyid[model.pair_geom1[p]] in randomized_bodies
         or model.geom_bodyid[model.pair_geom2[p]] in randomized_bodies
     )
-    hole_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "hole_top")
-    hole_top = tuple(float(v) for v in model.site_pos[hole_site]) if hole_site >= 0 else None
     return SceneBindings(
         slots=tuple(slots),
         slot_of={s.name: i for i, s in enumerate(slots)},
         arm_qpos=arm,
         randomized_pairs=pairs,
-        hole_top_local=hole_top,
+        force_sensors=tool_force_addresses(model),
     )
 
 

@@ -45,7 +45,7 @@ class Rollout:
     """A compiled rollout of one planned task and W worlds per parameter set (see module doc).
 
     task: the ``mjxskill.task.PlannedTask`` it runs. mj_model: the native model it simulates
-    (``mjxskill.sim.model.load_model``). The callables are the jitted closures
+    (``mjxskill.sim.model.build_model``). The callables are the jitted closures
     ``compile_rollout`` built; ``program`` picks the batched-episode program per shape.
     """
 
@@ -175,7 +175,8 @@ def compile_rollout(
     episode_seconds: overrides the scenario's episode length.
     batching: "vmap", "map" or "chunked" (default: the backend's fastest, see sim.batching).
     start_configs: (C, 7) start configurations to draw from (default: the training ones).
-    mj_model: the model to simulate (default: ``mjxskill.sim.model.load_model(scn)``).
+    mj_model: the model to simulate (default: ``mjxskill.build_model(scn)``, the MJCF with the world
+    model's physics).
     """
     from mjxskill._runtime import enable_compilation_cache
 
@@ -195,9 +196,9 @@ def compile_rollout(
         raise ValueError(f"unknown batching strategy {strategy!r}; expected one of {STRATEGIES}")
 
     if mj_model is None:
-        from mjxskill.sim.model import load_model
+        from mjxskill.sim.model import build_model
 
-        mj_model = load_model(scn)
+        mj_model = build_model(scn)
     setup = episode_setup(scn, task, mj_model, seconds)
     ct = compile_tree(task.tree)
     terms = build_terms(scn, setup.bindings)

@@ -25,6 +25,7 @@ from mjxskill.ebt.nodes import Status
 from mjxskill.rollout.bindings import FREE, MOCAP, nominal_poses
 from mjxskill.rollout.leaves import Blackboard, LeafPrograms, LeafWorld, advance, init_blackboard, reference_pose
 from mjxskill.rollout.rewards import Observation, RewardTerm, raw_rewards
+from mjxskill.rollout.success import success
 from mjxskill.rollout.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, EpisodeSetup, TickRecord
 from mjxskill.rollout.worlds import Worlds
 from mjxskill.sim.controller import (
@@ -35,7 +36,6 @@ from mjxskill.sim.controller import (
     make_command,
     tool_pose,
 )
-from mjxskill.sim.rotations import quat_angle
 
 
 class EpisodeSpec(NamedTuple):
@@ -59,7 +59,9 @@ class _Carry(NamedTuple):
     done_tick: jax.Array
     diverged: jax.Array
     totals: jax.Array
-    max_force: jax.Array
+    peak_commanded_force: jax.Array
+    peak_contact_force: jax.Array
+    contact_force_sum: jax.Array  # over the control steps
 
 
 def initial_data(spec: EpisodeSpec, model: mjx.Model, template: mjx.Data, world: Worlds) -> mjx.Data:
@@ -129,13 +131,17 @@ def run_episode(
     nominal_pos = jnp.asarray(nominal_poses(spec.setup.bindings)[0])
     n_terms = len(spec.terms)
 
+    force_sensors = jnp.asarray(spec.setup.bindings.force_sensors, jnp.int32)
+
     def control_step(carry, _):
-        data, ctrl, bb = carry
+        data, ctrl, bb, force_sum, force_peak = carry
         ref = reference_pose(bb)
         command = make_command(ref.pos, ref.quat, bb.wrench, bb.stiffness)
         tau, ctrl = impedance_control(spec.setup.ctrl, model, data, command, nullspace_target, ctrl)
         data = mjx.step(model, data.replace(ctrl=data.ctrl.at[:N_ARM].set(tau)))
-        return (data, ctrl, advance(bb, dt)), None
+        # the tool's touch sensors, computed by mjx.step: the step's measured contact force
+        force = jnp.sum(data.sensordata[force_sensors])
+        return (data, ctrl, advance(bb, dt), force_sum + force, jnp.maximum(force_peak, force)), None
 
     def bt_tick(c: _Carry, t):
         tool_pos, tool_quat = tool_pose(spec.setup.ctrl, model, c.data)
@@ -151,7 +157,9 @@ def run_episode(
         bt = _where(c.done, c.bt, bt)
         root = jnp.where(c.done, c.status, root)
         bb = spec.leaves.effects(c.bb, active, started, leaf_world, params)
-        (data, ctrl, bb), _ = jax.lax.scan(control_step, (c.data, c.ctrl, bb), None, length=spec.setup.steps_per_tick)
+        zero = jnp.zeros((), jnp.float32)
+        (data, ctrl, bb, force_sum, force_peak), _ = jax.lax.scan(
+            control_step, (c.data, c.ctrl, bb, zero, zero), None, length=spec.setup.steps_per_tick)
 
         healthy = _healthy(spec, data) & ~c.diverged
         data, ctrl, bb = _where(healthy, (data, ctrl, bb), (c.data, c.ctrl, c.bb))
@@ -166,10 +174,12 @@ def run_episode(
             slot_quat=slot_quat,
             wrench=ctrl.wrench,
             bt_succeeded=root == Status.SUCCESS,
+            contact_force=force_sum / spec.setup.steps_per_tick,
         )
         raw = raw_rewards(spec.terms, obs) if n_terms else jnp.zeros(0, jnp.float32)
         totals = c.totals + raw
-        trace = TickRecord(data.qpos, tool_pos, obs.ref_pos, root, active, raw) if record else None
+        trace = (TickRecord(data.qpos, data.mocap_pos, data.mocap_quat, tool_pos, obs.ref_pos, root, active, raw)
+                 if record else None)
         return (
             _Carry(
                 data=data,
@@ -181,7 +191,9 @@ def run_episode(
                 done_tick=jnp.where(~c.done & finished, t, c.done_tick),
                 diverged=~healthy,
                 totals=totals,
-                max_force=jnp.maximum(c.max_force, jnp.linalg.norm(ctrl.wrench[:3])),
+                peak_commanded_force=jnp.maximum(c.peak_commanded_force, jnp.linalg.norm(ctrl.wrench[:3])),
+                peak_contact_force=jnp.where(healthy, jnp.maximum(c.peak_contact_force, force_peak), c.peak_contact_force),
+                contact_force_sum=jnp.where(healthy, c.contact_force_sum + force_sum, c.contact_force_sum),
             ),
             trace,
         )
@@ -196,7 +208,9 @@ def run_episode(
         done_tick=jnp.int32(-1),
         diverged=jnp.zeros((), bool),
         totals=jnp.zeros(n_terms, jnp.float32),
-        max_force=jnp.zeros((), jnp.float32),
+        peak_commanded_force=jnp.zeros((), jnp.float32),
+        peak_contact_force=jnp.zeros((), jnp.float32),
+        contact_force_sum=jnp.zeros((), jnp.float32),
     )
     c, trace = jax.lax.scan(bt_tick, carry, jnp.arange(spec.setup.ticks, dtype=jnp.int32))
     worst = jnp.asarray([t.worst_raw * spec.setup.ticks for t in spec.terms], jnp.float32).reshape(n_terms)
@@ -211,7 +225,11 @@ def run_episode(
         position_error=pos_err,
         orientation_error=rot_err,
         insertion_depth=depth,
-        max_force=c.max_force,
+        peak_commanded_force=c.peak_commanded_force,
+        # a diverged world's forces are not known: NaN, which meets no force limit
+        peak_contact_force=jnp.where(c.diverged, jnp.nan, c.peak_contact_force),
+        mean_contact_force=jnp.where(c.diverged, jnp.nan,
+                                     c.contact_force_sum / (spec.setup.ticks * spec.setup.steps_per_tick)),
     )
     return (result, trace) if record else result
 
@@ -219,17 +237,4 @@ def run_episode(
 def _success(spec: EpisodeSpec, data: mjx.Data, world: Worlds):
     """(success, position error, orientation error, insertion depth) at the end of the episode."""
     slot_pos, slot_quat = slot_poses(spec, data, world)
-    zero = jnp.zeros((), jnp.float32)
-    if spec.setup.success_kind == "object_at_pose":
-        d_pos = jnp.linalg.norm(slot_pos[spec.setup.success_object, :2] - slot_pos[spec.setup.success_target, :2])
-        d_rot = quat_angle(slot_quat[spec.setup.success_object], slot_quat[spec.setup.success_target])
-        ok = (d_pos < spec.setup.position_tolerance) & (d_rot < spec.setup.orientation_tolerance)
-        return ok, d_pos, d_rot, zero
-    # "inserted": the tool (peg tip) is inside the hole's footprint, deeper than ``depth``.
-    tool_pos = data.site_xpos[spec.setup.ctrl.site_id]
-    hole_top = slot_pos[spec.setup.success_target] + jnp.asarray(spec.setup.hole_top_local, jnp.float32)
-    lateral = jnp.linalg.norm(tool_pos[:2] - hole_top[:2])
-    depth = hole_top[2] - tool_pos[2]
-    inside = jnp.all(jnp.abs(tool_pos[:2] - hole_top[:2]) < spec.setup.hole_half_width)
-    return inside & (depth > spec.setup.depth), lateral, zero, depth
-
+    return success(spec.setup.success, data.site_xpos[spec.setup.ctrl.site_id], slot_pos, slot_quat)

@@ -34,7 +34,7 @@ from mjxskill.bt_compiled import CompiledTree
 from mjxskill.ebt.nodes import Status
 from mjxskill.ebt.primitives import SPIRAL_NORMAL, LeafRegistry, goal_orientation
 from mjxskill.rollout.bindings import SceneBindings
-from mjxskill.sim.motion import MotionLimits, Pose, SpiralState, init_spiral, linear_trajectory, spiral_offset, spiral_step
+from mjxskill.sim.motion import MotionLimits, Pose, SpiralState, init_spiral, linear_trajectory, spiral_step
 from mjxskill.sim.rotations import quat_mul
 
 
@@ -48,7 +48,7 @@ class Blackboard(NamedTuple):
     stiffness (6,), wrench (6,): commanded stiffness and feed-forward wrench (before the
       controller's rate limits).
     spiral (SpiralState), spiral_on () bool, spiral_params (3,): radius cap m, path velocity m/s,
-      pitch m.
+      pitch m; spiral_axes (2, 3): the unit vectors spanning the spiral's plane.
     leaf_ticks (L,) int32: ticks each leaf has been active since it (re)started, 0 when idle.
     """
 
@@ -63,6 +63,7 @@ class Blackboard(NamedTuple):
     spiral_on: jax.Array
     spiral_params: jax.Array
     leaf_ticks: jax.Array
+    spiral_axes: jax.Array
 
 
 def init_blackboard(tool_pos, tool_quat, default_stiffness, n_leaves: int) -> Blackboard:
@@ -80,13 +81,25 @@ def init_blackboard(tool_pos, tool_quat, default_stiffness, n_leaves: int) -> Bl
         spiral_on=jnp.zeros((), bool),
         spiral_params=jnp.zeros(3, jnp.float32),
         leaf_ticks=jnp.zeros(n_leaves, jnp.int32),
+        spiral_axes=jnp.asarray(spiral_axes(SPIRAL_NORMAL)),
     )
+
+
+def spiral_axes(normal) -> np.ndarray:
+    """(2, 3) float32: the unit vectors spanning the plane normal to ``normal`` (3,), computed on
+    the host as ``mjxskill.sim.motion.plane_basis`` computes them (a constant of the trace)."""
+    n = np.asarray(normal, np.float32) / np.linalg.norm(np.asarray(normal, np.float32))
+    helper = np.array([0, 0, 1] if abs(n[2]) < 0.9 else [1, 0, 0], np.float32)
+    e1 = np.cross(helper, n)
+    e1 = e1 / np.linalg.norm(e1)
+    return np.stack([e1, np.cross(n, e1)]).astype(np.float32)
 
 
 def reference_pose(bb: Blackboard, limits: MotionLimits = MotionLimits()) -> Pose:
     """Controller reference: the trajectory at mg_time plus the spiral offset when it is on."""
     base = linear_trajectory(bb.mg_start, bb.mg_goal, bb.mg_time, limits)
-    offset = jnp.where(bb.spiral_on, spiral_offset(bb.spiral, jnp.asarray(SPIRAL_NORMAL)), 0.0)
+    spiral = bb.spiral.radius * (jnp.cos(bb.spiral.theta) * bb.spiral_axes[0] + jnp.sin(bb.spiral.theta) * bb.spiral_axes[1])
+    offset = jnp.where(bb.spiral_on, spiral, 0.0)
     return Pose(base.pos + offset, base.quat)
 
 
@@ -119,15 +132,23 @@ def tool_yaw(quat):
     return jnp.arctan2(-r10, -r00)
 
 
-def tool_down_aligned(current_quat, object_yaw: float):
-    """ElementToBBPose's orientation: the tool pointing down with its faces aligned to the
-    object's yaw, choosing among the tool's symmetric yaws the one nearest the current one (a
-    square peg fits a square hole only within a few degrees of alignment)."""
+def tool_down_aligned(current_quat, object_yaw, tilt=None):
+    """set_goal_from_object's orientation: the tool pointing down with its faces aligned to
+    ``object_yaw`` (rad), choosing among the tool's symmetric yaws the one nearest the current one
+    (a square peg fits a square hole only within a few degrees of alignment), tilted by ``tilt``
+    (roll, pitch) rad about the turned frame's x then y axes (None: not tilted)."""
     yaw = tool_yaw(current_quat)
     delta = jnp.mod(object_yaw - yaw + TOOL_SYMMETRY / 2, TOOL_SYMMETRY) - TOOL_SYMMETRY / 2
     target = yaw + delta
     turn = jnp.stack([jnp.cos(target / 2), jnp.zeros_like(target), jnp.zeros_like(target), jnp.sin(target / 2)])
-    return quat_mul(turn, jnp.asarray(TOOL_DOWN))
+    down = jnp.asarray(TOOL_DOWN)
+    if tilt is not None:
+        roll, pitch = tilt
+        zero = jnp.zeros_like(roll)
+        about_x = jnp.stack([jnp.cos(roll / 2), jnp.sin(roll / 2), zero, zero])
+        about_y = jnp.stack([jnp.cos(pitch / 2), zero, jnp.sin(pitch / 2), zero])
+        down = quat_mul(quat_mul(about_y, about_x), down)
+    return quat_mul(turn, down)
 
 
 class LeafWorld(NamedTuple):
@@ -222,6 +243,9 @@ def _set_goal_from_object(i: int, leaf, ctx: _Context):
     slot = bindings.slot_of[obj]
     fixed = np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), np.float32)
     dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
+    roll, pitch, yaw = (_input(leaf, f"tool_{k}", index) for k in ("roll", "pitch", "yaw"))
+    tilted = any(f"tool_{k}" in leaf.args or f"tool_{k}" in leaf.params for k in ("roll", "pitch"))
+    turned = "tool_yaw" in leaf.args or "tool_yaw" in leaf.params
 
     aligned = goal_orientation(leaf) == "tool_down_aligned"
     object_yaw = _yaw_of(bindings.slots[slot].quat)
@@ -229,7 +253,11 @@ def _set_goal_from_object(i: int, leaf, ctx: _Context):
     def set_goal(bb, world, params, fresh):
         offset = jnp.asarray(fixed) + jnp.stack([dx(params), dy(params), jnp.float32(0.0)])
         current = reference_pose(bb).quat
-        quat = tool_down_aligned(current, object_yaw if aligned else tool_yaw(current))
+        target = object_yaw if aligned else tool_yaw(current)
+        if turned:  # (the untouched default keeps the shipped skills' numbers bit for bit)
+            target = target + jnp.deg2rad(yaw(params))
+        tilt = (jnp.deg2rad(roll(params)), jnp.deg2rad(pitch(params))) if tilted else None
+        quat = tool_down_aligned(current, target, tilt)
         return bb._replace(goal_pos=world.slot_pos[slot] + offset, goal_quat=quat)
 
     return (lambda bb, world, params, live: Status.SUCCESS), set_goal
@@ -272,11 +300,12 @@ def _apply_force(i: int, leaf, ctx: _Context):
 def _overlay_spiral(i: int, leaf, ctx: _Context):
     index = ctx.index
     radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
+    axes = spiral_axes(leaf.args.get("normal", SPIRAL_NORMAL))
 
     def overlay(bb, world, params, fresh):
         spiral = jax.tree.map(lambda o: jnp.where(fresh, jnp.zeros_like(o), o), bb.spiral)
         p = jnp.stack([radius(params), velocity(params), pitch(params)])
-        return bb._replace(spiral=spiral, spiral_on=jnp.ones((), bool), spiral_params=p)
+        return bb._replace(spiral=spiral, spiral_on=jnp.ones((), bool), spiral_params=p, spiral_axes=jnp.asarray(axes))
 
     return _running, overlay
 

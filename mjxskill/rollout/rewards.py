@@ -4,7 +4,7 @@ Each term maps an :class:`Observation` of one world at one BT tick to a raw per-
 rollout sums ``weight * raw`` over the episode's ticks, and an objective is the sum of its
 rewards, averaged over the worlds of a parameter set. Larger is better everywhere.
 
-Kinds, their constants and defaults: ``mjxskill.scenario.schema.REWARD_KINDS`` (one table for
+Kinds, their constants and defaults: ``mjxskill.scenario.vocabulary.REWARD_KINDS`` (one table for
 the loader and both engines); what each computes: ``mjxskill.scenario.schema.Reward``.
 """
 
@@ -17,7 +17,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjxskill.rollout.bindings import SceneBindings
-from mjxskill.scenario.schema import REWARD_KINDS, Reward, Scenario
+from mjxskill.scenario.schema import Reward, Scenario
+from mjxskill.scenario.vocabulary import REWARD_KINDS
 from mjxskill.sim.rotations import quat_angle
 
 class Observation(NamedTuple):
@@ -27,6 +28,8 @@ class Observation(NamedTuple):
     slot_pos (K, 3), slot_quat (K, 4): current poses of the bound scenario objects.
     wrench (6,): feed-forward wrench the controller applies (after rate limiting).
     bt_succeeded (): bool, the BT's root has returned SUCCESS.
+    contact_force (): N, the measured normal contact force of the tool, mean over the tick's
+    control steps (``mjxskill.sim.tool_force``).
     """
 
     tool_pos: jax.Array
@@ -36,6 +39,7 @@ class Observation(NamedTuple):
     slot_quat: jax.Array
     wrench: jax.Array
     bt_succeeded: jax.Array
+    contact_force: jax.Array
 
 
 def exp_reward(d, sigma_w, d_o):
@@ -87,6 +91,9 @@ def _raw_term(reward: Reward, bindings: SceneBindings):
     if kind == "applied_wrench":
         cap = reward.constant("cap")
         return (lambda obs: jnp.minimum(jnp.sum(jnp.abs(obs.wrench[:3])), cap)), 0.0, cap
+    if kind == "contact_force":
+        cap = reward.constant("cap")
+        return (lambda obs: jnp.minimum(obs.contact_force, cap)), 0.0, cap
     sigma_w, d_o = reward.constant("sigma_w"), reward.constant("d_o")
     best = float(np.exp(-d_o / (2.0 * sigma_w**2)))
     if kind == "exp_ee_to_goal":

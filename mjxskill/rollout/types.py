@@ -23,7 +23,24 @@ from mjxskill.sim.controller_config import ControllerConfig
 # free objects sink below MIN_OBJECT_Z is marked diverged and frozen at its last good state.
 MAX_QVEL = 100.0  # rad/s (or m/s for free objects): far beyond anything the arm can do
 MIN_OBJECT_Z = -0.05  # m: a free object this far below the table top fell through it
-DEFAULT_HOLE_HALF_WIDTH = 0.02  # m: a peg tip inside this square around the hole axis is "in"
+
+
+class SuccessTest(NamedTuple):
+    """The scenario's success test with its objects as slot indices (host values; meanings:
+    ``mjxskill.scenario.schema.Success``). orientation_tolerance: rad (inf: not tested).
+    hole_top (3,), hole_half_width (2,): the target's hole in its frame (inserted).
+    region_center (3,), region_half (3,): the region in the target's frame (object_in_region)."""
+
+    kind: str
+    object: int
+    target: int
+    position_tolerance: float
+    orientation_tolerance: float
+    depth: float
+    hole_top: tuple[float, float, float]
+    hole_half_width: tuple[float, float]
+    region_center: tuple[float, float, float]
+    region_half: tuple[float, float, float]
 
 
 class EpisodeSetup(NamedTuple):
@@ -31,9 +48,7 @@ class EpisodeSetup(NamedTuple):
 
     bindings: scenario objects <-> MJCF bodies. ctrl: the impedance controller's settings.
     default_stiffness (6,): when no skill sets one. ticks: BT ticks per episode;
-    steps_per_tick: control steps per tick. success_*: the scenario's success test with its
-    objects as slot indices (see ``mjxskill.scenario.schema.Success``); orientation_tolerance
-    in rad; hole_top_local (3,): the hole's top in the target's frame.
+    steps_per_tick: control steps per tick. success: the scenario's success test.
     """
 
     bindings: SceneBindings
@@ -41,14 +56,7 @@ class EpisodeSetup(NamedTuple):
     default_stiffness: tuple[float, ...]
     ticks: int
     steps_per_tick: int
-    success_kind: str  # "object_at_pose" or "inserted"
-    success_object: int  # slot index
-    success_target: int  # slot index
-    position_tolerance: float
-    orientation_tolerance: float  # rad
-    depth: float
-    hole_top_local: tuple[float, float, float]
-    hole_half_width: float
+    success: SuccessTest
 
 
 def leaf_objects(tree) -> list[str]:
@@ -56,25 +64,46 @@ def leaf_objects(tree) -> list[str]:
     return [leaf.args["object"] for leaf in tree.leaves() if leaf.primitive == "set_goal_from_object"]
 
 
+def _floats(values, n: int) -> tuple[float, ...]:
+    return tuple(float(v) for v in (np.zeros(n) if values is None else values))
+
+
+def success_test(scn, bindings: SceneBindings) -> SuccessTest:
+    """The scenario's success test over ``bindings``' slots."""
+    s = scn.success
+    target = scn.objects[s.target]
+    hole_top, hole_half = (0.0, 0.0, 0.0), (0.0, 0.0)
+    if s.kind == "inserted":  # the loader checked the target is a box_with_hole
+        from mjxskill.sim.model import held_item_size
+        from mjxskill.sim.shapes import hole_half_widths
+
+        hole_top = (0.0, 0.0, float(target.size[2]))
+        hole_half = _floats(hole_half_widths(target.extra, held_item_size(scn)), 2)
+    tolerance = s.orientation_tolerance_deg
+    return SuccessTest(
+        kind=s.kind,
+        object=bindings.slot_of[s.object],
+        target=bindings.slot_of[s.target],
+        position_tolerance=float(s.position_tolerance or 0.0),
+        orientation_tolerance=math.inf if tolerance is None else math.radians(float(tolerance)),
+        depth=float(s.depth or 0.0),
+        hole_top=hole_top,
+        hole_half_width=hole_half,
+        region_center=_floats(s.region_center, 3),
+        region_half=_floats(None if s.region_size is None else np.asarray(s.region_size) / 2, 3),
+    )
+
+
 def episode_setup(scn, task, mj_model: mujoco.MjModel, episode_seconds: float) -> EpisodeSetup:
     """The engine-independent facts of ``task``'s episodes in ``scn`` on ``mj_model``."""
     bindings = bind_scene(scn, mj_model, referenced_objects(scn, leaf_objects(task.tree)))
-    s = scn.success
-    target = scn.objects[s.target]
     return EpisodeSetup(
         bindings=bindings,
         ctrl=ControllerConfig.from_model(mj_model, site=scn.robot.tool_site, nullspace_stiffness=scn.robot.nullspace_stiffness),
         default_stiffness=tuple(float(v) for v in scn.robot.default_stiffness),
         ticks=max(1, int(round(episode_seconds * scn.bt_hz))),
         steps_per_tick=scn.steps_per_tick,
-        success_kind=s.kind,
-        success_object=bindings.slot_of[s.object],
-        success_target=bindings.slot_of[s.target],
-        position_tolerance=float(s.position_tolerance or 0.0),
-        orientation_tolerance=math.radians(float(s.orientation_tolerance_deg or 0.0)),
-        depth=float(s.depth or 0.0),
-        hole_top_local=bindings.hole_top_local or (0.0, 0.0, float(target.extra.get("hole_top", 0.0))),
-        hole_half_width=float(target.extra.get("hole_half_width", DEFAULT_HOLE_HALF_WIDTH)),
+        success=success_test(scn, bindings),
     )
 
 
@@ -86,7 +115,10 @@ class EpisodeResult(NamedTuple):
     root's last status (RUNNING if it never finished). bt_done_tick: tick the root finished (-1:
     never). position_error m, orientation_error rad: success object to target at the end (peg:
     tool to hole axis, 0). insertion_depth m: below the hole's top (peg; 0 for push).
-    max_force N: largest |feed-forward force| commanded.
+    peak_commanded_force N: largest |feed-forward force| the skills commanded (after the
+    controller's rate limits). peak_contact_force, mean_contact_force N: the largest and the
+    mean over the control steps of the measured normal contact force between the tool (or
+    held item) and everything else (``mjxskill.sim.tool_force``).
     """
 
     reward_totals: np.ndarray
@@ -97,18 +129,23 @@ class EpisodeResult(NamedTuple):
     position_error: np.ndarray
     orientation_error: np.ndarray
     insertion_depth: np.ndarray
-    max_force: np.ndarray
+    peak_commanded_force: np.ndarray
+    peak_contact_force: np.ndarray
+    mean_contact_force: np.ndarray
 
 
 class TickRecord(NamedTuple):
     """Per-tick trace of one world (only when asked for: it grows with the episode).
 
-    qpos (nq,): joint and object positions at the end of the tick (for rendering).
-    tool_pos (3,), ref_pos (3,): tool and reference positions. root: root status this tick.
-    active (L,) bool: the leaves ticked. rewards (R,): raw reward values of the tick.
+    qpos (nq,): joint and object positions at the end of the tick; mocap_pos (M, 3), mocap_quat
+    (M, 4): the mocap bodies (the world's goal, fixtures) as the world placed them (for
+    rendering). tool_pos (3,), ref_pos (3,): tool and reference positions. root: root status
+    this tick. active (L,) bool: the leaves ticked. rewards (R,): raw reward values of the tick.
     """
 
     qpos: np.ndarray
+    mocap_pos: np.ndarray
+    mocap_quat: np.ndarray
     tool_pos: np.ndarray
     ref_pos: np.ndarray
     root: np.ndarray
@@ -119,8 +156,8 @@ class TickRecord(NamedTuple):
 class RolloutOutput(NamedTuple):
     """objectives (B, O) float32; success (B, W) bool; metrics: name -> (B, W) array
     (``reward_<name>`` totals per world, ``diverged``, ``bt_status``, ``bt_done_tick``,
-    ``position_error`` m, ``orientation_error_deg``, ``insertion_depth`` m, ``max_force`` N,
-    ``config_index``)."""
+    ``position_error`` m, ``orientation_error_deg``, ``insertion_depth`` m,
+    ``peak_commanded_force``, ``peak_contact_force``, ``mean_contact_force`` N, ``config_index``)."""
 
     objectives: np.ndarray
     success: np.ndarray
@@ -149,7 +186,9 @@ def summarize(res: EpisodeResult, config_index, objective_matrix, reward_names, 
         position_error=res.position_error,
         orientation_error_deg=xp.degrees(res.orientation_error),
         insertion_depth=res.insertion_depth,
-        max_force=res.max_force,
+        peak_commanded_force=res.peak_commanded_force,
+        peak_contact_force=res.peak_contact_force,
+        mean_contact_force=res.mean_contact_force,
         config_index=config_index,
     )
     return RolloutOutput(objectives=objectives, success=res.success, metrics=metrics)

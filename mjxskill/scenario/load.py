@@ -17,9 +17,12 @@ from mjxskill.errors import GoalError, ScenarioError
 from mjxskill.planner.world_pddl import check_atom, goal_literals, parse_literal
 from mjxskill.scenario.fields import Field, compose_file
 from mjxskill.scenario.scene_refs import check_scene
-from mjxskill.scenario.schema import MAX_EPISODE_SECONDS, Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping
+from mjxskill.scenario.schema import (
+    MAX_EPISODE_SECONDS, Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping,
+)
+from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.scenario.sections import optimizer, randomization, rewards, success
-from mjxskill.scenario.skills import manual_parameters, skill
+from mjxskill.scenario.skills import manual_parameters, skill, skill_fields
 
 SCENARIO_DIR = Path(__file__).resolve().parents[2] / "assets" / "scenarios"
 
@@ -54,10 +57,10 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     top = root.mapping(
         required=(
             "name", "scene", "gravity", "episode_seconds", "bt_hz", "control_hz", "types", "predicates",
-            "robot", "objects", "skills", "goal", "objectives", "rewards", "success", "randomization",
+            "robot", "objects", "goal", "objectives", "rewards", "success", "randomization",
             "optimizer",
         ),
-        optional=("manual_parameters",),
+        optional=("manual_parameters", "skills", "skill_library"),
     )
     types = _types(top["types"])
     predicates = _predicates(top["predicates"], types)
@@ -69,9 +72,11 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     objects = frozen_mapping(
         (name, _object(name, field, types, predicates, names)) for name, field in objects_field.items()
     )
-    skills = frozen_mapping((name, skill(name, field, types, predicates)) for name, field in top["skills"].items())
+    libraries = _skill_libraries(top, path)
+    skills = frozen_mapping((name, _skill(name, field, types, predicates, path))
+                            for name, field in skill_fields(top, [root for _, root in libraries]))
     if not skills:
-        top["skills"].fail("the skill library is empty")
+        (top["skills"] if "skills" in top else root).fail("the skill library is empty (skills: or skill_library:)")
     object_names = set(objects)
     objectives = top["objectives"].strings()
     _no_duplicates(top["objectives"], objectives, "objective")
@@ -85,6 +90,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     scn = Scenario(
         name=name,
         source=str(path),
+        libraries=tuple(str(p) for p, _ in libraries),
         scene=str((path.parent / top["scene"].string()).resolve()),
         gravity=top["gravity"].boolean(),
         episode_seconds=top["episode_seconds"].number(positive=True, maximum=MAX_EPISODE_SECONDS),
@@ -98,7 +104,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         goal=top["goal"].string(),
         rewards=rewards(top["rewards"], objectives, object_names),
         objective_names=tuple(objectives),
-        success=success(top["success"], object_names),
+        success=success(top["success"], objects),
         randomization=randomization(top["randomization"], object_names),
         optimizer=optimizer(top["optimizer"]),
         manual_parameters=manual_parameters(top.get("manual_parameters"), skills),
@@ -109,8 +115,41 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     except GoalError as err:
         top["goal"].fail(str(err))
     refs = _scene_fields(top, robot_field, objects_field)
-    check_scene(Path(scn.scene), refs.pop("scene"), refs.pop("robot.tool_site"), refs)
+    geoms = {key: refs.pop(key) for key in list(refs) if key.endswith(".mjcf_geom")}
+    check_scene(Path(scn.scene), refs.pop("scene"), refs.pop("robot.tool_site"), refs, geoms)
+    # The physics the YAML gives is written into the MJCF model: what cannot be is an error now,
+    # naming the entry (mjxskill.sim.model), not a run that silently simulates something else.
+    from mjxskill.sim.model import build_model
+
+    build_model(scn)
     return scn
+
+
+def _skill(name: str, field: Field, types, predicates, path: Path):
+    """A skill; one of a library is checked against the including scenario's vocabulary, and
+    its errors say so (the library is right for another scenario)."""
+    try:
+        return skill(name, field, types, predicates)
+    except ScenarioError as err:
+        if field.source == str(path):
+            raise
+        raise ScenarioError(f"{err} (as included by {path}, whose types and predicates it uses)") from None
+
+
+def _skill_libraries(top, path: Path) -> list[tuple[Path, Field]]:
+    """(path, root Field) of each file ``skill_library`` names (one path or a list, relative to
+    the scenario file), read like the scenario."""
+    if "skill_library" not in top:
+        return []
+    field = top["skill_library"]
+    items = field.seq() if field.node.tag.endswith(":seq") else [field]
+    libraries = []
+    for item in items:
+        library = (path.parent / item.string()).resolve()
+        if not library.is_file():
+            item.fail(f"the skill library {str(library)!r} is not a file (paths are relative to the scenario file)")
+        libraries.append((library, compose_file(library, what="skill library")))
+    return libraries
 
 
 def _scene_fields(top, robot: Field, objects: Field) -> dict[str, Field]:
@@ -118,13 +157,21 @@ def _scene_fields(top, robot: Field, objects: Field) -> dict[str, Field]:
     fields = {"scene": top["scene"], "robot.tool_site": robot.mapping(optional=_ROBOT_KEYS)["tool_site"]}
     for name, field in objects.items():
         entries = field.mapping(optional=_OBJECT_KEYS)
-        if "mjcf_body" in entries:
-            fields[f"objects.{name}.mjcf_body"] = entries["mjcf_body"]
+        for key in ("mjcf_body", "mjcf_geom"):
+            if key in entries:
+                fields[f"objects.{name}.{key}"] = entries[key]
     return fields
 
 
 def _locations(top, robot: Field, objects: Field) -> dict[str, str]:
+    """key path -> "file: key path (line N)" of the entries checked after loading: the goal,
+    the scene references and every object entry (the model builder names them)."""
     fields = {"goal": top["goal"], **_scene_fields(top, robot, objects)}
+    for name, field in objects.items():
+        for key, entry in field.mapping(optional=_OBJECT_KEYS).items():
+            fields[f"objects.{name}.{key}"] = entry
+            if key == "extra" and entry.node.tag.endswith(":map"):
+                fields.update((f"objects.{name}.extra.{k}", v) for k, v in entry.items())
     return {key: f.where() for key, f in fields.items()}
 
 
@@ -270,7 +317,7 @@ def _nonnegative_vector(field: Field, length: int) -> np.ndarray:
 
 
 _OBJECT_KEYS = (
-    "type", "mjcf_body", "shape", "size", "mass", "friction", "com_offset", "pose", "approach_offset",
+    "type", "mjcf_body", "mjcf_geom", "shape", "size", "mass", "friction", "com_offset", "pose", "approach_offset",
     "extra", "relations",
 )
 
@@ -278,25 +325,40 @@ _OBJECT_KEYS = (
 def _object(name: str, field: Field, types, predicates, names) -> WorldObject:
     f = field.mapping(required=("type", "shape", "size", "pose"), optional=_OBJECT_KEYS)
     pose = f["pose"].mapping(required=("position", "rpy_deg"))
+    shape = f["shape"].string(choices=SHAPES)
+    kind = SHAPES[shape]
     size = f["size"].vector()
+    if len(size) != kind.size:
+        f["size"].fail(f"a {shape} has {kind.size} sizes (m), got {len(size)}")
     for item, v in zip(f["size"].seq(), size):
         if v < 0:
             item.fail(f"sizes are lengths >= 0 (m), got {v}")
+    name_of = lambda key: None if key not in f or f[key].is_null() else f[key].string()  # noqa: E731
+    body, geom = name_of("mjcf_body"), name_of("mjcf_geom")
+    if body is not None and geom is not None:
+        f["mjcf_geom"].fail("an object is an MJCF body or a geom of the world body, not both")
     optional_number = lambda key: None if key not in f or f[key].is_null() else f[key].number(positive=True)  # noqa: E731
-    extra = f["extra"].items() if "extra" in f else []
+    # Physics the simulator takes from the YAML (mjxskill.sim.model) needs something to write it into.
+    for key in ("mass", "com_offset"):
+        if key in f and not f[key].is_null() and body is None:
+            f[key].fail(f"{key} needs a body to simulate it (mjcf_body); {name} has none")
+    if "friction" in f and not f["friction"].is_null() and body is None and geom is None:
+        f["friction"].fail(f"friction needs a body or geom to simulate it (mjcf_body or mjcf_geom); {name} has neither")
+    extra = f["extra"].mapping(required=kind.extra) if "extra" in f else {}
+    if kind.extra and "extra" not in f:
+        f["shape"].fail(f"a {shape} needs extra: {{{', '.join(f'{k}: ...' for k in kind.extra)}}}")
     return WorldObject(
         name=name,
         type=f["type"].string().lower(),
         pose=Pose(frozen_array(pose["position"].vector(3)), frozen_array(pose["rpy_deg"].vector(3))),
-        mjcf_body=None if "mjcf_body" not in f or f["mjcf_body"].is_null() else f["mjcf_body"].string(),
-        shape=f["shape"].string(),
+        mjcf_body=body,
+        shape=shape,
         size=frozen_array(size),
         mass=optional_number("mass"),
         friction=optional_number("friction"),
         com_offset=frozen_array(f["com_offset"].vector(3) if "com_offset" in f else (0.0, 0.0, 0.0)),
         approach_offset=frozen_array(f["approach_offset"].vector(3) if "approach_offset" in f else (0.0, 0.0, 0.0)),
-        extra=frozen_mapping((k, v.number()) for k, v in extra),
+        extra=frozen_mapping((k, v.number(positive=True)) for k, v in extra.items()),
         relations=_relations(f.get("relations"), types, predicates, names),
+        mjcf_geom=geom,
     )
-
-

@@ -1,7 +1,8 @@
 """The scenario's references into its MJCF scene, checked when the scenario loads.
 
 A scene path that is missing, a directory or not MJCF, a ``robot.tool_site`` that is not a site
-of the scene, or an ``objects.<name>.mjcf_body`` that is not one of its bodies is a
+of the scene, an ``objects.<name>.mjcf_body`` that is not one of its bodies or an
+``objects.<name>.mjcf_geom`` that is not a geom of its world body is a
 ``ScenarioError`` naming the key and its line, raised before anything runs or is written. The
 engines would otherwise find out late (a traceback after a run directory exists) or never (a
 misspelled body silently became a fixed pose, and a whole budget trained at 0 % success).
@@ -18,9 +19,11 @@ from mjxskill.planner.world_pddl import close_matches
 from mjxskill.scenario.fields import Field
 
 
-def check_scene(scene: Path, scene_field: Field, tool_site: Field, bodies: dict[str, Field]) -> None:
-    """Raises ScenarioError unless ``scene`` is an MJCF file with the site ``tool_site`` names
-    and every body ``bodies`` (object name -> its ``mjcf_body`` field) names."""
+def check_scene(scene: Path, scene_field: Field, tool_site: Field, bodies: dict[str, Field],
+                geoms: dict[str, Field] | None = None) -> None:
+    """Raises ScenarioError unless ``scene`` is an MJCF file with the site ``tool_site`` names,
+    every body ``bodies`` (key path -> an ``mjcf_body`` field) names and every geom of the world
+    body ``geoms`` (key path -> an ``mjcf_geom`` field) names."""
     if not scene.exists():
         scene_field.fail(f"the MJCF scene {str(scene)!r} does not exist (paths are relative to the scenario file)")
     if not scene.is_file():
@@ -46,6 +49,16 @@ def check_scene(scene: Path, scene_field: Field, tool_site: Field, bodies: dict[
             known = known or _names(mujoco, model, mujoco.mjtObj.mjOBJ_BODY, model.nbody)
             field.fail(f"the scene {scene.name} has no body {name!r}{close_matches(name, known)} "
                        f"(bodies: {', '.join(known)}; null for an object without a body)")
+    for field in (geoms or {}).values():
+        if field.is_null():
+            continue
+        name = field.string()
+        geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
+        if geom < 0 or model.geom_bodyid[geom] != 0:
+            world = [n for n in _names(mujoco, model, mujoco.mjtObj.mjOBJ_GEOM, model.ngeom)
+                     if model.geom_bodyid[model.geom(n).id] == 0]
+            field.fail(f"the scene {scene.name} has no geom {name!r} in its world body{close_matches(name, world)} "
+                       f"(world geoms: {', '.join(world) or 'none'})")
 
 
 def _names(mujoco, model, kind, count: int) -> list[str]:

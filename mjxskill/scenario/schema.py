@@ -28,6 +28,8 @@ from typing import Mapping
 
 import numpy as np
 
+from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS
+
 
 # Bounds of the run settings a scenario gives defaults for, shared with the command-line flags
 # and a run's config.yaml (mjxskill.training.settings): one number, one place.
@@ -73,11 +75,14 @@ class WorldObject:
     """An object or a named pose of the world model.
 
     type: PDDL type (a key of ``Scenario.types``). mjcf_body: body name in the scene's MJCF
-    (None for abstract poses without a body). shape: e.g. "right_triangle_prism", "box",
-    "box_with_hole", "pose". size: shape-specific (m), documented per object in the YAML.
-    com_offset: (3,) m, centre of mass relative to ``pose.position`` in the object frame.
-    approach_offset: (3,) m, world-frame offset from ``pose.position`` of the object's approach
-    pose (where GoToLinear takes the tool). extra: further named constants (hole depth, ...).
+    (None for abstract poses and for geoms of the world body). mjcf_geom: a geom of the MJCF's
+    world body the object is (the table), when it has no body. shape: one of ``mjxskill.scenario.vocabulary.SHAPES``. size:
+    shape-specific (m, ``SHAPES``). mass (kg), com_offset (3,) m (centre of mass relative to the
+    shape's centroid, in the body frame), friction (sliding coefficient) and size are the
+    simulated physics: ``mjxskill.sim.model.build_model`` writes them into the MJCF model; None
+    (or zeros for com_offset) leaves the MJCF's value. approach_offset: (3,) m, world-frame
+    offset from ``pose.position`` of the object's approach pose (where a skill's tree takes
+    the tool, ``$object.approach_offset``). extra: the shape's further constants (``SHAPES``).
     relations: PDDL facts about the object in the initial state, e.g. "(pushable triangle-1)".
     """
 
@@ -93,6 +98,7 @@ class WorldObject:
     approach_offset: np.ndarray
     extra: Mapping[str, float]
     relations: tuple[str, ...]
+    mjcf_geom: str | None = None
 
     @property
     def pddl_name(self) -> str:
@@ -147,12 +153,14 @@ class SkillParameter:
 
 @dataclass(frozen=True)
 class Skill:
-    """A skill of the library: PDDL action plus how it expands into an eBT (``from_plan``).
+    """A skill of the library: PDDL action plus its behavior tree.
 
     parameters: in declaration order; the ``plan`` ones are the PDDL action's arguments in that
     order. preconditions / holdconditions / postconditions: PDDL literals over ``?argument``
     variables; hold-conditions must hold while the skill runs, so they become preconditions in
-    PDDL; negated postconditions are delete effects.
+    PDDL; negated postconditions are delete effects. tree: the skill's eBT as a template over
+    the primitive library (``mjxskill.ebt.template``), filled in per planned use
+    (``mjxskill.ebt.from_plan``).
     """
 
     name: str
@@ -160,6 +168,7 @@ class Skill:
     preconditions: tuple[str, ...]
     holdconditions: tuple[str, ...]
     postconditions: tuple[str, ...]
+    tree: object = None
 
     @property
     def pddl_name(self) -> str:
@@ -180,41 +189,6 @@ class Skill:
         return self.parameter(name).default
 
 
-REQUIRED = None  # a reward constant without a default: the YAML must give it
-
-
-@dataclass(frozen=True)
-class RewardKind:
-    """One entry of the reward vocabulary.
-
-    constants: name -> default (``REQUIRED``: the YAML must give it); the loader rejects any
-    other constant. needs: the reward's own keys the kind reads ("object", "target").
-    """
-
-    constants: Mapping[str, float | None]
-    needs: tuple[str, ...] = ()
-
-
-# The reward vocabulary, read by the loader (what a YAML may and must give), the compiled
-# rewards (mjxskill.rollout.rewards) and the native ones (mjxskill.native.rewards): one table, so
-# the three cannot disagree about a kind, a constant or a default. Meanings: ``Reward``.
-REWARD_KINDS: Mapping[str, RewardKind] = MappingProxyType(
-    {
-        "task_completion": RewardKind(MappingProxyType({"value": REQUIRED})),
-        "ee_distance_to_box": RewardKind(MappingProxyType({"w": REQUIRED, "d_o": REQUIRED}), ("target",)),
-        "applied_wrench": RewardKind(MappingProxyType({"cap": 100.0})),
-        "exp_ee_to_goal": RewardKind(MappingProxyType({"sigma_w": REQUIRED, "d_o": REQUIRED}), ("target",)),
-        "exp_ee_to_reference": RewardKind(MappingProxyType({"sigma_w": REQUIRED, "d_o": REQUIRED})),
-        "object_pose_divergence": RewardKind(
-            MappingProxyType(
-                {"sigma_w": REQUIRED, "d_o": REQUIRED, "position_weight": REQUIRED, "orientation_weight": REQUIRED}
-            ),
-            ("object", "target"),
-        ),
-    }
-)
-
-
 @dataclass(frozen=True, eq=False)
 class Reward:
     """One reward term.
@@ -223,6 +197,10 @@ class Reward:
     ee_distance_to_box: 1 / (w (d + d_o)), d = tool to ``target`` distance (m).
     applied_wrench: min(|Fx| + |Fy| + |Fz|, cap) of the commanded force (N); use a negative
     weight. The cap bounds the worst value, which a diverged world receives.
+    contact_force: min(F, cap), F the measured normal contact force between the tool (or the
+    item it holds) and everything else, N, averaged over the tick's control steps: summed over
+    the episode, the accumulated force (its peak is the metric ``peak_contact_force``); use a
+    negative weight.
     exp_*: exp(-(d_m + d_o) / (2 sigma_w^2)) with d_m the tool-to-``target`` distance
     (exp_ee_to_goal), the tool reference-to-actual distance (exp_ee_to_reference) or
     position_weight * |p_obj - p_target| + orientation_weight * |angle (rad)| between ``object``
@@ -249,13 +227,16 @@ class Reward:
         return float(default)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Success:
-    """The task's success test.
+    """The task's success test, checked at the end of the episode.
 
-    kind "object_at_pose": ``object`` within ``position_tolerance`` m and
-    ``orientation_tolerance_deg`` of ``target``. kind "inserted": ``object`` (the peg) deeper than
-    ``depth`` m below the top of ``target``'s hole.
+    kind "object_at_pose": ``object`` within ``position_tolerance`` m (in the x-y plane) and
+    ``orientation_tolerance_deg`` of ``target``. kind "inserted": the tool tip inside the hole of
+    ``target`` (a box_with_hole: the hole's footprint, in the box's frame) deeper than ``depth`` m
+    below its opening; ``object`` is the inserted item. kind "object_in_region": ``object``'s
+    position inside the box ``region_size`` (3,) m centred at ``region_center`` (3,) m in
+    ``target``'s frame, and (when given) within ``orientation_tolerance_deg`` of ``target``.
     """
 
     kind: str
@@ -264,6 +245,8 @@ class Success:
     position_tolerance: float | None = None
     orientation_tolerance_deg: float | None = None
     depth: float | None = None
+    region_size: np.ndarray | None = None
+    region_center: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -296,7 +279,7 @@ class Optimizer:
 class ManualSet:
     """An operator's parameter set from the YAML's ``manual_parameters``.
 
-    values: learnable parameter name (e.g. "Push.offset_x_start") -> value, checked against the
+    values: learnable parameter name (e.g. "Slide.offset_x_start") -> value, checked against the
     skill's bounds when loaded. where: the set's place in the file (for errors found when a plan
     is matched with it, see ``mjxskill.task``).
     """
@@ -310,7 +293,8 @@ class Scenario:
     """A validated scenario: the world model and the task settings, no plan (``mjxskill.task``
     plans a goal in it). See the module docstring for units and frames.
 
-    name: "push" / "peg". source: the YAML file. scene: the MJCF file. gravity: False runs the
+    name: "push" / "peg". source: the YAML file. libraries: the skill library files it includes
+    (``skill_library``). scene: the MJCF file. gravity: False runs the
     scene without gravity (SkiREIL's peg). types: PDDL type -> parent type (None: root).
     predicates: name -> argument types. objects: name -> WorldObject (poses included).
     skills: name -> Skill. goal: the default goal. manual_parameters: name -> ManualSet, the
@@ -339,6 +323,7 @@ class Scenario:
     optimizer: Optimizer
     manual_parameters: Mapping[str, ManualSet]
     locations: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
+    libraries: tuple[str, ...] = ()
 
     def where(self, key_path: str) -> str:
         """``"file: key path (line N)"`` of a YAML entry (the file alone when not recorded)."""

@@ -4,10 +4,8 @@ from __future__ import annotations
 
 from mjxskill.scenario.fields import Field
 from mjxskill.scenario.schema import (
-    REQUIRED,
     MAX_SEED,
     MIN_N_INIT,
-    REWARD_KINDS,
     Optimizer,
     Randomization,
     Reward,
@@ -15,6 +13,7 @@ from mjxskill.scenario.schema import (
     frozen_array,
     frozen_mapping,
 )
+from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS, SUCCESS_KINDS
 
 
 def rewards(field: Field, objectives, object_names) -> tuple[Reward, ...]:
@@ -63,14 +62,30 @@ def rewards(field: Field, objectives, object_names) -> tuple[Reward, ...]:
     return tuple(terms)
 
 
-def success(field: Field, object_names) -> Success:
-    kind = field.mapping(required=("kind",), optional=("object", "target", "position_tolerance", "orientation_tolerance_deg", "depth"))["kind"].string(choices=("object_at_pose", "inserted"))
-    extra = ("position_tolerance", "orientation_tolerance_deg") if kind == "object_at_pose" else ("depth",)
-    f = field.mapping(required=("kind", "object", "target", *extra))
+def success(field: Field, objects) -> Success:
+    """``success``: one test of ``SUCCESS_KINDS`` with its keys; ``objects``: name -> WorldObject."""
+    f = field.mapping(required=("kind",), optional=tuple({k for r, o in SUCCESS_KINDS.values() for k in (*r, *o)})
+                      + ("object", "target"))
+    kind = f["kind"].string(choices=SUCCESS_KINDS)
+    required, optional = SUCCESS_KINDS[kind]
+    f = field.mapping(required=("kind", "object", "target", *required), optional=optional)
     for key in ("object", "target"):
-        if f[key].string() not in object_names:
-            f[key].fail(f"unknown object {f[key].string()!r} (objects: {', '.join(sorted(object_names))})")
-    values = {key: f[key].number(positive=True) for key in extra}
+        if f[key].string() not in objects:
+            f[key].fail(f"unknown object {f[key].string()!r} (objects: {', '.join(sorted(objects))})")
+    values = {}
+    for key in (*required, *optional):
+        if key not in f:
+            continue
+        if key.startswith("region_"):
+            vector = f[key].vector(3)
+            if key == "region_size" and min(vector) <= 0:
+                f[key].fail(f"a region's size is three lengths > 0 (m), got {list(vector)}")
+            values[key] = frozen_array(vector)
+        else:
+            values[key] = f[key].number(positive=True)
+    if kind == "inserted" and objects[f["target"].string()].shape != "box_with_hole":
+        f["target"].fail(f"an insertion goes into the hole of a box_with_hole; {f['target'].string()} is a "
+                         f"{objects[f['target'].string()].shape}")
     return Success(kind, f["object"].string(), f["target"].string(), **values)
 
 

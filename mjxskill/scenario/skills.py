@@ -1,31 +1,29 @@
-"""The skill library and the operators' parameter sets of a scenario YAML."""
+"""The skill library and the operators' parameter sets of a scenario YAML.
+
+Skills come from the scenario's ``skills`` and from the files its ``skill_library`` names (a
+file of skills that many scenarios include: ``skills:`` at its top); a skill is its PDDL
+action (parameters, pre-, hold- and postconditions) and its behavior tree (``tree``, a
+template over the primitive library read by ``mjxskill.scenario.skill_tree``).
+"""
 
 from __future__ import annotations
 
-from mjxskill.ebt.from_plan import EXPANSIONS
 from mjxskill.planner.world_pddl import check_atom, parse_literal
 from mjxskill.scenario.fields import Field
 from mjxskill.scenario.schema import ManualSet, Skill, SkillParameter, frozen_mapping
+from mjxskill.scenario.skill_tree import read_tree
 
 
 def skill(name: str, field: Field, types, predicates) -> Skill:
-    """One entry of ``skills``: its parameters and PDDL conditions, checked against what the
-    skill's expansion into an eBT reads (``mjxskill.ebt.from_plan.EXPANSIONS``)."""
-    if name not in EXPANSIONS:
-        field.fail(f"unknown skill {name!r}: no expansion into a behavior tree (known: {', '.join(EXPANSIONS)})")
-    f = field.mapping(required=("parameters", "preconditions", "postconditions"), optional=("holdconditions",))
+    """One entry of ``skills``: its parameters, PDDL conditions and tree."""
+    if not name.replace("-", "").replace("_", "").isalnum() or not name[0].isalpha():
+        field.fail(f"{name!r} is not usable as a skill name (a letter, then letters, digits, - or _)")
+    f = field.mapping(required=("parameters", "preconditions", "postconditions", "tree"), optional=("holdconditions",))
     parameters = []
     for pname, pfield in f["parameters"].items():
         parameters.append(_skill_parameter(pname, pfield, types))
     by_name = {p.name: p for p in parameters}
-    for needed, kind in EXPANSIONS[name][1].items():
-        if needed not in by_name:
-            f["parameters"].fail(f"skill {name} needs a parameter {needed!r} ({kind})")
-        p = by_name[needed]
-        if kind == "float" and p.type != "float" or kind == "vector6" and (p.type != "vector" or len(p.default) != 6):
-            f["parameters"].items()[list(by_name).index(needed)][1].fail(
-                f"skill {name} reads {needed!r} as a {'6-vector' if kind == 'vector6' else 'number'}"
-            )
+    tree = read_tree(f["tree"], by_name)
     variables = {f"?{p.name.lower()}": p.type for p in parameters if p.plan}
     conditions = {}
     for key in ("preconditions", "holdconditions", "postconditions"):
@@ -42,7 +40,25 @@ def skill(name: str, field: Field, types, predicates) -> Skill:
         conditions[key] = tuple(texts)
     if not conditions["postconditions"]:
         f["postconditions"].fail(f"skill {name} has no postconditions, so no plan can use it")
-    return Skill(name, tuple(parameters), conditions["preconditions"], conditions["holdconditions"], conditions["postconditions"])
+    return Skill(name, tuple(parameters), conditions["preconditions"], conditions["holdconditions"],
+                 conditions["postconditions"], tree)
+
+
+def skill_fields(top: Field, library_files: list) -> list[tuple[str, Field]]:
+    """(name, Field) of every skill: those of each library file in ``library_files`` (root
+    Fields, in order), then the scenario's own ``skills``; a name defined twice is an error
+    naming both places."""
+    entries: list[tuple[str, Field]] = []
+    for root in library_files:
+        entries += root.mapping(required=("skills",))["skills"].items()
+    if "skills" in top:
+        entries += top["skills"].items()
+    seen: dict[str, Field] = {}
+    for name, field in entries:
+        if name in seen:
+            field.fail(f"skill {name!r} is defined twice; the first is at {seen[name].where()}")
+        seen[name] = field
+    return entries
 
 
 def _skill_parameter(name: str, field: Field, types) -> SkillParameter:
@@ -87,7 +103,7 @@ def _skill_parameter(name: str, field: Field, types) -> SkillParameter:
 
 def manual_parameters(field: Field | None, skills) -> dict:
     """``manual_parameters``: set name -> ManualSet. Each value names a learnable parameter of a
-    skill of the library as the plan names it ("Push.offset_x_start", "Push#2.offset_x_start"
+    skill of the library as the plan names it ("<Skill>.<parameter>", "<Skill>#2.<parameter>"
     for a second use) and lies within that parameter's bounds. Whether a set fits a plan (names
     exactly the plan's learnable parameters) is checked when a goal is planned
     (``mjxskill.task``)."""

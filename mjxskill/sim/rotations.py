@@ -61,3 +61,10 @@ def quat_angle(a, b):
     """Angle (rad) of the rotation between unit quaternions a and b: (..., 4) -> (...)."""
     d = jnp.abs(jnp.sum(a * b, axis=-1))
     return 2.0 * jnp.arccos(jnp.clip(d, 0.0, 1.0))
+
+
+def quat_rotate(q, v):
+    """v (..., 3) rotated by unit quaternion q (..., 4): q v q*."""
+    w, u = q[..., :1], q[..., 1:]
+    t = 2.0 * jnp.cross(u, v)
+    return v + w * t + jnp.cross(u, t)

@@ -13,7 +13,7 @@ SCENES = ("push", "peg")
 
 ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 8))
 TOOL_SITE = "tool"
-# Push scene: object centroid height when resting on the table (prism 0.07 m high).
+# The push scene: object centroid height when resting on the table (prism 0.07 m high).
 PUSH_OBJECT_BODY = "object"
 PUSH_GOAL_BODY = "goal"
 # Peg scene: mocap body of the box with the hole; the hole's top above the box frame.

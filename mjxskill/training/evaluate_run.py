@@ -3,8 +3,9 @@
 ``RUN_DIR/evaluation/``::
 
     evaluation.json   the whole evaluation as plain data (its settings, the candidates, success,
-                      position error and time to success per start configuration, commanded
-                      force; NaN as null): what the pooled evaluations and the reports read
+                      position error, measured contact force (peak, mean) and time to success
+                      per start configuration, the commanded force peak_commanded_force per
+                      candidate; NaN as null): what the pooled evaluations and the reports read
     evaluation.csv    one row per candidate (``mjxskill.training.evaluation.write_csv``)
     success.png       box plots of the groups, Mann-Whitney U against the Pareto group
     chunks.jsonl      while it runs: each finished chunk of candidates, one JSON line, flushed
@@ -15,7 +16,9 @@ An evaluation is *current* when ``evaluation.json`` has the same settings (world
 configuration, random sets, seed, engine, episode length) and the same Pareto solutions as the
 run has now; a current evaluation is reused, not run again (the same inputs give the same
 numbers). A chunk line is used only when its settings and parameter sets are the ones asked
-for; a line cut short by a kill is evaluated again.
+for; a line cut short by a kill is evaluated again. Format 2 (the commanded force named
+peak_commanded_force, the contact forces added): an evaluation or chunk of format 1 (its
+max_force) is not used, the run is evaluated again.
 """
 
 from __future__ import annotations
@@ -43,7 +46,8 @@ from mjxskill.training.run_dir import Run, RunConfig
 FOLDER = "evaluation"
 RESULT = "evaluation.json"
 CHUNKS = "chunks.jsonl"
-FORMAT = "mjxskill.evaluation/1"
+FORMAT = "mjxskill.evaluation/2"
+PER_CANDIDATE = ("peak_commanded_force",)  # (N,); the other CHUNK_FIELDS are (N, C)
 
 
 def evaluation_settings(per_config: int, n_random: int, seed: int, batch_size: int, engine: str,
@@ -91,7 +95,7 @@ def evaluate_run(run: Run, config: RunConfig, rollout, task, settings: dict, pro
     done = _read_chunks(chunk_path, settings, candidates)
 
     def keep(start: int, result: dict) -> None:
-        line = {"settings": settings, "start": start,
+        line = {"format": FORMAT, "settings": settings, "start": start,
                 "params": candidates.params[start : start + len(result["success"])].tolist(),
                 **{k: _plain(v) for k, v in result.items()}}
         with open(chunk_path, "a") as fh:
@@ -133,8 +137,8 @@ def load_evaluation(run: Run) -> tuple[Evaluation, dict]:
         c = doc["candidates"]
         n, n_cfg = len(c["names"]), len(doc["config_names"])
         candidates = Candidates(tuple(c["names"]), tuple(c["groups"]), _array(c["params"], (n, -1)))
-        optional = {k: (None if doc.get(k) is None else _array(doc[k], (n, n_cfg) if k != "max_force" else (n,)))
-                    for k in ("position_error", "max_force", "success_seconds")}
+        optional = {k: (None if doc.get(k) is None else _array(doc[k], (n,) if k in PER_CANDIDATE else (n, n_cfg)))
+                    for k in CHUNK_FIELDS if k != "success"}
         ev = Evaluation(candidates, _array(doc["success"], (n, n_cfg)), np.array(doc["known"], bool),
                         tuple(doc["config_names"]), **optional)
         if ev.known.shape != (n_cfg,) or not isinstance(doc["settings"], dict):
@@ -167,7 +171,7 @@ def _document(ev: Evaluation) -> dict:
     return {"candidates": {"names": list(c.names), "groups": list(c.groups), "params": _plain(c.params)},
             "config_names": list(ev.config_names), "known": [bool(k) for k in ev.known], "success": _plain(ev.success),
             **{k: None if getattr(ev, k) is None else _plain(getattr(ev, k))
-               for k in ("position_error", "max_force", "success_seconds")}}
+               for k in CHUNK_FIELDS if k != "success"}}
 
 
 def _write_json(path: Path, doc: dict) -> None:
@@ -186,12 +190,12 @@ def _read_chunks(path: Path, settings: dict, candidates: Candidates) -> dict:
             line = json.loads(text)
             start = int(line["start"])
             params = np.array(line["params"], np.float64)
-            if not _same(line["settings"], settings) or line["settings"].get("batch_size") != settings["batch_size"]:
+            if line.get("format") != FORMAT or not _same(line["settings"], settings) or line["settings"].get("batch_size") != settings["batch_size"]:
                 continue
             if start % settings["batch_size"] or not np.array_equal(params, candidates.params[start : start + len(params)]):
                 continue
             n = len(params)
-            result = {k: _array(line[k], (n,) if k == "max_force" else (n, -1)) for k in CHUNK_FIELDS if k in line}
+            result = {k: _array(line[k], (n,) if k in PER_CANDIDATE else (n, -1)) for k in CHUNK_FIELDS if k in line}
             if "success" in result and len(result["success"]) == n:
                 done[start] = result
         except (ValueError, KeyError, TypeError, AttributeError):

@@ -6,9 +6,10 @@ manual parameter sets of the scenario (operators' choices). Each runs ``--per-co
 from every start configuration: the known ones (training) and the unseen ones (evaluation
 only), the same explicit worlds for every candidate, ``batch_size`` candidates per call.
 
-Per candidate and start configuration: the success rate, the mean final position error and the
-mean time until the tree returned SUCCESS over the successful worlds; per candidate the largest
-commanded force (mean over its worlds). Box plots like the paper's (``box_plot``: one sample per
+Per candidate and start configuration: the success rate, the mean final position error, the
+measured contact force of the tool (peak and mean) and the mean time until the tree returned
+SUCCESS over the successful worlds; per candidate the largest COMMANDED force,
+``peak_commanded_force`` (mean over its worlds). Box plots like the paper's (``box_plot``: one sample per
 candidate and start configuration, two-sided Mann-Whitney U against a reference group with the
 paper's stars: * p < 0.1, ** p < 0.05, *** p < 0.01, **** p < 0.001, ns otherwise). The files
 of a run's evaluation: ``mjxskill.training.evaluate_run``.
@@ -35,21 +36,30 @@ class Candidates(NamedTuple):
     params: np.ndarray
 
 
+# Per-world metrics the evaluation averages per candidate and start configuration (N, C).
+METRICS = ("position_error", "peak_contact_force", "mean_contact_force")
+
+
 class Evaluation(NamedTuple):
     """success (N, C) success rate of each candidate from each start configuration; known (C,)
     bool: a training configuration (else unseen); config_names (C,); position_error (N, C)
-    mean final position error of the task's object, m (how close a failure came); max_force (N,)
-    the largest force the skills commanded in an episode, N, mean over the candidate's worlds;
+    mean final position error of the task's object, m (how close a failure came);
+    peak_contact_force, mean_contact_force (N, C): the measured contact force of the tool, N,
+    its peak and mean in an episode, averaged over the worlds (NaN where a world diverged);
+    peak_commanded_force (N,) the largest force the skills COMMANDED in an episode, N, mean over
+    the candidate's worlds (what an operator sets; the experiment's pick bounds it);
     success_seconds (N, C) mean time until the tree returned SUCCESS over the successful worlds
-    of each configuration, s (NaN where none succeeded). The last three are None when the
-    rollout does not report them."""
+    of each configuration, s (NaN where none succeeded). The metrics are None when the rollout
+    does not report them."""
 
     candidates: Candidates
     success: np.ndarray
     known: np.ndarray
     config_names: tuple[str, ...]
     position_error: np.ndarray | None = None
-    max_force: np.ndarray | None = None
+    peak_contact_force: np.ndarray | None = None
+    mean_contact_force: np.ndarray | None = None
+    peak_commanded_force: np.ndarray | None = None
     success_seconds: np.ndarray | None = None
 
     def mean(self, known: bool) -> np.ndarray:
@@ -73,9 +83,9 @@ def build_candidates(task, pareto_params: np.ndarray, n_random: int, seed: int) 
     return Candidates(tuple(names), tuple(groups), params)
 
 
-# Per-world metrics an evaluation keeps (when the rollout reports them): name -> how a chunk's
-# (b, C, K) worlds are reduced.
-CHUNK_FIELDS = ("success", "position_error", "max_force", "success_seconds")
+# What one chunk of an evaluation keeps (when the rollout reports it): success and METRICS per
+# configuration (b, C), the commanded force per candidate (b,), the time to success (b, C).
+CHUNK_FIELDS = ("success", *METRICS, "peak_commanded_force", "success_seconds")
 
 
 def evaluation_worlds(rollout, per_config: int, seed: int):
@@ -106,10 +116,11 @@ def evaluate_chunk(rollout, chunk: np.ndarray, worlds, n_cfg: int, per_config: i
     success = per(out.success)
     result = {"success": success.mean(axis=2)}
     metrics = getattr(out, "metrics", None) or {}
-    if "position_error" in metrics:
-        result["position_error"] = per(metrics["position_error"]).mean(axis=2)
-    if "max_force" in metrics:
-        result["max_force"] = per(metrics["max_force"]).reshape(b, -1).mean(axis=1)
+    for name in METRICS:  # per configuration: (b, C)
+        if name in metrics:
+            result[name] = per(metrics[name]).mean(axis=2)
+    if "peak_commanded_force" in metrics:  # per candidate, over all its worlds: (b,)
+        result["peak_commanded_force"] = per(metrics["peak_commanded_force"]).reshape(b, -1).mean(axis=1)
     if "bt_done_tick" in metrics:
         # the tick the root returned SUCCESS ends that tick: (tick + 1) / bt_hz seconds in
         ticks = per(metrics["bt_done_tick"])
@@ -142,8 +153,7 @@ def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: 
               for f in CHUNK_FIELDS}
     if joined["success"] is None:
         joined["success"] = np.zeros((0, n_cfg))
-    return Evaluation(candidates, joined["success"], known, names, joined["position_error"], joined["max_force"],
-                      joined["success_seconds"])
+    return Evaluation(candidates, joined.pop("success"), known, names, **joined)
 
 
 # The paper's significance levels (its Fig. 4): one more star for each level the p-value is under.
@@ -214,20 +224,28 @@ def plot_boxes(ev: Evaluation, path: Path, title: str) -> dict:
     return {(panel, by_label[label]): test for (panel, label), test in labelled.items()}
 
 
+# evaluation.csv's per-configuration metric columns: (header, Evaluation field, unit suffix)
+CSV_METRICS = (("position_error", "position_error", "m"), ("peak_contact_force", "peak_contact_force", "N"),
+               ("mean_contact_force", "mean_contact_force", "N"))
+
+
 def write_csv(ev: Evaluation, parameter_names: Sequence[str], path: Path) -> None:
-    """One row per candidate: parameters, mean success known/unseen, per configuration, and
-    (when measured) the position errors, the commanded force and the time to success."""
-    err, force, seconds = ev.position_error, ev.max_force, ev.success_seconds
+    """One row per candidate: parameters, success known/unseen and per configuration, each
+    metric's mean over the known and over the unseen configurations' worlds, then (when
+    measured) the commanded force (peak_commanded_force_N) and the time to success."""
+    present = [(head, getattr(ev, field), unit) for head, field, unit in CSV_METRICS if getattr(ev, field) is not None]
+    force, seconds = ev.peak_commanded_force, ev.success_seconds
     with open(path, "w", newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow(["candidate", "group", *parameter_names, "success_known", "success_unseen",
                          *(f"success_{c}" for c in ev.config_names)]
-                        + ([] if err is None else ["position_error_known_m", "position_error_unseen_m"])
-                        + ([] if force is None else ["max_force_N"])
+                        + [f"{head}_{side}_{unit}" for head, _, unit in present for side in ("known", "unseen")]
+                        + ([] if force is None else ["peak_commanded_force_N"])
                         + ([] if seconds is None else ["success_time_s"]))
         known, unseen = ev.mean(True), ev.mean(False)
         for i, name in enumerate(ev.candidates.names):
-            extra = [] if err is None else [repr(float(err[i, ev.known].mean())), repr(float(err[i, ~ev.known].mean()) if (~ev.known).any() else "nan")]
+            extra = [repr(float(values[i, cols].mean())) if cols.any() else "nan"
+                     for _, values, _ in present for cols in (ev.known, ~ev.known)]
             extra += [] if force is None else [repr(float(force[i]))]
             extra += [] if seconds is None else [repr(mean_success_seconds(ev, [i]))]
             writer.writerow([name, ev.candidates.groups[i], *map(repr, map(float, ev.candidates.params[i])),
@@ -255,6 +273,10 @@ def table(ev: Evaluation, tests: dict) -> str:
         head.append("pos.err [mm]")
         for i, row in enumerate(rows):
             row.append(f"{1000 * ev.position_error[i].mean():.0f}")
+    if ev.peak_contact_force is not None:  # the measured contact force of the tool, over all configurations
+        head.append("contact F peak [N]")
+        for i, row in enumerate(rows):
+            row.append(f"{ev.peak_contact_force[i].mean():.1f}")
     widths = [max(len(r[c]) for r in [head, *rows]) for c in range(len(head))]
     fmt = lambda r: "  ".join(x.ljust(w) if c < 2 else x.rjust(w) for c, (x, w) in enumerate(zip(r, widths)))  # noqa: E731
     lines = [fmt(head), *map(fmt, rows), "", "group              known  unseen  (mean success; Mann-Whitney U vs Pareto)"]

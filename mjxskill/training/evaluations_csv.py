@@ -23,26 +23,40 @@ import numpy as np
 from mjxskill.errors import RunError
 
 
+# The force columns after success_rate, N, each the mean over the worlds of a per-world value:
+# the measured contact force's peak and mean (mjxskill.sim.tool_force) and the largest force the
+# skills commanded. Runs written before contact forces were measured end with one column,
+# max_force (the commanded force): they are read with the contact forces unknown (NaN).
+FORCE_COLUMNS = ("peak_contact_force", "mean_contact_force", "peak_commanded_force")
+LEGACY_FORCE_COLUMNS = ("max_force",)
+
+
 class Evaluations(NamedTuple):
     """The rows of evaluations.csv. n rows, P parameters, O objectives.
 
     iteration (n,) int: batch index. params (n, P) float64. objectives (n, O) float64, larger
-    is better. success_rate (n,) float64 in [0, 1]. max_force (n,) float64, N (the largest
-    feed-forward force the skills commanded in an episode, mean over the worlds).
+    is better. success_rate (n,) float64 in [0, 1]. peak_contact_force, mean_contact_force (n,)
+    float64, N: the measured normal contact force between the tool and the world, its largest
+    and its mean value in an episode, mean over the worlds (NaN: not measured, a run written
+    before it was, or a diverged world). peak_commanded_force (n,) float64, N: the largest
+    feed-forward force the skills commanded in an episode, mean over the worlds.
     """
 
     iteration: np.ndarray
     params: np.ndarray
     objectives: np.ndarray
     success_rate: np.ndarray
-    max_force: np.ndarray
+    peak_contact_force: np.ndarray
+    mean_contact_force: np.ndarray
+    peak_commanded_force: np.ndarray
 
     def __len__(self) -> int:  # type: ignore[override]
         return len(self.iteration)
 
     @classmethod
     def empty(cls, n_params: int, n_objectives: int) -> "Evaluations":
-        return cls(np.zeros(0, int), np.zeros((0, n_params)), np.zeros((0, n_objectives)), np.zeros(0), np.zeros(0))
+        return cls(np.zeros(0, int), np.zeros((0, n_params)), np.zeros((0, n_objectives)),
+                   *(np.zeros(0) for _ in range(1 + len(FORCE_COLUMNS))))
 
     def take(self, index) -> "Evaluations":
         return Evaluations(*(np.asarray(a)[index] for a in self))
@@ -69,7 +83,7 @@ def format_rows(ev: Evaluations) -> str:
     for i in range(len(ev)):
         writer.writerow(
             [int(ev.iteration[i]), *map(_format, ev.params[i]), *map(_format, ev.objectives[i]),
-             _format(ev.success_rate[i]), _format(ev.max_force[i])]
+             _format(ev.success_rate[i]), *(_format(getattr(ev, c)[i]) for c in FORCE_COLUMNS)]
         )
     return out.getvalue()
 
@@ -99,12 +113,19 @@ class Rejected(NamedTuple):
 
 class Parsed(NamedTuple):
     """The usable rows of a CSV (``lines``, ``texts``: the line number and text of each) and
-    every other line."""
+    every other line. legacy: the file has the columns of a run written before contact forces
+    were measured (``LEGACY_FORCE_COLUMNS``)."""
 
     rows: Evaluations
     lines: np.ndarray
     texts: list[str]
     rejected: list[Rejected]
+    legacy: bool = False
+
+
+def legacy_columns(columns: list[str]) -> list[str]:
+    """The header a run written before contact forces were measured has for ``columns``."""
+    return columns[: len(columns) - len(FORCE_COLUMNS)] + list(LEGACY_FORCE_COLUMNS)
 
 
 def read_bytes(path: Path) -> bytes:
@@ -125,11 +146,14 @@ def parse(data: bytes, columns: list[str], bounds, where: str) -> Parsed:
     header = lines[0].decode("utf-8", "replace")
     if len(lines) == 1:
         raise RunError(f"{where} has no complete header line ({len(data)} bytes): it was cut short")
-    if header != ",".join(columns):
+    legacy = header == ",".join(legacy_columns(columns))
+    if legacy:  # the commanded force is the old max_force; the contact forces are unknown
+        columns = legacy_columns(columns)
+    elif header != ",".join(columns):
         got = next(csv.reader([header]), []) if header else "nothing"
         raise RunError(f"{where} does not have the columns this task expects: got {got}, expected {columns}")
     o = sum(1 for c in columns if c.startswith("objective_"))
-    p = len(columns) - o - 3
+    p = len(columns) - o - 2 - (len(LEGACY_FORCE_COLUMNS) if legacy else len(FORCE_COLUMNS))
     lo, hi = np.asarray(bounds, np.float64) if bounds is not None else (None, None)
     tol = None if bounds is None else 1e-9 * (hi - lo)  # the optimizer's own tolerance (mjxskill.gp.tell)
     values, numbers, texts, rejected = [], [], [], []
@@ -149,9 +173,12 @@ def parse(data: bytes, columns: list[str], bounds, where: str) -> Parsed:
             numbers.append(number)
             texts.append(raw.decode("utf-8"))
     data_ = np.array(values, np.float64).reshape(-1, len(columns))
+    forces = data_[:, 2 + p + o:]
+    if legacy:
+        forces = np.concatenate([np.full((len(data_), 2), np.nan), forces], axis=1)
     rows = Evaluations(data_[:, 0].astype(int), data_[:, 1 : 1 + p], data_[:, 1 + p : 1 + p + o],
-                       data_[:, 1 + p + o], data_[:, 2 + p + o])
-    return Parsed(rows, np.array(numbers, int), texts, rejected)
+                       data_[:, 1 + p + o], *forces.T)
+    return Parsed(rows, np.array(numbers, int), texts, rejected, legacy)
 
 
 def _row(raw: bytes, columns, p: int, lo, hi, tol) -> tuple[str | None, list[float] | None]:
@@ -193,11 +220,13 @@ class Batches(NamedTuple):
     """Rows sorted into batches. complete: batch index -> its rows (exactly the batch's size).
     rejected: every line not in a complete batch (unreadable, a row of an incomplete batch, a
     further copy of a complete one, a batch beyond the budget), in line order. in_order: the
-    file was exactly the complete batches, one after the other in batch order."""
+    file was exactly the complete batches, one after the other in batch order. legacy: as
+    ``Parsed.legacy``."""
 
     complete: dict[int, Evaluations]
     rejected: list[Rejected]
     in_order: bool
+    legacy: bool = False  # the file has the columns of a run from before contact forces were measured
 
 
 def assign_batches(parsed: Parsed, sizes: list[int]) -> Batches:
@@ -221,7 +250,7 @@ def assign_batches(parsed: Parsed, sizes: list[int]) -> Batches:
             rejected += [Rejected(int(parsed.lines[i]), parsed.texts[i], reason) for i in idx]
     used = [i for b in complete for i in keep[b]]
     in_order = not rejected and used == list(range(len(rows))) and list(complete) == list(range(len(complete)))
-    return Batches(complete, sorted(rejected), in_order)
+    return Batches(complete, sorted(rejected), in_order, parsed.legacy)
 
 
 def read_csv(path: Path, columns: list[str], bounds=None) -> Evaluations:

@@ -14,6 +14,7 @@ from typing import Callable, NamedTuple, Protocol
 import numpy as np
 
 from mjxskill.training.front import pareto_mask_of, reference_from
+from mjxskill.training.evaluations_csv import FORCE_COLUMNS
 from mjxskill.training.resume import resume_batches
 from mjxskill.training.run_config import optimizer_config
 from mjxskill.training.run_dir import OPTIMIZER_STATE, Evaluations, Run, RunConfig, batch_sizes, concat_all
@@ -21,11 +22,14 @@ from mjxskill.training.run_dir import OPTIMIZER_STATE, Evaluations, Run, RunConf
 
 class BatchResult(NamedTuple):
     """What one evaluated batch of B parameter sets gives: objectives (B, O), larger is better;
-    success_rate (B,) in [0, 1]; max_force (B,) N."""
+    success_rate (B,) in [0, 1]; peak_contact_force, mean_contact_force, peak_commanded_force
+    (B,) N, means over the worlds (``Evaluations``)."""
 
     objectives: np.ndarray
     success_rate: np.ndarray
-    max_force: np.ndarray
+    peak_contact_force: np.ndarray
+    mean_contact_force: np.ndarray
+    peak_commanded_force: np.ndarray
 
 
 # (params (B, P) float64, batch index) -> BatchResult. Must be a pure function of its inputs:
@@ -60,11 +64,9 @@ def rollout_evaluator(rollout, batch_size: int, seed: int) -> BatchEvaluator:
         padded = np.concatenate([params, np.repeat(params[:1], batch_size - n, axis=0)])
         out = rollout(padded, rollout_key(seed, iteration))
         success = np.asarray(out.success, np.float64)[:n]
-        return BatchResult(
-            objectives=np.asarray(out.objectives, np.float64)[:n],
-            success_rate=success.mean(axis=1),
-            max_force=np.asarray(out.metrics["max_force"], np.float64)[:n].mean(axis=1),
-        )
+        forces = {name: np.asarray(out.metrics[name], np.float64)[:n].mean(axis=1) for name in FORCE_COLUMNS}
+        return BatchResult(objectives=np.asarray(out.objectives, np.float64)[:n], success_rate=success.mean(axis=1),
+                           **forces)
 
     return evaluate
 

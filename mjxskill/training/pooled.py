@@ -1,12 +1,14 @@
 """The evaluations of repeated runs pooled: one picked solution per run, groups, tests.
 
 **The pick** (stated in every report): per run, the Pareto solution of its *training* front
-with the highest training success rate among those whose commanded force (the largest
-feed-forward force of an episode, mean over the training worlds) is at most the bound, ties
-broken by the higher first objective: ``mjxskill.training.selection.choose``, what
-``select --max-force`` does. The bound is the one given, else the largest force any operator
-set commands in that run's evaluation, so that the picked solution never presses harder than
-the hardest-pressing operator; without operator sets there is no bound. The pick reads only the
+with the highest training success rate among those whose COMMANDED force
+(``peak_commanded_force``: the largest feed-forward force the skills command in an episode,
+mean over the training worlds) is at most the bound, ties broken by the higher first objective
+(``mjxskill.training.selection.choose``'s rule, but on the commanded force: ``select
+--max-force`` bounds the measured contact force). The bound is the one given, else the largest
+force any operator set commands in that run's evaluation, so that the picked solution never
+commands more than the hardest-pressing operator (the paper's operators' chosen force against
+the learned one: both are set forces, not measured ones); without operator sets there is no bound. The pick reads only the
 training front, as an operator would; its evaluation is its row in the run's evaluation.
 
 **The samples** of a group (Mann-Whitney U, box plots): one success rate per (run, candidate,
@@ -23,9 +25,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mjxskill.errors import CommandError, RunError
+from mjxskill.errors import RunError
 from mjxskill.training.evaluation import GROUP_LABELS, GROUPS, Evaluation, box_plot, mean_success_seconds, significance
-from mjxskill.training.selection import choose
 
 POOLED_GROUPS = ("picked", *GROUPS)
 POOLED_LABELS = {"picked": "picked (learned)", **GROUP_LABELS}
@@ -43,13 +44,14 @@ class Pick(NamedTuple):
 
 
 def force_bound(ev: Evaluation, max_force: float | None) -> tuple[float | None, str]:
-    """The pick's bound for a run evaluated in ``ev`` (see the module docstring)."""
+    """The pick's bound on the commanded force, N, for a run evaluated in ``ev`` (see the module
+    docstring)."""
     if max_force is not None:
         return float(max_force), "given"
     manual = [i for i, g in enumerate(ev.candidates.groups) if g == "manual"]
-    if not manual or ev.max_force is None:
+    if not manual or ev.peak_commanded_force is None:
         return None, "no operator sets: no bound"
-    return float(np.max(ev.max_force[manual])), "the largest force an operator set commands"
+    return float(np.max(ev.peak_commanded_force[manual])), "the largest force an operator set commands"
 
 
 def pick(front, ev: Evaluation, max_force: float | None = None) -> Pick:
@@ -59,10 +61,18 @@ def pick(front, ev: Evaluation, max_force: float | None = None) -> Pick:
     if len(pareto) != len(front) or not np.array_equal(ev.candidates.params[pareto], front.params):
         raise RunError("the evaluation is not of the run's current Pareto front: evaluate the run again")
     bound, source = force_bound(ev, max_force)
-    try:
-        return Pick(choose(front, max_force=bound), bound, source)
-    except CommandError:  # no Pareto solution within the bound: the run has no pick
-        return Pick(None, bound, source)
+    return Pick(choose_commanded(front, bound), bound, source)
+
+
+def choose_commanded(front, bound: float | None) -> int | None:
+    """The row of ``front`` with the best success rate, ties by the first objective, among those
+    whose peak_commanded_force is at most ``bound`` (None: all); None when no row is."""
+    ok = np.ones(len(front), bool) if bound is None else front.peak_commanded_force <= bound  # NaN: not within
+    rows = np.flatnonzero(ok)
+    if not len(rows):
+        return None
+    order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows]))
+    return int(rows[order[0]])
 
 
 def picked_row(ev: Evaluation, p: Pick) -> int | None:
@@ -118,8 +128,8 @@ def group_force_and_time(evals: list[Evaluation], picks: list[Pick], group: str)
     forces, weighted, weights = [], 0.0, 0.0
     for ev, p in zip(evals, picks):
         rows = group_rows(ev, group, p)
-        if ev.max_force is not None:
-            forces.extend(ev.max_force[rows])
+        if ev.peak_commanded_force is not None:
+            forces.extend(ev.peak_commanded_force[rows])
         seconds = mean_success_seconds(ev, rows) if rows else float("nan")
         if np.isfinite(seconds):
             n = float(ev.success[rows].sum())
@@ -148,5 +158,5 @@ def pooled_table(samples: dict, tests: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["BASELINES", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "force_bound", "group_force_and_time", "group_means",
+__all__ = ["BASELINES", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "choose_commanded", "force_bound", "group_force_and_time", "group_means",
            "pick", "picked_row", "plot_pooled", "pooled_samples", "pooled_table", "pooled_tests"]

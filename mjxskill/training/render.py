@@ -1,11 +1,11 @@
 """Render one parameter set's episode with MuJoCo's offscreen renderer (PNG frames or MP4).
 
-The episode is traced in MJX (``Rollout.trace``: joint and object positions at every BT tick,
-10 Hz) and replayed into the native ``MjModel`` for drawing. MuJoCo needs an OpenGL backend
+The episode is traced by the rollout's engine (``trace``: joint and object positions and the
+mocap bodies at every BT tick, 10 Hz) and replayed into the native ``MjModel`` for drawing, so
+each frame shows the world as that world had it: the object where the world started it, the
+goal and its fixture (mocap bodies) where the world put them. MuJoCo needs an OpenGL backend
 chosen *before* ``mujoco`` is imported: ``MUJOCO_GL=egl`` (headless GPU or Mesa's EGL),
 ``osmesa`` (software) or ``glfw`` (a display). ``python -m mjxskill.select`` defaults to egl.
-The goal marker is drawn at its nominal pose (the world's randomized goal offset is not
-applied to the mocap body).
 """
 
 from __future__ import annotations
@@ -58,8 +58,10 @@ def _camera(model, data):
 FrameProgress = Callable[[int, int], None]
 
 
-def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progress: FrameProgress | None = None) -> np.ndarray:
-    """(T, height, width, 3) uint8 images of the native ``model`` at each row of qpos (T, nq)."""
+def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progress: FrameProgress | None = None, *,
+           mocap_pos: np.ndarray | None = None, mocap_quat: np.ndarray | None = None) -> np.ndarray:
+    """(T, height, width, 3) uint8 images of the native ``model`` at each row of qpos (T, nq),
+    with the mocap bodies at mocap_pos (T, M, 3) and mocap_quat (T, M, 4) (None: the model's)."""
     import mujoco
 
     data = mujoco.MjData(model)
@@ -71,8 +73,12 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progres
     images = []
     try:
         cam = None
-        for q in np.asarray(qpos, np.float64):
+        for t, q in enumerate(np.asarray(qpos, np.float64)):
             data.qpos[:] = q
+            if mocap_pos is not None:
+                data.mocap_pos[:] = mocap_pos[t]
+            if mocap_quat is not None:
+                data.mocap_quat[:] = mocap_quat[t]
             mujoco.mj_forward(model, data)
             cam = cam or _camera(model, data)
             renderer.update_scene(data, camera=cam)
@@ -134,11 +140,12 @@ def render_world(rollout, config_index: int, seed: int = 0):
 
 def render_episode(rollout, params: np.ndarray, world, out: Path, fmt: str = "png", width: int = 640, height: int = 480,
                    progress: FrameProgress | None = None) -> list[Path]:
-    """Traces ``params`` (P,) in ``world`` (one unbatched world) and writes PNG frames into
-    ``out/`` or ``out.mp4``. Returns the written paths."""
+    """Traces ``params`` (P,) in ``world`` (one unbatched world; either engine's rollout) and
+    writes PNG frames into ``out/`` or ``out.mp4``, the world's randomized poses shown. Returns
+    the written paths."""
     _, record = rollout.trace(params, world)
-    qpos = np.asarray(record.qpos)
-    images = frames(rollout.mj_model, qpos, width, height, progress)
+    images = frames(rollout.mj_model, np.asarray(record.qpos), width, height, progress,
+                    mocap_pos=np.asarray(record.mocap_pos), mocap_quat=np.asarray(record.mocap_quat))
     if fmt == "mp4":
         return [write_mp4(images, out.with_suffix(".mp4"), fps=rollout.scenario.bt_hz)]
     return write_png_frames(images, out)

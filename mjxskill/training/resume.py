@@ -35,7 +35,7 @@ def resume_batches(run: Run, config: RunConfig) -> dict[int, Evaluations]:
     """The complete batches of ``run`` (batch index -> rows), after setting aside what cannot be
     used (see the module docstring). Warns (``Notice``) about anything set aside or non-finite."""
     batches = run.batches(config)
-    if batches.rejected or not batches.in_order:
+    if batches.rejected or not batches.in_order or batches.legacy:
         kept = _keep_original(run.path / EVALUATIONS)
         if batches.rejected:
             _append_set_aside(run.path / SET_ASIDE, kept.name, batches.rejected)
@@ -43,7 +43,13 @@ def resume_batches(run: Run, config: RunConfig) -> dict[int, Evaluations]:
                                                  len(config.objective_names)))
         what = (f"{_rows(len(batches.rejected))} of {run.path / EVALUATIONS} set aside in {SET_ASIDE}: "
                 f"{_reasons(batches.rejected)}" if batches.rejected else
-                f"the batches of {run.path / EVALUATIONS} were out of order and are rewritten in order")
+                f"the batches of {run.path / EVALUATIONS} were out of order and are rewritten in order"
+                if not batches.in_order else "")
+        if batches.legacy:  # a run from before contact forces were measured: the new columns
+            what = "; ".join(filter(None, [what, (
+                f"{run.path / EVALUATIONS} was written before contact forces were measured: its max_force "
+                f"(the commanded force) is now peak_commanded_force and the contact force of its "
+                f"{_rows(sum(len(b) for b in batches.complete.values()))} is not known (nan)")]))
         warnings.warn(f"{what}; the file as it was is kept as {kept.name}", Notice, stacklevel=2)
     diverged = {b: int(np.sum(~np.all(np.isfinite(ev.objectives), axis=1))) for b, ev in batches.complete.items()}
     diverged = {b: n for b, n in diverged.items() if n}

@@ -16,6 +16,7 @@ import yaml
 
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import Field, compose_text
+from mjxskill.training.evaluations_csv import FORCE_COLUMNS
 from mjxskill.training.settings import NO_DEFAULT, SETTINGS, cross_problems, optimizer_option_problem
 
 FORMAT = "mjxskill.run/1"
@@ -162,7 +163,7 @@ def optimizer_problem(config: RunConfig) -> str | None:
 
 
 def evaluation_columns(parameter_names, objective_names) -> list[str]:
-    return ["iteration", *parameter_names, *(f"objective_{o}" for o in objective_names), "success_rate", "max_force"]
+    return ["iteration", *parameter_names, *(f"objective_{o}" for o in objective_names), "success_rate", *FORCE_COLUMNS]
 
 
 def batch_sizes(budget: int, batch_size: int, n_init: int) -> Iterator[int]:

@@ -1,8 +1,10 @@
 """Picking a Pareto solution and exporting it (``python -m mjxskill.select``).
 
 A pick by constraint keeps the Pareto solutions within every given limit (``--max-force``: the
-largest feed-forward force the skills commanded in an episode, N, mean over the worlds; ``--min-success``) and takes the
-one with the highest success rate, ties broken by the first objective. The choice is written to
+peak of the measured contact force between the tool and the world in an episode, N, mean over
+the worlds; ``--min-success``) and takes the one with the highest success rate, ties broken by
+the first objective. A run written before contact forces were measured has none: ``--max-force``
+is refused for it (its commanded force is no measure of what the tool did to the world). The choice is written to
 ``RUN_DIR/selected-<k>/parameters.yaml`` and ``parameters.json`` (parameter name -> value and
 unit, ready for a controller) and rendered there (PNG frames, or an MP4 with ffmpeg).
 """
@@ -23,14 +25,18 @@ def choose(front, max_force: float | None = None, min_success: float | None = No
     ok = np.ones(len(front), bool)
     # A NaN (a diverged world) meets no limit: it is not known to be within it.
     if max_force is not None:
-        ok &= front.max_force <= max_force
+        if len(front) and np.all(np.isnan(front.peak_contact_force)):
+            raise CommandError("--max-force limits the measured contact force, and this run has none (it was "
+                               "written before contact forces were measured; its commanded force is "
+                               "peak_commanded_force); pick with --pick K or --min-success, or train it again")
+        ok &= front.peak_contact_force <= max_force
     if min_success is not None:
         ok &= front.success_rate >= min_success
     if not ok.any():
         limits = ", ".join(f"{name} {value:g}" for name, value in (("--max-force", max_force), ("--min-success", min_success))
                            if value is not None)
         raise CommandError(f"no Pareto solution meets {limits or 'the limits'}: the front's {len(front)} rows have "
-                           f"peak forces {_span(front.max_force, '{:.1f}', ' N')} and success rates "
+                           f"peak contact forces {_span(front.peak_contact_force, '{:.1f}', ' N')} and success rates "
                            f"{_span(front.success_rate, '{:.0%}', '')}")
     rows = np.flatnonzero(ok)
     order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows]))
@@ -57,7 +63,9 @@ def export_document(config, front, k: int, run_path: Path) -> dict:
         },
         "objectives": {name: float(v) for name, v in zip(config.objective_names, front.objectives[k])},
         "success_rate": float(front.success_rate[k]),
-        "max_force_N": float(front.max_force[k]),
+        "peak_contact_force_N": float(front.peak_contact_force[k]),
+        "mean_contact_force_N": float(front.mean_contact_force[k]),
+        "peak_commanded_force_N": float(front.peak_commanded_force[k]),
         "evaluated_in": f"{config.worlds} randomized worlds, {config.episode_seconds:g} s episodes",
     }
 

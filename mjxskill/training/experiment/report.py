@@ -6,7 +6,8 @@ report.json: ``task``; ``status`` (repetitions done of all); ``protocol`` (every
 ``pick_rule`` and ``picked`` (per repetition); ``front_size`` (``mean``, ``sd``, per
 repetition, and the random search's); ``groups`` (group -> ``known``, ``unseen`` mean success
 rates); ``samples`` (their counts); ``mann_whitney`` (baseline -> ``known``, ``unseen``: p of the
-picked solutions against it); ``force_and_time``; ``hypervolume`` (``optimizer``,
+picked solutions against it); ``force_and_time`` (group -> ``peak_commanded_force_N``, the
+commanded force, and ``success_time_s``); ``hypervolume`` (``optimizer``,
 ``random_search``: final hypervolume per repetition; the curves, the space and reference point);
 ``wall_time`` (per repetition and kind, seconds); ``sessions``; ``paper`` (the side-by-side rows).
 """
@@ -110,11 +111,11 @@ def markdown(s: dict, figures: bool = True) -> str:
     names = list(p["parameters"])
     rows = [[str(r["seed"]), _num(r["pareto_row"], "{}"), _num(r["bound_N"], "{:.2f} N")]
             + ([_num(r["parameters"][n], "{:.4g}") for n in names] + [_pct(r["training_success"]),
-               _num(r["training_max_force_N"], "{:.2f}"), _pct(r["known"]), _pct(r["unseen"])]
+               _num(r["training_peak_commanded_force_N"], "{:.2f}"), _pct(r["known"]), _pct(r["unseen"])]
                if r["pareto_row"] is not None else ["no Pareto solution within the bound"] + [""] * (len(names) + 3))
             for r in s["picked"]]
     lines += _table(["seed", "Pareto row", "bound", *(n.split(".")[-1] for n in names), "training success",
-                     "force [N]", "known", "unseen"], rows) + [""]
+                     "commanded force [N]", "known", "unseen"], rows) + [""]
 
     f = s["front_size"]
     lines += ["## Pareto fronts", ""] + ([f"![Pareto fronts]({FRONTS})", ""] if figures else [])

@@ -79,7 +79,7 @@ def normalization(runs: list[Evaluations]) -> tuple[np.ndarray, np.ndarray]:
 
 def normalized_curve(ev: Evaluations, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(evaluations done after each batch, hypervolume there) in the normalized space."""
-    scaled = Evaluations(ev.iteration, ev.params, -((-ev.objectives - lo) / (hi - lo)), ev.success_rate, ev.max_force)
+    scaled = Evaluations(ev.iteration, ev.params, -((-ev.objectives - lo) / (hi - lo)), *ev[3:])  # not _replace: len() is rows
     return hypervolume_history(scaled, np.full(ev.objectives.shape[1], 1.0 + HV_MARGIN))
 
 
@@ -164,7 +164,8 @@ def summarize(exp: Experiment) -> dict:
                      "known_configs": n_known, "unseen_configs": None if not reps else int((~reps[0].evaluation.known).sum()),
                      "evaluation_seeds": "each repetition's own training seed"},
         "pick_rule": ("the Pareto solution with the highest training success rate among those whose commanded force "
-                      "(largest feed-forward force of an episode, mean over the training worlds) is at most the bound; "
+                      "(peak_commanded_force: the largest feed-forward force the skills command in an episode, mean "
+                      "over the training worlds; not the measured contact force) is at most the bound; "
                       "ties: the higher first objective. Bound: " +
                       (f"{protocol.max_force:g} N (given)" if protocol.max_force is not None else
                        "the largest force an operator set commands in the repetition's evaluation")),
@@ -173,7 +174,7 @@ def summarize(exp: Experiment) -> dict:
         "groups": means,
         "samples": {g: {"known": len(v[0]), "unseen": len(v[1])} for g, v in samples.items()},
         "mann_whitney": pooled_tests(samples),
-        "force_and_time": {g: {"max_force_N": _finite(f), "success_time_s": _finite(t)} for g, (f, t) in force_time.items()},
+        "force_and_time": {g: {"peak_commanded_force_N": _finite(f), "success_time_s": _finite(t)} for g, (f, t) in force_time.items()},
         "hypervolume": hypervolumes(reps),
         "wall_time": {str(r.seed): {kind: state["times"].get(time_key(kind, r.seed), {})
                                     for kind in ("optimizer", "random_search")} for r in reps},
@@ -193,7 +194,7 @@ def _picked(r: Repetition, config: RunConfig) -> dict:
         ev = r.evaluation
         row = ev.candidates.names.index(f"pareto-{p.row}")
         out.update(parameters=dict(zip(config.parameter_names, map(float, r.front.params[p.row]))),
-                   training_success=float(r.front.success_rate[p.row]), training_max_force_N=float(r.front.max_force[p.row]),
+                   training_success=float(r.front.success_rate[p.row]), training_peak_commanded_force_N=float(r.front.peak_commanded_force[p.row]),
                    known=float(ev.mean(True)[row]), unseen=_finite(ev.mean(False)[row]))
     return out
 

@@ -81,7 +81,10 @@ def run_document(path: Path, entries: list[RunEntry]) -> dict:
 
 def _row(ev: Evaluations, i: int) -> dict:
     return {"iteration": int(ev.iteration[i]), "params": numbers(ev.params[i]), "objectives": numbers(ev.objectives[i]),
-            "success_rate": number(ev.success_rate[i]), "max_force": number(ev.max_force[i])}
+            "success_rate": number(ev.success_rate[i]),
+            # the measured contact force (what --max-force limits) and the commanded one
+            "peak_contact_force": number(ev.peak_contact_force[i]), "mean_contact_force": number(ev.mean_contact_force[i]),
+            "peak_commanded_force": number(ev.peak_commanded_force[i])}
 
 
 def evaluation_rows(ev: Evaluations, front: Evaluations) -> np.ndarray:

@@ -6,7 +6,7 @@ worlds ``python -m mjxskill.evaluate`` uses (``per_config`` worlds from every kn
 start configuration, ``evaluation_worlds``), and rendered in the world ``select`` renders from
 (``render_world``: known start configuration ``c``, seed 0). Results go to::
 
-    RUN/explore/evaluation-<index>/worlds.json       per-world success, max force, position error
+    RUN/explore/evaluation-<index>/worlds.json       per-world success, peak contact force, position error
     RUN/explore/evaluation-<index>/known-<c>/        PNG frames (or known-<c>.mp4 with ffmpeg)
     RUN/explore/evaluation-<index>/known-<c>.json    what was rendered, in which world
 
@@ -193,16 +193,17 @@ class Solutions:
         out = rollout.run_worlds(job.params[None], worlds)
         success = np.asarray(out.success, bool)[0]
         metric = lambda name: np.asarray(out.metrics[name], np.float64)[0]  # noqa: E731
-        force, error = metric("max_force"), metric("position_error")
+        force, error = metric("peak_contact_force"), metric("position_error")
         configs = []
         for c, name in enumerate(names):
             rows = slice(c * self.per_config, (c + 1) * self.per_config)
             configs.append({"name": name, "known": bool(known[c]), "success_rate": float(success[rows].mean()),
-                            "worlds": [{"success": bool(s), "max_force": number(f), "position_error": number(e)}
+                            "worlds": [{"success": bool(s), "peak_contact_force": number(f), "position_error": number(e)}
                                        for s, f, e in zip(success[rows], force[rows], error[rows])]})
         return {"format": FORMAT, "params": numbers(job.params), "per_config": self.per_config, "seed": self.seed,
                 "episode_seconds": job.entry.config.episode_seconds, "success_rate": float(success.mean()),
-                "max_force": number(force.mean()), "configs": configs}
+                "peak_contact_force": number(np.nanmean(force)) if np.isfinite(force).any() else None,
+                "configs": configs}
 
     def _render(self, job: Job, rollout, folder: Path) -> str:
         from mjxskill.training.render import RenderUnavailable, render_episode, render_world

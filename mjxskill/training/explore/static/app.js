@@ -47,7 +47,7 @@ function meets(row) {
   const { minSuccess, maxForce } = limits();
   if (!filtering()) return null;
   return (minSuccess === null || (row.success_rate !== null && row.success_rate >= minSuccess))
-    && (maxForce === null || (row.max_force !== null && row.max_force <= maxForce));
+    && (maxForce === null || (row.peak_contact_force !== null && row.peak_contact_force <= maxForce));
 }
 
 // -- drawing ---------------------------------------------------------------------------------
@@ -73,7 +73,7 @@ function frontTable() {
     const tr = element("tr", { class: `${m === null ? "" : m ? "meets" : "fails"}${chosen ? " selected" : ""}`, "data-run": r.run, "data-k": r.k },
       ...(isMulti() ? [element("td", {}, S.run.runs[r.run].label)] : []), element("td", {}, String(r.k)),
       ...r.params.map((v) => element("td", {}, fmt(v))), ...r.objectives.map((v) => element("td", {}, fmt(v, 5))),
-      element("td", {}, pct(r.success_rate)), element("td", {}, newtons(r.max_force)));
+      element("td", {}, pct(r.success_rate)), element("td", {}, newtons(r.peak_contact_force)));
     tr.addEventListener("click", () => select(r.run, r.index));
     return tr;
   }));
@@ -93,7 +93,8 @@ function select(run, index) {
   table($("objectives"), ["in training", "value"], [
     ...S.run.objectives.map((o, i) => element("tr", {}, element("td", {}, `objective ${o} (reward)`), element("td", {}, fmt(row.objectives[i], 6)))),
     element("tr", {}, element("td", {}, `success rate (${S.run.worlds} worlds)`), element("td", {}, pct(row.success_rate))),
-    element("tr", {}, element("td", {}, "max force commanded (mean over worlds)"), element("td", {}, newtons(row.max_force))),
+    element("tr", {}, element("td", {}, "peak contact force (mean over worlds)"), element("td", {}, newtons(row.peak_contact_force))),
+    element("tr", {}, element("td", {}, "peak commanded force (mean over worlds)"), element("td", {}, newtons(row.peak_commanded_force))),
     element("tr", {}, element("td", {}, "batch (iteration)"), element("td", {}, String(row.iteration))),
   ]);
   $("export").disabled = row.k === null;
@@ -148,12 +149,12 @@ function showWorlds(w) {
     select.value = value;
   }
   const mark = (s) => element("span", { class: s.success ? "ok" : "ko",
-    title: `max force ${newtons(s.max_force)}, final position error ${s.position_error === null ? "n/a" : (1000 * s.position_error).toFixed(0) + " mm"}` },
+    title: `peak contact force ${newtons(s.peak_contact_force)}, final position error ${s.position_error === null ? "n/a" : (1000 * s.position_error).toFixed(0) + " mm"}` },
     s.success ? "✓" : "✗");
   const t = element("table", { id: "worlds-table" });
-  table(t, ["start configuration", "success", "worlds", "max force (mean)"], w.configs.map((c) =>
+  table(t, ["start configuration", "success", "worlds", "peak contact force (mean)"], w.configs.map((c) =>
     element("tr", { "data-config": c.name }, element("td", {}, `${c.name}${c.known ? "" : " (unseen)"}`), element("td", {}, pct(c.success_rate)),
-      element("td", {}, ...c.worlds.map(mark)), element("td", {}, newtons(c.worlds.reduce((a, s) => a + (s.max_force || 0), 0) / c.worlds.length)))));
+      element("td", {}, ...c.worlds.map(mark)), element("td", {}, newtons(c.worlds.reduce((a, s) => a + (s.peak_contact_force || 0), 0) / c.worlds.length)))));
   $("worlds").replaceChildren(element("div", { class: "muted" },
     `${pct(w.success_rate)} of ${w.configs.length * w.per_config} worlds (${w.per_config} per start configuration, seed ${w.seed}, as evaluate)`), t);
 }

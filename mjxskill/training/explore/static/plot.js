@@ -31,7 +31,7 @@ function padded(extent) {
   return [lo - pad, hi + pad];
 }
 
-// opts: evaluations, front (rows with run, index, k, objectives, success_rate, max_force),
+// opts: evaluations, front (rows with run, index, k, objectives, success_rate, peak_contact_force, ...),
 // xi, yi (objective indices), objectiveNames, runs (labels), colourBy ("success" | "run"),
 // selected ({run, index} or null), meets (row -> true | false | null: no filter), onSelect.
 function drawPareto(svgEl, opts) {
@@ -47,7 +47,7 @@ function drawPareto(svgEl, opts) {
   const fill = (r) => (opts.colourBy === "run" ? runColour(r.run) : viridis(r.success_rate));
   const pct = (s) => (s === null ? "n/a" : `${Math.round(100 * s)} %`);
   const title = (r) => `${opts.runs[r.run]} · ${r.k === null || r.k === undefined ? "evaluation " + r.index : "Pareto k=" + r.k}`
-    + ` · success ${pct(r.success_rate)} · max force ${r.max_force === null ? "n/a" : r.max_force.toFixed(1) + " N"}`;
+    + ` · success ${pct(r.success_rate)} · peak contact force ${r.peak_contact_force === null ? "n/a" : r.peak_contact_force.toFixed(1) + " N"}`;
   const pick = (event, r) => opts.onSelect(r.run, r.index);
 
   f.g.append("g").selectAll("circle").data(all).join("circle")

@@ -1,0 +1,88 @@
+"""The world model's vocabularies, each declared once: reward kinds, shapes, success tests.
+
+The loader (``mjxskill.scenario``) reads what a YAML may and must give from these tables; each
+engine keeps one implementation per entry (rewards: ``mjxskill.rollout.rewards`` and
+``mjxskill.native.rewards``; success tests: ``mjxskill.rollout.success`` and
+``mjxskill.native.success``; shapes: ``mjxskill.sim.shapes``), and tests check that every
+registry names exactly its table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Mapping
+
+
+REQUIRED = None  # a reward constant without a default: the YAML must give it
+
+
+@dataclass(frozen=True)
+class RewardKind:
+    """One entry of the reward vocabulary.
+
+    constants: name -> default (``REQUIRED``: the YAML must give it); the loader rejects any
+    other constant. needs: the reward's own keys the kind reads ("object", "target").
+    """
+
+    constants: Mapping[str, float | None]
+    needs: tuple[str, ...] = ()
+
+
+# The reward vocabulary, read by the loader (what a YAML may and must give), the compiled
+# rewards (mjxskill.rollout.rewards) and the native ones (mjxskill.native.rewards): one table, so
+# the three cannot disagree about a kind, a constant or a default. Meanings: ``Reward``.
+REWARD_KINDS: Mapping[str, RewardKind] = MappingProxyType(
+    {
+        "task_completion": RewardKind(MappingProxyType({"value": REQUIRED})),
+        "ee_distance_to_box": RewardKind(MappingProxyType({"w": REQUIRED, "d_o": REQUIRED}), ("target",)),
+        "applied_wrench": RewardKind(MappingProxyType({"cap": 100.0})),
+        "contact_force": RewardKind(MappingProxyType({"cap": 100.0})),
+        "exp_ee_to_goal": RewardKind(MappingProxyType({"sigma_w": REQUIRED, "d_o": REQUIRED}), ("target",)),
+        "exp_ee_to_reference": RewardKind(MappingProxyType({"sigma_w": REQUIRED, "d_o": REQUIRED})),
+        "object_pose_divergence": RewardKind(
+            MappingProxyType(
+                {"sigma_w": REQUIRED, "d_o": REQUIRED, "position_weight": REQUIRED, "orientation_weight": REQUIRED}
+            ),
+            ("object", "target"),
+        ),
+    }
+)
+
+
+@dataclass(frozen=True)
+class ShapeKind:
+    """One entry of the shape vocabulary: how many numbers ``size`` has (what they are: the
+    comment of ``SHAPES``) and the ``extra`` constants the shape takes (all required)."""
+
+    size: int
+    extra: tuple[str, ...] = ()
+
+
+# The shapes the world model knows, read by the loader (size and extra keys) and by
+# mjxskill.sim.shapes (inertia and geometry, one registry with exactly these names).
+# pose: no body, size []. box: [x, y, z] edge lengths. right_triangle_prism: legs [x, y] along
+# the body axes and height z, body origin at the triangle's centroid at half height, the right
+# angle at (-x/3, -y/3). box_with_hole: outer [x, y, z], origin at the bottom centre, a hole
+# centred and open at the top, hole_depth deep and hole_clearance wider on each side than the
+# item the robot holds.
+SHAPES: Mapping[str, ShapeKind] = MappingProxyType(
+    {
+        "pose": ShapeKind(0),
+        "box": ShapeKind(3),
+        "right_triangle_prism": ShapeKind(3),
+        "box_with_hole": ShapeKind(3, ("hole_clearance", "hole_depth")),
+    }
+)
+
+
+# The success tests a scenario can select (``success.kind``): kind -> (required keys, optional
+# keys) besides kind, object and target. Both engines keep one test per kind
+# (mjxskill.rollout.success, mjxskill.native.success) and a test checks they name exactly these.
+SUCCESS_KINDS: Mapping[str, tuple[tuple[str, ...], tuple[str, ...]]] = MappingProxyType(
+    {
+        "object_at_pose": (("position_tolerance", "orientation_tolerance_deg"), ()),
+        "inserted": (("depth",), ()),
+        "object_in_region": (("region_size",), ("region_center", "orientation_tolerance_deg")),
+    }
+)
