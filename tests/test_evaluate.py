@@ -93,10 +93,21 @@ def test_success_per_start_configuration_known_and_unseen(monkeypatch):
 def test_significance_stars_against_exact_mann_whitney():
     # Completely separated samples of 4 and 4: exact two-sided p = 2 / C(8, 4) = 0.02857.
     p, stars = significance(np.array([0.1, 0.2, 0.3, 0.4]), np.array([0.6, 0.7, 0.8, 0.9]))
-    assert p == pytest.approx(2 / 70) and stars == "*"
+    assert p == pytest.approx(2 / 70) and stars == "**"  # the paper's levels: < 0.1, 0.05, 0.01, 0.001
+    # 3 vs 3 completely separated: exact p = 2 / C(6, 3) = 0.1, not below the first level
+    assert significance(np.array([1.0, 2, 3]), np.array([4.0, 5, 6])) == (pytest.approx(0.1), "ns")
+    # 4 vs 3: 2 / C(7, 3) = 0.0571: one star
+    assert significance(np.array([1.0, 2, 3, 4]), np.array([5.0, 6, 7])) == (pytest.approx(2 / 35), "*")
     p, stars = significance(np.ones(12), np.zeros(12))
-    assert p < 0.001 and stars == "***"
+    assert p < 0.001 and stars == "****"
     assert significance(np.full(5, 0.5), np.full(4, 0.5)) == (1.0, "ns")
+
+
+def test_stars_at_the_paper_levels():
+    from mjxskill.training.evaluation import stars_of
+
+    assert [stars_of(p) for p in (0.2, 0.1, 0.099, 0.05, 0.049, 0.01, 0.0099, 0.001, 0.0009)] == \
+        ["ns", "ns", "*", "*", "**", "**", "***", "***", "****"]
 
 
 def test_csv_table_and_box_plot(tmp_path):
@@ -110,7 +121,7 @@ def test_csv_table_and_box_plot(tmp_path):
     tests = plot_boxes(ev, tmp_path / "success.png", "toy")
     assert (tmp_path / "success.png").stat().st_size > 10_000
     assert set(tests) == {(lab, g) for lab in ("known", "unseen") for g in ("planner", "random", "manual")}
-    assert tests[("known", "random")][1] == "***"  # 8 samples of ~1 vs 8 of ~0
+    assert tests[("known", "random")][1] == "****"  # 8 samples of ~1 vs 8 of ~0
     write_csv(ev, ("S.a", "S.b"), tmp_path / "e.csv")
     with open(tmp_path / "e.csv") as fh:
         rows = list(csv.DictReader(fh))

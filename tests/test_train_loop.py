@@ -42,11 +42,11 @@ class Recorder:
         return toy_objective(x, iteration)
 
 
-def new_run(tmp_path, name):
+def new_run(tmp_path, name, config=CONFIG):
     src = tmp_path / "src.yaml"
     src.write_text("name: toy\n")
     run = Run(tmp_path / name)
-    run.create(CONFIG, str(src), {})
+    run.create(config, str(src), {})
     return run
 
 

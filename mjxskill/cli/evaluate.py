@@ -1,14 +1,22 @@
-"""``python -m mjxskill.evaluate RUN_DIR``: the learned Pareto solutions against baselines.
+"""``python -m mjxskill.evaluate DIR``: the learned Pareto solutions against baselines.
 
     python -m mjxskill.evaluate runs/push-0
     python -m mjxskill.evaluate runs/push-0 --per-config 10 --random 10
+    python -m mjxskill.evaluate runs/push-x10                 # a repeated run: every seed, then pooled
+    python -m mjxskill.evaluate runs/peg-exp                  # an experiment: its protocol, then its report
 
-What it runs and writes: ``mjxskill.training.evaluation``.
+DIR is a run, a repeated run (``train --repeats``) or an experiment directory
+(``mjxskill.training.runs``). A run's evaluation goes to ``RUN_DIR/evaluation/`` and is reused
+when it is current (``mjxskill.training.evaluate_run``). A repeated run evaluates sub-run i in
+the worlds of seed ``--seed`` + i and pools them: one picked solution per run against the
+baselines (``mjxskill.training.pooled``), in ``DIR/evaluation/``. An experiment evaluates every
+repetition whose runs are finished with its own protocol and rewrites its report.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 from typing import Sequence
 
@@ -21,47 +29,151 @@ from mjxskill.training.settings import BY_NAME
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="mjxskill.evaluate", description="Success rates of the Pareto solutions against baselines, per start configuration.")
-    parser.add_argument("run", type=Path, help="run directory written by mjxskill.train")
-    parser.add_argument("--per-config", type=cli_args.positive_int, default=5, help="worlds per start configuration (default 5)")
-    parser.add_argument("--random", type=cli_args.int_at_least(0), default=10, help="random parameter sets (default 10)")
-    parser.add_argument("--seed", type=cli_args.seed_type(), default=0, help="seed of the worlds and the random sets")
+    parser.add_argument("run", type=Path, help="run, repeated run or experiment directory")
+    parser.add_argument("--per-config", type=cli_args.positive_int, help="worlds per start configuration (default 5)")
+    parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets (default 10)")
+    parser.add_argument("--seed", type=cli_args.seed_type(), help="seed of the worlds and the random sets (default 0; "
+                        "a repeated run's sub-run i: seed + i)")
     parser.add_argument("--batch-size", type=cli_args.positive_int, help="candidates per compiled call (default: the run's batch size)")
     parser.add_argument("--episode-seconds", type=cli_args.setting_type(BY_NAME["episode_seconds"]),
                         help="episode length in s (default: the run's)")
     parser.add_argument("--engine", choices=CHOICES, help="physics engine (default: the run's; the other one checks "
                         "how a solution transfers between engines)")
+    parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="force bound of each repeated "
+                        "run's picked solution, N (default: the largest force an operator set commands)")
     return parser
 
 
+def _settings(args, config, seed: int) -> dict:
+    from mjxskill.training.evaluate_run import evaluation_settings
+
+    engine = resolve_engine(args.engine)[0] if args.engine else config.engine
+    return evaluation_settings(args.per_config or 5, 10 if args.random is None else args.random, seed,
+                               args.batch_size or config.batch_size, engine, args.episode_seconds or config.episode_seconds)
+
+
+def _rollout(args, scn, task, settings: dict, config):
+    why = resolve_engine(args.engine)[1] if args.engine else "the run's"
+    print(f"engine: {settings['engine']} ({why})", flush=True)
+    return build_rollout(scn, task, settings["engine"], worlds=1, episode_seconds=settings["episode_seconds"])
+
+
+def _say(scn, settings: dict, run, config, task) -> None:
+    n = len(run.front(config)) + 1 + settings["random"] + len(task.manual_parameters)
+    n_known, n_unseen = len(scn.robot.start_configs), len(scn.robot.eval_configs)
+    print(f"{run.path}: evaluating {n} parameter sets x {n_known + n_unseen} start configurations x "
+          f"{settings['per_config']} worlds ({n_known} known, {n_unseen} unseen), worlds of seed {settings['seed']}", flush=True)
+
+
+def _progress(done: int, total: int) -> None:
+    print(f"  evaluated {done}/{total} parameter sets", flush=True)
+
+
 def _main(args: argparse.Namespace) -> int:
-    from mjxskill.training.evaluation import build_candidates, evaluate_candidates, plot_boxes, table, write_csv
+    from mjxskill.training.runs import directory_kind
+
+    kind = directory_kind(args.run)
+    if kind == "experiment":
+        return _experiment(args)
+    return _runs(args, repeated=kind == "repeated")
+
+
+def _runs(args: argparse.Namespace, repeated: bool) -> int:
+    from mjxskill.training.evaluate_run import FOLDER, evaluate_run
+    from mjxskill.training.evaluation import table
+    from mjxskill.training.experiment.directory import runs_of
     from mjxskill.training.run_dir import Run
     from mjxskill.training.run_task import load_run_task
 
     run = Run(args.run)
     config = run.config()
-    if config.repeats > 1:
-        raise CommandError(f"{run.path} holds {config.repeats} repeated runs; evaluate one of them, e.g. {run.sub_runs(config)[0].path}")
-    front = run.front(config)  # an empty front is refused as select refuses it
+    subs = runs_of(run, config)
+    for sub in subs:  # every front is there before anything is compiled
+        sub.front(sub.config())
     scn, task = load_run_task(run, config)
-    candidates = build_candidates(task, front.params, args.random, args.seed)
-    n_cfg = len(scn.robot.start_configs) + len(scn.robot.eval_configs)
-    print(f"evaluating {len(candidates.names)} parameter sets x {n_cfg} start configurations x {args.per_config} worlds "
-          f"({len(scn.robot.start_configs)} known, {len(scn.robot.eval_configs)} unseen)", flush=True)
+    seed = 0 if args.seed is None else args.seed
+    rollout = _rollout(args, scn, task, _settings(args, config, seed), config)
+    results = []
+    try:
+        for i, sub in enumerate(subs):
+            sub_config = sub.config()
+            settings = _settings(args, sub_config, seed + i)
+            _say(scn, settings, sub, sub_config, task)
+            with sub.lock():
+                ev, tests, reused = evaluate_run(sub, sub_config, rollout, task, settings, progress=_progress)
+            if reused:
+                print(f"{sub.path / FOLDER} is current (same settings and front): reused")
+            if not repeated:
+                print(table(ev, tests))
+            print(f"wrote {sub.path / FOLDER}")
+            results.append((sub, sub_config, ev))
+    finally:
+        getattr(rollout, "close", lambda: None)()
+    if repeated:
+        print(_pool(run, config, results, args.max_force))
+    return 0
 
-    engine, why = resolve_engine(args.engine) if args.engine else (config.engine, "the run's")
-    print(f"engine: {engine} ({why})", flush=True)
-    rollout = build_rollout(scn, task, engine, worlds=1, episode_seconds=args.episode_seconds or config.episode_seconds)
-    ev = evaluate_candidates(rollout, candidates, args.per_config, args.seed, args.batch_size or config.batch_size)
-    out = run.path / "evaluation"
+
+def _pool(run, config, results, max_force) -> str:
+    """Picks, pooled groups and tests of a repeated run into ``DIR/evaluation/``."""
+    from mjxskill.training.evaluate_run import FOLDER
+    from mjxskill.training.pooled import group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
+
+    picks = [pick(sub.front(c), ev, max_force) for sub, c, ev in results]
+    samples = pooled_samples([ev for _, _, ev in results], picks)
+    tests = pooled_tests(samples)
+    out = run.path / FOLDER
     out.mkdir(exist_ok=True)
-    write_csv(ev, config.parameter_names, out / "evaluation.csv")
-    tests = plot_boxes(ev, out / "success.png", f"{config.task}: success rate per start configuration")
-    print(table(ev, tests))
-    print(f"wrote {out / 'evaluation.csv'} and {out / 'success.png'}")
+    plot_pooled(samples, out / "success.png", f"{config.task}: success rate per start configuration, {len(results)} runs")
+    doc = {"runs": [str(sub.path) for sub, _, _ in results],
+           "picked": [{"seed": c.seed, "pareto_row": p.row, "bound_N": p.bound, "bound_source": p.source}
+                      for (_, c, _), p in zip(results, picks)],
+           "groups": group_means(samples), "samples": {g: {"known": len(v[0]), "unseen": len(v[1])} for g, v in samples.items()},
+           "mann_whitney": tests}
+    (out / "pooled.json").write_text(json.dumps(doc, indent=1) + "\n")
+    lines = [f"seed {c.seed}: picked Pareto row {p.row} (bound {p.bound if p.bound is None else f'{p.bound:.2f} N'}: {p.source})"
+             for (_, c, _), p in zip(results, picks)]
+    return "\n".join([*lines, "", pooled_table(samples, tests), f"wrote {out / 'success.png'} and {out / 'pooled.json'}"])
+
+
+def _experiment(args: argparse.Namespace) -> int:
+    from mjxskill.training.experiment import Experiment, write_report
+    from mjxskill.training.experiment.directory import is_done, repetition_settings
+    from mjxskill.training.experiment.driver import evaluate_timed
+    from mjxskill.training.run_task import load_run_task
+
+    exp = Experiment(args.run)
+    config, protocol = exp.config(), exp.protocol()
+    given = {"--per-config": (args.per_config, protocol.per_config), "--random": (args.random, protocol.random_sets),
+             "--max-force": (args.max_force, protocol.max_force), "--episode-seconds": (args.episode_seconds, config.episode_seconds),
+             "--engine": (args.engine and resolve_engine(args.engine)[0], config.engine)}
+    conflicts = [f"{flag} {value} (the experiment has {own})" for flag, (value, own) in given.items()
+                 if value is not None and value != own]
+    if args.seed is not None:
+        conflicts.append(f"--seed {args.seed} (each repetition is evaluated in the worlds of its own seed)")
+    if conflicts:
+        raise CommandError(f"{exp.path} is evaluated with its own protocol; drop {', '.join(conflicts)}")
+    scn, task = load_run_task(exp.optimizer, config)
+    ready = [(config.seed + i, opt) for i, (opt, rnd) in enumerate(exp.runs(config))
+             if is_done(opt, opt.config()) and is_done(rnd, rnd.config())]
+    if not ready:
+        raise CommandError(f"{exp.path} has no finished repetition yet; continue it with python -m mjxskill.experiment "
+                           f"{config.task} --resume {exp.path}")
+    with exp.lock():
+        rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
+        try:
+            for seed, opt in ready:
+                settings = repetition_settings(config, protocol, seed)
+                if args.batch_size:
+                    settings["batch_size"] = args.batch_size
+                _say(scn, settings, opt, opt.config(), task)
+                ran = evaluate_timed(exp, opt, rollout, task, settings, progress=_progress)
+                print(f"wrote {opt.path / 'evaluation'}" if ran else f"{opt.path / 'evaluation'} is current: reused")
+        finally:
+            getattr(rollout, "close", lambda: None)()
+        print(write_report(exp))
     return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     return cli.run(_main, build_parser(), argv)
-

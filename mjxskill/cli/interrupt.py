@@ -99,6 +99,20 @@ def acknowledge() -> None:
     _state["acknowledged"] = True
 
 
+def stopped(prog: str, save=None) -> int:
+    """A command's answer to the KeyboardInterrupt it caught: acknowledge it, ``save()`` what
+    shows the finished work (figures, a report; a failure there must not hide the message),
+    print the message and return ``EXIT_INTERRUPTED``."""
+    acknowledge()
+    if save is not None:
+        try:
+            save()
+        except Exception:  # noqa: BLE001  (a plotting problem must not hide where the work is)
+            pass
+    print(f"\n{prog}: {message()}", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
 def _on_sigint(signum, frame) -> None:
     _state["pressed"] = True
     if _in_gc_callback(frame):  # it would be printed and dropped there: raise it again after

@@ -1,9 +1,15 @@
-"""``python -m mjxskill.select RUN_DIR``: pick a Pareto solution, export it, render it.
+"""``python -m mjxskill.select DIR``: pick a Pareto solution, export it, render it.
 
     python -m mjxskill.select runs/push-0                    # list the Pareto front
     python -m mjxskill.select runs/push-0 --pick 2           # row 2 of pareto.csv
     python -m mjxskill.select runs/push-0 --max-force 20     # the most successful whose tool pressed < 20 N
     python -m mjxskill.select runs/push-0 --pick 2 --format mp4 --config-index 1
+    python -m mjxskill.select runs/peg-exp --max-force 5     # over every run of an experiment
+
+DIR may be a repeated run or an experiment (``mjxskill.training.runs``): the fronts of all its
+runs are listed in one table (# numbers every row, ``run`` names the run and its row), ``--pick``
+and the constraints choose from all of them, and the export goes to
+``DIR/selected-<kind>-<seed>-<row>/``.
 
 The rule of a pick by constraint and the export format: ``mjxskill.training.selection``.
 """
@@ -22,9 +28,9 @@ from mjxskill.errors import CommandError
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="mjxskill.select", description="Pick a Pareto solution, export its parameters and render it.")
-    parser.add_argument("run", type=Path, help="run directory written by mjxskill.train")
+    parser.add_argument("run", type=Path, help="run, repeated run or experiment directory")
     pick = parser.add_argument_group("choice (none: list the front)")
-    pick.add_argument("--pick", type=cli_args.int_at_least(0), metavar="K", help="row K of pareto.csv")
+    pick.add_argument("--pick", type=cli_args.int_at_least(0), metavar="K", help="row K of the listed front (of pareto.csv for one run)")
     pick.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="peak measured contact force of the tool (mean over worlds) at most N newtons")
     pick.add_argument("--min-success", type=cli_args.nonnegative_float, metavar="RATE", help="success rate at least RATE (0-1)")
     parser.add_argument("--out", type=Path, help="export folder (default RUN_DIR/selected-<K>)")
@@ -36,37 +42,69 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _fronts(path: Path):
+    """([(ref, run, its config, its front)], whether ``path`` holds several runs) for the runs
+    ``path`` holds (a run, a repeated run or an experiment: ``mjxskill.training.runs``). Of several,
+    those not trained yet are left out (an experiment in progress lists the runs done so far); a
+    damaged file is refused as ever."""
+    from mjxskill.training.run_dir import PARETO, Run
+    from mjxskill.training.runs import runs_in
+
+    refs = runs_in(path)
+    out = []
+    for ref in refs:
+        run = Run(ref.path)
+        config = run.config()
+        if len(refs) > 1 and (not (run.path / PARETO).is_file() or len(run.pareto(config)) == 0):
+            continue
+        out.append((ref, run, config, run.front(config)))
+    if not out:  # none trained: what a single run says
+        run = Run(refs[0].path)
+        run.front(run.config())
+    return out, len(refs) > 1
+
+
 def _main(args: argparse.Namespace) -> int:
     from mjxskill.training.render import default_gl
 
     default_gl()  # before anything imports mujoco
     from mjxskill.training.report import front_table
-    from mjxskill.training.run_dir import Run
+    from mjxskill.training.run_dir import concat_all
     from mjxskill.training.selection import choose, export_document, write_export
 
-    run = Run(args.run)
-    config = run.config()
-    if config.repeats > 1:
-        raise CommandError(f"{run.path} holds {config.repeats} repeated runs; select from one of them, e.g. {run.sub_runs(config)[0].path}")
-    front = run.front(config)
+    fronts, several = _fronts(args.run)
     if args.min_success is not None and args.min_success > 1:
         raise CommandError(f"--min-success is a rate between 0 and 1, got {args.min_success}")
-    print(f"Pareto front of {run.path} ({len(front)} solutions):")
-    print(front_table(config, front))
+    _, run, config, _ = fronts[0]
+    union = concat_all([f for *_, f in fronts], len(config.parameter_names), len(config.objective_names))
+    owner = [(ref, sub, c, k) for ref, sub, c, f in fronts for k in range(len(f))]  # union row -> its run and row
+    if several:
+        print(f"Pareto fronts of the {len(fronts)} trained runs in {args.run} ({len(union)} solutions; # numbers them all, "
+              f"'run' names the run and its row of pareto.csv):")
+        labels = [f"{ref.kind} seed {ref.seed} row {k}" for ref, _, _, k in owner]
+        table = front_table(config, union).splitlines()
+        width = max(len(label) for label in labels)
+        print("\n".join([f"{'run'.ljust(width)}  {table[0]}", *(f"{label.ljust(width)}  {line}" for label, line in zip(labels, table[1:]))]))
+    else:
+        print(f"Pareto front of {run.path} ({len(union)} solutions):")
+        print(front_table(config, union))
     if args.pick is None and args.max_force is None and args.min_success is None:
         print("pick one with --pick K or a constraint (--max-force N, --min-success RATE)")
         return 0
     if args.pick is not None:
-        if args.pick >= len(front):
-            raise CommandError(f"--pick {args.pick}: the front has rows 0-{len(front) - 1}")
-        k = args.pick
+        if args.pick >= len(union):
+            raise CommandError(f"--pick {args.pick}: the front{'s have' if several else ' has'} rows 0-{len(union) - 1}")
+        i = args.pick
     else:
-        k = choose(front, args.max_force, args.min_success)
-    folder = args.out or run.path / f"selected-{k}"
+        i = choose(union, args.max_force, args.min_success)
+    ref, run, config, k = owner[i]
+    front = fronts[[f[0] for f in fronts].index(ref)][3]
+    folder = args.out or Path(args.run) / (f"selected-{ref.kind}-{ref.seed}-{k}" if several else f"selected-{k}")
     doc = export_document(config, front, k, run.path)
     for path in write_export(doc, folder):
         print(f"wrote {path}")
-    print(f"chose Pareto solution {k}: " + ", ".join(f"{n} = {v['value']:.4g} {v['unit']}" for n, v in doc["parameters"].items()))
+    print(f"chose Pareto solution {k}{f' of {run.path}' if several else ''}: "
+          + ", ".join(f"{n} = {v['value']:.4g} {v['unit']}" for n, v in doc["parameters"].items()))
     if args.no_render:
         return 0
 

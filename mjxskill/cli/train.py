@@ -4,6 +4,7 @@
     python -m mjxskill.train peg --budget 200 --batch-size 8 --init 40 --worlds 7 --seed 3 --out runs/peg-3
     python -m mjxskill.train push --resume runs/push-0
     python -m mjxskill.train push --repeats 10 --out runs/push-x10
+    python -m mjxskill.train push --optimizer random --out runs/push-random   # the random-search baseline
 
 The flags over the scenario's defaults make the run's configuration (``config.yaml``); the
 loop itself is ``mjxskill.training.loop.train``, which this command drives with a progress bar
@@ -78,17 +79,28 @@ def build_parser() -> argparse.ArgumentParser:
         description="Learn the free skill parameters of a task (multi-objective Bayesian optimization in MJX).",
     )
     cli_args.add_task_argument(parser)
-    for setting in SETTINGS:  # the same checks as config.yaml's (mjxskill.training.settings)
-        default = setting.default_text or ("the scenario's" if setting.scenario is not None else setting.default)
-        parser.add_argument(setting.flag, dest=setting.name, type=cli_args.setting_type(setting),
-                            help=f"{setting.help} (default: {default})")
+    add_setting_arguments(parser)
     parser.add_argument("--out", type=Path, help="run directory (default runs/<task>-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue the run in RUN_DIR to its budget")
+    return parser
+
+
+def add_setting_arguments(parser: argparse.ArgumentParser, skip: tuple[str, ...] = (), defaults: dict | None = None) -> None:
+    """One flag per run setting but ``skip`` (the same checks as config.yaml's,
+    mjxskill.training.settings; ``defaults``: name -> the default's text for the help), and
+    --quiet and --optimizer-option: the flags of every command that trains."""
+    for setting in SETTINGS:
+        if setting.name in skip:
+            parser.set_defaults(**{setting.name: None})
+            continue
+        default = (defaults or {}).get(setting.name) or setting.default_text or (
+            "the scenario's" if setting.scenario is not None else setting.default)
+        parser.add_argument(setting.flag, dest=setting.name, type=cli_args.setting_type(setting),
+                            help=f"{setting.help} (default: {default})")
     parser.add_argument("--quiet", action="store_true", help="no progress bar: one log line per batch")
     parser.add_argument("--optimizer-option", action="append", type=optimizer_option, metavar="KEY=VALUE", default=None,
                         help="an acquisition setting of mjxskill.gp (AcquisitionSettings), e.g. n_raw=256 or "
                              "model=scalarized (repeatable; stored with the run)")
-    return parser
 
 
 def optimizer_option(text: str) -> tuple[str, int | float | str]:
@@ -136,8 +148,10 @@ def resolve_config(args: argparse.Namespace, scn, task) -> RunConfig:
     return config
 
 
-def _resumed_config(args: argparse.Namespace) -> RunConfig:
-    run = Run(args.resume)
+def resumed_config(args: argparse.Namespace, run_path: Path | None = None) -> RunConfig:
+    """The configuration of the run ``--resume`` names (or ``run_path``, a run inside it),
+    refusing flags that would change it."""
+    run = Run(run_path or args.resume)
     config = run.config()
     if args.optimizer_option and dict(args.optimizer_option) != config.optimizer_options:
         raise CommandError(f"--resume continues {args.resume} with its own optimizer options {config.optimizer_options}; drop --optimizer-option")
@@ -155,7 +169,7 @@ def _main(args: argparse.Namespace) -> int:
     from mjxskill.training.run_task import load_run_task, scenario_and_task
 
     if args.resume is not None:
-        config = _resumed_config(args)
+        config = resumed_config(args)
         run = Run(args.resume)
         lock = run.lock()  # before anything is read for resuming: one writer per run
         with lock:
@@ -177,7 +191,8 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
     print(f"objectives (larger is better): {', '.join(config.objective_names)}")
     print(f"budget {config.budget} evaluations, batches of {config.batch_size}, {config.n_init} random warm-up, "
           f"{config.worlds} worlds, {config.episode_seconds:g} s episodes, seed {config.seed}"
-          + (f", {config.repeats} repeats" if config.repeats > 1 else ""))
+          + (f", {config.repeats} repeats" if config.repeats > 1 else "")
+          + (", uniform random search after the warm-up" if config.optimizer == "random" else ""))
     print(f"run directory: {run.path}", flush=True)
     why = "the run's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
     print(f"engine: {config.engine} ({why})", flush=True)
@@ -200,15 +215,10 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
                 report.write_run_figures(sub, sub_config, ev)
                 print(report.summary(sub, sub_config, ev), flush=True)
     except KeyboardInterrupt:
-        cli.interrupt.acknowledge()
-        try:  # figures of what is done; the CSV already holds every finished batch
-            from mjxskill.training import report
+        from mjxskill.training import report
 
-            report.write_run_figures(sub, sub_config, sub.evaluations(sub_config))
-        except Exception:  # noqa: BLE001  (a second Ctrl-C or a plotting problem must not hide the message)
-            pass
-        print(f"\nmjxskill.train: {cli.interrupt.message()}", file=sys.stderr)
-        return cli.EXIT_INTERRUPTED
+        # figures of what is done; the CSV already holds every finished batch
+        return cli.interrupt.stopped("mjxskill.train", lambda: report.write_run_figures(sub, sub_config, sub.evaluations(sub_config)))
     finally:
         if "rollout" in locals():
             getattr(rollout, "close", lambda: None)()  # the native engine's worker processes

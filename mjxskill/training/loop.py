@@ -1,6 +1,7 @@
 """The optimizer loop of a run: propose a batch, evaluate it, write it, repeat to the budget.
 
-Scenario -> plan -> eBT -> compiled rollout -> optimizer loop. Every batch is appended to
+Scenario -> plan -> eBT -> compiled rollout -> optimizer loop (the Bayesian optimizer, or uniform
+random search as the baseline it is compared with: ``propose``). Every batch is appended to
 ``evaluations.csv`` and flushed before the next proposal; the optimizer state is replayed from
 that file on resume (see ``mjxskill.training.run_dir``), so an interrupted run continues to the
 same budget and ends with the results of an uninterrupted one.
@@ -92,7 +93,7 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
         if batch in done:  # replayed: the optimizer sees it where the uninterrupted run did
             state = gp.tell(state, done[batch].params, -done[batch].objectives)
             continue
-        x = gp.ask(state, num=size)
+        x = propose(gp, state, config, size)
         result = evaluate(x, batch)
         new = done[batch] = Evaluations(np.full(len(x), batch), x, *(np.asarray(a, np.float64) for a in result))
         ev = known()
@@ -109,6 +110,23 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
     if progress:
         progress.close()
     return ev
+
+
+RANDOM_SEARCH_STREAM = 0x5EA2C  # separates random search's draws from every other use of the seed
+
+
+def propose(gp, state, config: RunConfig, size: int) -> np.ndarray:
+    """The next batch of ``size`` parameter sets. During the warm-up both optimizers take the
+    optimizer's own uniform warm-up (``gp.ask``), so an optimizer run and a random search of the
+    same seed share their first ``n_init`` rows and their curves part where the model takes over;
+    after it, random search (``config.optimizer == "random"``) draws uniformly from the bounds with
+    a generator seeded by (seed, rows so far): a resumed run draws the same batches."""
+    n = len(state.x)
+    if config.optimizer != "random" or n < config.n_init:
+        return gp.ask(state, num=size)
+    lo, hi = np.asarray(config.bounds, np.float64)
+    u = np.random.default_rng([config.seed, RANDOM_SEARCH_STREAM, n]).random((size, len(lo)))
+    return lo + u * (hi - lo)
 
 
 def _save_state(gp, state, path) -> None:

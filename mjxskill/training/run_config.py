@@ -51,6 +51,7 @@ class RunConfig:
     repeats: int = 1
     optimizer_options: dict = field(default_factory=dict)  # {acquisition setting: value}, see optimizer_config
     engine: str = "mjx"  # the physics engine its batches run on (mjxskill.engines); "mjx" before the setting
+    optimizer: str = "mobo"  # "random": uniform random search after the warm-up (mjxskill.training.loop)
 
     def to_yaml(self) -> str:
         data = {"format": FORMAT, **asdict(self)}

@@ -27,6 +27,7 @@ checked when read: a damaged one is a ``RunError`` naming it.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -72,27 +73,13 @@ class Run:
         text) and the header of evaluations.csv (with ``repeats`` > 1: one sub-run per seed).
         Refuses a directory that holds a run or anything else; writes all or nothing."""
         self._check_free()
-        try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            # a fresh name beside it (mkdir is atomic), with the permissions mkdir gives
-            staging = self.path.parent / f".{self.path.name}.{os.getpid()}.{secrets.token_hex(4)}.creating"
-            staging.mkdir()
-        except OSError as err:
-            raise RunError(f"cannot write the run directory {str(self.path)!r}: {err.strerror}") from None
-        try:
+        # on a failure, another process may have got there first: say so
+        with created_whole(self.path, "run directory", on_failure=self._check_free) as staging:
             scenario_text = Path(scenario_source).read_text()
             _write_run(staging, config, scenario_text, texts)
             for sub in Run(staging).sub_runs(config) if config.repeats > 1 else []:
                 sub.path.mkdir()
                 _write_run(sub.path, config.sub_run(int(sub.path.name.split("-")[1])), scenario_text, texts)
-            os.replace(staging, self.path)  # onto nothing or an empty folder: one step
-        except OSError as err:
-            shutil.rmtree(staging, ignore_errors=True)
-            self._check_free()  # another process got there first: say so
-            raise RunError(f"cannot write the run directory {str(self.path)!r}: {err.strerror}") from None
-        except BaseException:  # Ctrl-C half-way: leave nothing behind
-            shutil.rmtree(staging, ignore_errors=True)
-            raise
 
     def _check_free(self) -> None:
         if (self.path / CONFIG).exists():
@@ -189,6 +176,31 @@ class Run:
         return [Run(self.path / f"seed-{config.seed + i}") for i in range(config.repeats)]
 
 
+@contextlib.contextmanager
+def created_whole(path: Path, what: str, on_failure=lambda: None):
+    """Yields a new folder beside ``path`` to fill; renamed into place in one step when the block
+    ends (onto nothing or an empty folder), removed when it fails or is interrupted, so ``path``
+    appears whole or not at all. An OSError becomes a RunError naming ``what`` and ``path``
+    (``on_failure()`` first, to say something better)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        # a fresh name beside it (mkdir is atomic), with the permissions mkdir gives
+        staging = path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.creating"
+        staging.mkdir()
+    except OSError as err:
+        raise RunError(f"cannot write the {what} {str(path)!r}: {err.strerror}") from None
+    try:
+        yield staging
+        os.replace(staging, path)
+    except OSError as err:
+        shutil.rmtree(staging, ignore_errors=True)
+        on_failure()
+        raise RunError(f"cannot write the {what} {str(path)!r}: {err.strerror}") from None
+    except BaseException:  # Ctrl-C half-way or a RunError inside: leave nothing behind
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+
+
 def _write_run(folder: Path, config: RunConfig, scenario_text: str, texts: dict[str, str]) -> None:
     (folder / SCENARIO_COPY).write_text(scenario_text)
     for name, text in texts.items():
@@ -199,4 +211,4 @@ def _write_run(folder: Path, config: RunConfig, scenario_text: str, texts: dict[
 
 
 __all__ = ["CONFIG", "EVALUATIONS", "FORMAT", "LOCK_FILE", "OPTIMIZER_STATE", "PARETO", "RUN_STATE", "SCENARIO_COPY",
-           "Evaluations", "Run", "RunConfig", "batch_sizes", "evaluation_columns", "read_csv", "write_csv"]
+           "Evaluations", "Run", "RunConfig", "batch_sizes", "created_whole", "evaluation_columns", "read_csv", "write_csv"]

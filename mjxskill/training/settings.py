@@ -22,6 +22,7 @@ from typing import Any, Callable
 from mjxskill.scenario.schema import MAX_EPISODE_SECONDS, MAX_SEED, MIN_N_INIT
 
 NO_DEFAULT = object()
+OPTIMIZERS = ("mobo", "random")
 
 
 @dataclass(frozen=True)
@@ -106,6 +107,11 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("engine", "--engine", "text", "physics engine: mjx (compiled MJX), native (native MuJoCo, one process "
             "per core) or auto (MJX on a GPU/TPU, native on a CPU)", scenario=lambda scn: "auto", default="mjx",
             choices=("mjx", "native", "auto"), default_text="auto"),
+    # Random search is a run like any other, to compare the optimizer with (mjxskill.experiment):
+    # the same batches, the same warm-up, then uniform draws instead of the model's proposals.
+    Setting("optimizer", "--optimizer", "text", "what proposes the batches after the warm-up: mobo (the "
+            "multi-objective Bayesian optimizer) or random (uniform random search, a baseline)",
+            default="mobo", choices=OPTIMIZERS),
 )
 BY_NAME = {s.name: s for s in SETTINGS}
 SEED = BY_NAME["seed"]  # evaluate's and select's --seed have the same bounds
@@ -134,4 +140,4 @@ def optimizer_option_value(key: str, value):
     return setting_value(key, value)
 
 
-__all__ = ["BY_NAME", "NO_DEFAULT", "SEED", "SETTINGS", "Setting", "cross_problems", "optimizer_option_value"]
+__all__ = ["BY_NAME", "NO_DEFAULT", "OPTIMIZERS", "SEED", "SETTINGS", "Setting", "cross_problems", "optimizer_option_value"]

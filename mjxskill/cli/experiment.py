@@ -1,0 +1,133 @@
+"""``python -m mjxskill.experiment TASK``: the paper's experiment, repeated and reported.
+
+    python -m mjxskill.experiment push                        # the scenario's repetitions, the paper's settings
+    python -m mjxskill.experiment peg --repeats 3 --budget 200 --per-config 5 --out runs/peg-exp
+    python -m mjxskill.experiment peg --resume runs/peg-exp    # continue a killed experiment
+
+R repetitions of the optimizer (seeds seed..seed+R-1) and R of uniform random search with the
+same settings; per repetition the paper's evaluation; ``report.md``, ``report.json`` and the
+figures in the experiment directory, rewritten after each repetition. The flags are train's
+(``--repeats`` defaults to the scenario's ``repetitions``) plus the evaluation's. What it runs:
+``mjxskill.training.experiment``; the directory: ``mjxskill.training.runs``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Sequence
+
+from mjxskill import cli
+from mjxskill.cli import args as cli_args
+from mjxskill.cli.train import Progress, add_setting_arguments, resolve_config, resumed_config
+from mjxskill.engines import build_rollout, resolve_engine
+from mjxskill.errors import CommandError
+
+# The evaluation's flags: name -> (default, what the protocol field is called)
+EVALUATION_DEFAULTS = {"per_config": 5, "random": 10, "max_force": None}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mjxskill.experiment",
+        description="Repeat training (optimizer and random search), evaluate every repetition against the baselines "
+                    "and report side by side with the paper.")
+    cli_args.add_task_argument(parser)
+    add_setting_arguments(parser, skip=("optimizer",), defaults={"repeats": "the scenario's repetitions"})  # it runs both
+    # train's --optimizer, refused by name (argparse would otherwise read it as --optimizer-option)
+    parser.add_argument("--optimizer", type=_runs_both, help=argparse.SUPPRESS)
+    parser.add_argument("--per-config", type=cli_args.positive_int, help="evaluation worlds per start configuration (default 5)")
+    parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets per evaluation (default 10)")
+    parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N",
+                        help="force bound of the picked solution, N (default: the largest force an operator set commands)")
+    parser.add_argument("--out", type=Path, help="experiment directory (default runs/<task>-experiment-<timestamp>)")
+    parser.add_argument("--resume", type=Path, metavar="EXP_DIR", help="continue the experiment in EXP_DIR")
+    return parser
+
+
+def _runs_both(text: str) -> str:
+    raise argparse.ArgumentTypeError(f"the experiment runs both the optimizer and random search; drop --optimizer {text}")
+
+
+def _protocol_conflicts(args: argparse.Namespace, protocol) -> list[str]:
+    stored = {"per_config": protocol.per_config, "random": protocol.random_sets, "max_force": protocol.max_force}
+    flags = {"per_config": "--per-config", "random": "--random", "max_force": "--max-force"}
+    return [f"{flags[k]} {getattr(args, k)} (the experiment has {stored[k]})" for k in stored
+            if getattr(args, k) is not None and getattr(args, k) != stored[k]]
+
+
+def _main(args: argparse.Namespace) -> int:
+    from mjxskill.task import planning_texts
+    from mjxskill.training.experiment import Experiment, Protocol
+    from mjxskill.training.experiment.directory import random_search_config
+    from mjxskill.training.run_task import load_run_task, scenario_and_task
+
+    started = time.monotonic()
+    if args.resume is not None:
+        exp = Experiment(args.resume)
+        protocol = exp.protocol()
+        config = resumed_config(args, exp.optimizer.path)
+        conflicts = _protocol_conflicts(args, protocol)
+        if conflicts:
+            raise CommandError(f"--resume continues {args.resume} with its own protocol; drop {', '.join(conflicts)}")
+        with exp.lock():
+            exp.config()  # both runs' configurations agree
+            exp.optimizer.check(config)
+            exp.random_search.check(random_search_config(config))
+            scn, task = load_run_task(exp.optimizer, config, scenario=args.task)
+            return _run(args, exp, config, scn, task, started)
+    scn, task = scenario_and_task(args.task, args.goal)
+    if args.repeats is None:
+        args.repeats = scn.optimizer.repetitions
+    config = resolve_config(args, scn, task)
+    protocol = Protocol(per_config=args.per_config or EVALUATION_DEFAULTS["per_config"],
+                        random_sets=EVALUATION_DEFAULTS["random"] if args.random is None else args.random,
+                        max_force=args.max_force)
+    exp = Experiment(args.out or Path("runs") / f"{scn.name}-experiment-{time.strftime('%Y%m%d-%H%M%S')}")
+    exp.create(config, protocol, scn.source, planning_texts(task))
+    with exp.lock():
+        return _run(args, exp, config, scn, task, started)
+
+
+def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> int:
+    from mjxskill.task import describe
+    from mjxskill.training.experiment import run_experiment, write_report
+
+    protocol = exp.protocol()
+    print(describe(scn, task))
+    print(f"experiment: {config.repeats} repetitions (seeds {config.seed}..{config.seed + config.repeats - 1}) of the "
+          f"optimizer and of random search; {config.budget} evaluations in batches of {config.batch_size}, "
+          f"{config.n_init} random warm-up, {config.worlds} worlds, {config.episode_seconds:g} s episodes")
+    print(f"evaluation per repetition: {protocol.per_config} worlds per start configuration, {protocol.random_sets} "
+          f"random sets; pick bound " + (f"{protocol.max_force:g} N" if protocol.max_force is not None else
+                                         "the operators' largest commanded force"))
+    print(f"experiment directory: {exp.path}", flush=True)
+    why = "the experiment's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
+    print(f"engine: {config.engine} ({why})", flush=True)
+    cli.interrupt.set_message(f"interrupted: every finished batch and evaluated chunk is in {exp.path}; continue with "
+                              f"python -m mjxskill.experiment {args.task} --resume {exp.path}")
+    try:
+        rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds)
+        exp.add_session(time.monotonic() - started, config.engine)
+
+        def progress_for(run_config):
+            kind = "random search" if run_config.optimizer == "random" else "optimizer"
+            return Progress(run_config.budget, args.quiet, f"{kind} seed {run_config.seed}: ")
+
+        def evaluation_progress(done: int, total: int) -> None:
+            print(f"  evaluated {done}/{total} parameter sets ({time.monotonic() - started:.0f} s)", flush=True)
+
+        run_experiment(exp, rollout, task, progress_for=progress_for, log=lambda text: print(text, flush=True),
+                       evaluation_progress=evaluation_progress)
+    except KeyboardInterrupt:  # the report of what is finished; every batch and chunk is on disk already
+        return cli.interrupt.stopped("mjxskill.experiment", lambda: write_report(exp))
+    finally:
+        if "rollout" in locals():
+            getattr(rollout, "close", lambda: None)()
+    print(f"done in {time.monotonic() - started:.0f} s; report in {exp.path / 'report.md'}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return cli.run(_main, build_parser(), argv)

@@ -1,0 +1,156 @@
+"""A run's evaluation on disk (written chunk by chunk, resumed, reused when current), the pick of
+one solution per run, and the pooled groups and tests of repeated runs; a scripted rollout in
+place of the physics, every number computed again by brute force."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.stats import mannwhitneyu
+
+from mjxskill.scenario import load_scenario
+from mjxskill.task import plan_task
+from mjxskill.training.evaluate_run import CHUNKS, FOLDER, RESULT, evaluate_run, evaluation_current, evaluation_settings, load_evaluation
+from mjxskill.training.evaluation import Candidates, Evaluation, mean_success_seconds
+from mjxskill.training.pooled import Pick, group_force_and_time, pick, pooled_samples, pooled_tests
+from mjxskill.training.run_dir import Evaluations
+from scripted import ScriptedRollout, expected
+from test_bad_input import front_rows, push_run
+
+SCN = load_scenario("push")
+TASK = plan_task(SCN)
+N_KNOWN, N_UNSEEN = len(SCN.robot.start_configs), len(SCN.robot.eval_configs)
+
+
+def settings(**changes):
+    values = dict(per_config=3, n_random=4, seed=0, batch_size=3, engine="native", episode_seconds=0.2)
+    values.update(changes)
+    return evaluation_settings(**values)
+
+
+@pytest.fixture()
+def run(tmp_path):
+    run = push_run(tmp_path / "run")
+    front_rows(run, 3)
+    return run
+
+
+def test_an_evaluation_measures_success_force_and_time_per_configuration(run):
+    rollout = ScriptedRollout(SCN, TASK.bounds)
+    ev, tests, reused = evaluate_run(run, run.config(), rollout, TASK, settings())
+    assert not reused and set(tests) >= {("known", "planner"), ("unseen", "random")}
+    n = 3 + 1 + 4 + len(TASK.manual_parameters)
+    assert ev.candidates.groups.count("pareto") == 3 and len(ev.candidates.names) == n
+    assert [len(c) for c in rollout.calls] == [3, 3, 3, 3]  # chunks of 3, the last one padded
+    success, force, seconds = expected(rollout, ev.candidates.params, N_KNOWN + N_UNSEEN, 3, SCN.bt_hz)
+    np.testing.assert_allclose(ev.success, success)
+    np.testing.assert_allclose(ev.peak_commanded_force, force)
+    np.testing.assert_allclose(ev.success_seconds, seconds)  # NaN where no world succeeded
+    assert ev.config_names[N_KNOWN] == "unseen-0" and ev.known.sum() == N_KNOWN
+    # the mean time over several candidates weights each configuration by its successes
+    rows = [0, 1, 2]
+    times = [(t + 1) / SCN.bt_hz for i in rows for c in range(N_KNOWN + N_UNSEEN) for r in range(3)
+             for ok, _, t in [rollout.outcome(ev.candidates.params[i], c, r)] if ok]
+    assert mean_success_seconds(ev, rows) == pytest.approx(np.mean(times))
+
+
+def test_the_evaluation_file_round_trips_and_a_current_one_is_reused(run):
+    first = ScriptedRollout(SCN, TASK.bounds)
+    ev, _, _ = evaluate_run(run, run.config(), first, TASK, settings())
+    folder = run.path / FOLDER
+    assert {p.name for p in folder.iterdir()} == {RESULT, "evaluation.csv", "success.png"}  # the chunks are gone
+    json.loads((folder / RESULT).read_text())  # plain JSON: NaN written as null
+    assert "NaN" not in (folder / RESULT).read_text()
+    back, own = load_evaluation(run)
+    assert own == settings()
+    for a, b in zip(ev, back):
+        if isinstance(a, np.ndarray):
+            np.testing.assert_array_equal(a, b)
+        elif isinstance(a, Candidates):
+            assert a.names == b.names and a.groups == b.groups and np.array_equal(a.params, b.params)
+        else:
+            assert a == b
+    again = ScriptedRollout(SCN, TASK.bounds)
+    _, _, reused = evaluate_run(run, run.config(), again, TASK, settings(batch_size=5))  # grouping only: same numbers
+    assert reused and again.calls == []
+    assert evaluation_current(run, run.config(), settings()) and not evaluation_current(run, run.config(), settings(seed=1))
+    other = ScriptedRollout(SCN, TASK.bounds)
+    _, _, reused = evaluate_run(run, run.config(), other, TASK, settings(per_config=2))
+    assert not reused and other.calls
+
+
+def test_a_killed_evaluation_continues_from_its_chunks(run, tmp_path):
+    reference, _, _ = evaluate_run(push_copy(run, tmp_path), run.config(), ScriptedRollout(SCN, TASK.bounds), TASK, settings())
+    with pytest.raises(KeyboardInterrupt):
+        evaluate_run(run, run.config(), ScriptedRollout(SCN, TASK.bounds, stop_after=2), TASK, settings())
+    chunks = run.path / FOLDER / CHUNKS
+    lines = chunks.read_text().splitlines()
+    assert len(lines) == 2 and not (run.path / FOLDER / RESULT).exists()
+    chunks.write_text(lines[0] + "\n" + lines[1][: len(lines[1]) // 2])  # the second one cut short by a kill
+    rest = ScriptedRollout(SCN, TASK.bounds)
+    ev, _, _ = evaluate_run(run, run.config(), rest, TASK, settings())
+    assert len(rest.calls) == 3  # chunk 0 kept; 1 (cut), 2 and 3 evaluated
+    np.testing.assert_array_equal(ev.success, reference.success)
+    np.testing.assert_array_equal(ev.success_seconds, reference.success_seconds)
+
+
+def push_copy(run, tmp_path):
+    import shutil
+
+    shutil.copytree(run.path, tmp_path / "copy")
+    from mjxskill.training.run_dir import Run
+
+    return Run(tmp_path / "copy")
+
+
+def toy_evaluation(pareto_success, manual_force, pareto_force=None) -> Evaluation:
+    """Pareto rows with given success (K, C); a planner row, two random rows, manual rows."""
+    k, c = np.asarray(pareto_success).shape
+    m = len(manual_force)
+    groups = ("pareto",) * k + ("planner", "random", "random") + ("manual",) * m
+    names = tuple(f"pareto-{i}" for i in range(k)) + ("planner", "random-0", "random-1") + tuple(f"op{i}" for i in range(m))
+    params = np.arange(len(groups) * 2, dtype=float).reshape(-1, 2)
+    success = np.concatenate([pareto_success, np.zeros((1, c)), np.full((2, c), 0.25), np.full((m, c), 0.5)])
+    force = np.concatenate([np.full(k, 3.0) if pareto_force is None else pareto_force, [0.0, 1.0, 2.0], manual_force])
+    return Evaluation(Candidates(names, groups, params), success, np.array([True, True, False]), ("known-0", "known-1", "unseen-0"),
+                      peak_commanded_force=force)
+
+
+def front_of(ev: Evaluation, success_rate, commanded_force, first_objective) -> Evaluations:
+    k = len(success_rate)
+    return Evaluations(np.zeros(k, int), ev.candidates.params[:k], np.stack([first_objective, -np.arange(k)], axis=1),
+                       np.asarray(success_rate, float), np.full(k, np.nan), np.full(k, np.nan),
+                       np.asarray(commanded_force, float))  # the pick reads the commanded force only
+
+
+def test_the_pick_is_the_most_successful_training_solution_within_the_operators_force():
+    ev = toy_evaluation(np.ones((3, 3)), manual_force=[4.0, 6.0])
+    # training: row 2 succeeds most but presses 9 N, beyond the operators' largest (6 N)
+    front = front_of(ev, [0.5, 0.8, 1.0], [2.0, 5.0, 9.0], [1.0, 2.0, 3.0])
+    assert pick(front, ev) == Pick(1, 6.0, "the largest force an operator set commands")
+    assert pick(front, ev, max_force=10).row == 2 and pick(front, ev, max_force=10).source == "given"
+    assert pick(front, ev, max_force=1).row is None  # nothing within 1 N: the run has no pick
+    tied = front_of(ev, [0.8, 0.8, 0.8], [1.0, 1.0, 1.0], [1.0, 5.0, 3.0])
+    assert pick(tied, ev).row == 1  # ties: the higher first objective
+    with pytest.raises(Exception, match="evaluate the run again"):
+        pick(front_of(ev, [0.5, 0.8], [1, 1], [1, 2]), ev)  # a front that is not the evaluated one
+
+
+def test_pooled_samples_are_one_per_run_candidate_and_configuration():
+    a = toy_evaluation(np.array([[1.0, 0.5, 0.0], [0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]), [4.0, 6.0])
+    b = toy_evaluation(np.array([[0.5, 0.5, 1.0], [1.0, 0.0, 0.5], [0.0, 0.0, 0.0]]), [4.0, 6.0])
+    picks = [Pick(0, 6.0, "x"), Pick(1, 6.0, "x")]
+    samples = pooled_samples([a, b], picks)
+    np.testing.assert_array_equal(samples["picked"][0], [1.0, 0.5, 1.0, 0.0])  # run a row 0, run b row 1; known
+    np.testing.assert_array_equal(samples["picked"][1], [0.0, 0.5])
+    assert len(samples["pareto"][0]) == 2 * 3 * 2 and len(samples["random"][1]) == 2 * 2 * 1
+    tests = pooled_tests(samples)
+    assert set(tests) == {"pareto", "planner", "random", "manual"}
+    for baseline in ("planner", "random", "manual"):
+        for side in (0, 1):
+            direct = mannwhitneyu(samples["picked"][side], samples[baseline][side], alternative="two-sided").pvalue
+            assert tests[baseline][("known", "unseen")[side]] == pytest.approx(direct)
+    force, _ = group_force_and_time([a, b], picks, "manual")
+    assert force == pytest.approx(5.0)
+    # a run without a pick adds no picked sample
+    assert len(pooled_samples([a, b], [picks[0], Pick(None, 6.0, "x")])["picked"][0]) == 2
