@@ -97,6 +97,7 @@ def put_worlds(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray | None 
     """Batched MJX data (leading axis W) from per-world qpos (W, nq), qvel (W, nv) and
     mocap_pos (W, nmocap, 3), each run through native mj_forward (no MJX compile)."""
     qpos = np.atleast_2d(qpos)
+    device = jax.local_devices()[0]  # this process's, not process 0's (see rollout.compiled)
     worlds = []
     for w in range(qpos.shape[0]):
         data = mujoco.MjData(model)
@@ -106,5 +107,5 @@ def put_worlds(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray | None 
         if mocap_pos is not None:
             data.mocap_pos[:] = mocap_pos[w]
         mujoco.mj_forward(model, data)
-        worlds.append(mjx.put_data(model, data, device=jax.local_devices()[0]))  # see rollout.compiled
+        worlds.append(mjx.put_data(model, data, device=device))
     return jax.tree.map(lambda *xs: jnp.stack(xs), *worlds)
