@@ -64,6 +64,18 @@ def experiment(tmp_path_factory):
     return exp, rollout
 
 
+def test_the_explore_page_shows_an_experiments_runs_in_its_order(experiment):
+    from mjxskill.training.explore.data import runs_in as page_runs
+
+    exp, _ = experiment
+    entries = page_runs(exp.path)
+    # every optimizer repetition, then the random searches that have a config (all do: create
+    # writes them whole); the labels say which kind each is
+    assert [(e.label, e.run.path) for e in entries] == [
+        (f"{kind} seed {r.seed}", r.path) for r, kind in
+        zip(runs_in(exp.path), ["optimizer", "optimizer", "random search", "random search"])]
+
+
 def test_the_directory_says_which_runs_it_holds_and_of_which_kind(experiment):
     exp, _ = experiment
     assert directory_kind(exp.path) == "experiment" and directory_kind(exp.optimizer.path) == "repeated"

@@ -22,7 +22,8 @@ LOOPBACK = ("127.0.0.1", "localhost", "::1")
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="mjxskill.explore", description="Serve a local page to explore a run's Pareto front, "
                                      "inspect solutions in simulation and export one.")
-    parser.add_argument("run", type=Path, help="run directory written by mjxskill.train (one run or a --repeats run)")
+    parser.add_argument("run", type=Path, help="run directory written by mjxskill.train (one run or a --repeats run) "
+                                                 "or an experiment directory of mjxskill.experiment")
     parser.add_argument("--port", type=cli_args.port, default=8765, help="TCP port (default 8765; 0: any free port)")
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
     parser.add_argument("--per-config", type=cli_args.positive_int, default=5,

@@ -17,6 +17,7 @@ import numpy as np
 
 from mjxskill.errors import CommandError, RunError
 from mjxskill.training.run_dir import CONFIG, PARETO, Evaluations, Run, RunConfig
+from mjxskill.training.runs import OPTIMIZER_RUNS, RANDOM_RUNS, directory_kind
 
 
 @dataclass(frozen=True)
@@ -39,8 +40,22 @@ class RunEntry:
 
 def runs_in(path: Path) -> list[RunEntry]:
     """The runs the directory ``path`` holds, in the order the page colours them: the run itself,
-    or the repetitions of a repeated run (``train --repeats N``: ``seed-<s>/`` sub-runs; the
-    ones not yet started are left out). The one place that knows these layouts."""
+    the repetitions of a repeated run (``train --repeats N``: ``seed-<s>/`` sub-runs; the ones
+    not yet started are left out), or an experiment's optimizer repetitions and then its random
+    searches (``mjxskill.training.runs`` knows the layouts)."""
+    path = Path(path)
+    if directory_kind(path) == "experiment":
+        entries = []
+        for folder, kind in ((OPTIMIZER_RUNS, "optimizer"), (RANDOM_RUNS, "random search")):
+            if (path / folder / CONFIG).is_file():
+                entries += [RunEntry(f"{kind} {e.label}", e.run, e.config) for e in _started_runs(path / folder)]
+        if not entries:
+            raise RunError(f"{path} is an experiment none of whose runs has started (no {OPTIMIZER_RUNS}/seed-*/{CONFIG})")
+        return entries
+    return _started_runs(path)
+
+
+def _started_runs(path: Path) -> list[RunEntry]:
     root = Run(path)
     config = root.config()
     if config.repeats == 1:
