@@ -70,9 +70,9 @@ def main(argv=None) -> dict:
     args = parser.parse_args(argv)
 
     if "jax" not in sys.modules:  # MJX over every core: one host device per core (before jax starts)
-        flags = os.environ.get("XLA_FLAGS", "")
-        if "xla_force_host_platform_device_count" not in flags:
-            os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={os.cpu_count()}".strip()
+        from mjxskill._runtime import with_host_devices  # the backend starts lazily, after this
+
+        os.environ["XLA_FLAGS"] = with_host_devices(os.environ.get("XLA_FLAGS", ""), os.cpu_count(), keep_users=True)
     import mjxskill  # noqa: F401
     import jax
     import numpy as np

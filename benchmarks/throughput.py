@@ -43,15 +43,15 @@ ROOT = HERE.parent
 if str(ROOT) not in sys.path:  # run from a checkout: this worktree's mjxskill first
     sys.path.insert(0, str(ROOT))
 
+from mjxskill._runtime import with_host_devices  # noqa: E402  (no jax backend starts here)
+
 HAND_FOUND_PUSH = (-0.05, -0.15, 0.07, -0.10)  # the push into the goal corner (tests/test_rollout_push.py)
 
 
 def _env(devices: int) -> dict:
     """Environment for an MJX worker with ``devices`` host devices (mjxskill appends its flag)."""
     env = dict(os.environ)
-    flags = [f for f in env.get("XLA_FLAGS", "").split() if "xla_force_host_platform_device_count" not in f]
-    flags.append(f"--xla_force_host_platform_device_count={devices}")
-    env["XLA_FLAGS"] = " ".join(flags)
+    env["XLA_FLAGS"] = with_host_devices(env.get("XLA_FLAGS", ""), devices)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     return env
 

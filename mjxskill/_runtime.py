@@ -22,6 +22,17 @@ from pathlib import Path
 
 CPU_FUSION_FLAG = "--xla_cpu_use_fusion_emitters"
 CPU_FUSION_SETTING = f"{CPU_FUSION_FLAG}=false"
+HOST_DEVICES_FLAG = "--xla_force_host_platform_device_count"
+
+
+def with_host_devices(flags: str, devices: int, *, keep_users: bool = False) -> str:
+    """``XLA_FLAGS`` ``flags`` asking for ``devices`` CPU host devices (how a vmapped MJX rollout
+    uses more than one core; read only when jax starts its CPU client). A host-device setting
+    already in ``flags`` is replaced, or kept when ``keep_users``; other flags stay."""
+    if keep_users and HOST_DEVICES_FLAG in flags:
+        return flags
+    kept = [f for f in flags.split() if not f.startswith(HOST_DEVICES_FLAG)]
+    return " ".join([*kept, f"{HOST_DEVICES_FLAG}={devices}"])
 
 
 def configure_xla_flags(environ: "os._Environ[str] | dict[str, str]" = os.environ) -> str:

@@ -4,7 +4,7 @@ import os
 import subprocess
 import sys
 
-from mjxskill._runtime import CPU_FUSION_SETTING, configure_xla_flags
+from mjxskill._runtime import CPU_FUSION_SETTING, configure_xla_flags, with_host_devices
 
 
 def test_flag_added_to_empty_environment():
@@ -23,6 +23,13 @@ def test_user_choice_of_the_same_flag_wins():
     env = {"XLA_FLAGS": "--xla_cpu_use_fusion_emitters=true"}
     configure_xla_flags(env)
     assert env["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=true"
+
+
+def test_host_devices_replace_or_keep_the_users_count_and_leave_other_flags():
+    flags = f"--a {CPU_FUSION_SETTING} --xla_force_host_platform_device_count=4"
+    assert with_host_devices(flags, 2) == f"--a {CPU_FUSION_SETTING} --xla_force_host_platform_device_count=2"
+    assert with_host_devices(flags, 2, keep_users=True) == flags
+    assert with_host_devices("", 3) == "--xla_force_host_platform_device_count=3"
 
 
 def _run(code: str, **extra_env) -> str:
