@@ -29,6 +29,10 @@ variance around them, so later elements move away from earlier ones. Because the
 values equal the mean, only the variance needs the update, computed here by a q x q Schur
 complement instead of refactorizing the n x n covariance.
 
+With a parameter prior (``prior``, ``prior_weight``: gp/prior.py) every element maximizes
+log-EI + prior_weight * log prior(x), piBO's prior-weighted acquisition in log space; without
+one (None) the proposal is the plain one, traced without a trace of the prior.
+
 Everything here is pure and jitted with static shapes; run it with x64 enabled.
 """
 
@@ -45,6 +49,7 @@ from mjxskill.gp import gp as gpm
 from mjxskill.gp import hypervolume_scalarization as hvs
 from mjxskill.gp.acquisition import chebyshev, log_ei, sample_simplex
 from mjxskill.gp.kernels import matern52
+from mjxskill.gp.prior import UnitPrior, log_prior_unit
 from mjxskill.gp.scalarized_posterior import chebyshev_moments, log_ei_draws, normal_draws
 from mjxskill.gp.settings import AcquisitionSettings
 
@@ -187,6 +192,14 @@ def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_of, 
     return acq
 
 
+def prior_weighted(acq, prior: UnitPrior | None, prior_weight):
+    """piBO in log space: xs -> acq(xs) + prior_weight * log prior(xs) (``acq`` itself without
+    a prior: None is part of the trace's structure, so this changes nothing then)."""
+    if prior is None:  # static
+        return acq
+    return lambda xs: acq(xs) + prior_weight * log_prior_unit(prior, xs)
+
+
 def _maximize(acq, key, d: int, settings: AcquisitionSettings) -> jnp.ndarray:
     """Best point in [0, 1]^d: random candidates, then projected Adam from the best ones."""
     raw = jax.random.uniform(key, (settings.n_raw, d), jnp.float64)
@@ -216,7 +229,8 @@ def _maximize(acq, key, d: int, settings: AcquisitionSettings) -> jnp.ndarray:
 
 
 @partial(jax.jit, static_argnames=("q", "settings"))
-def propose_batch(x, y_norm, mask, key, ref=None, *, q: int, settings: AcquisitionSettings = AcquisitionSettings()):
+def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None, prior_weight=0.0, *, q: int,
+                  settings: AcquisitionSettings = AcquisitionSettings()):
     """q new points in the unit cube.
 
     Args:
@@ -226,6 +240,8 @@ def propose_batch(x, y_norm, mask, key, ref=None, *, q: int, settings: Acquisiti
       mask: (n,) bool, True for real rows (at least 2 of them).
       key: PRNG key; the scalarizations and all random starts derive from it.
       ref: (m,) float64 reference point in the units of y_norm (hypervolume scalarization).
+      prior: the parameter prior in unit-cube coordinates (traced arrays), or None.
+      prior_weight: piBO's exponent of the prior, beta / n (a traced scalar).
     Returns:
       (points (q, d) float64 in [0, 1]^d, fitted GPParams).
     """
@@ -263,7 +279,7 @@ def propose_batch(x, y_norm, mask, key, ref=None, *, q: int, settings: Acquisiti
         def choose_s(carry, j):
             fant, fant_mask = carry
             post = jax.tree.map(lambda a: a[j], posts_s)
-            acq = _acquisition_for_element(post, targets[j], fant, fant_mask)
+            acq = prior_weighted(_acquisition_for_element(post, targets[j], fant, fant_mask), prior, prior_weight)
             xj = _maximize(acq, acq_keys[j], d, settings)
             return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
 
@@ -283,6 +299,7 @@ def propose_batch(x, y_norm, mask, key, ref=None, *, q: int, settings: Acquisiti
             fant, fant_mask = carry
             acq = _acquisition_per_objective(posts_o, y_mean, y_sd, partial(scal.log_ei, j), fant, fant_mask,
                                              settings.variance == "deflated")
+            acq = prior_weighted(acq, prior, prior_weight)
             xj = _maximize(acq, acq_keys[j], d, settings)
             return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
 

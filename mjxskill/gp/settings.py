@@ -89,6 +89,17 @@ class AcquisitionSettings:
     # moment-matched Gaussian); tau is the softplus width of "draws" (normalized units).
     ei: str = "draws"
     tau: float = 1e-3
+    # With a parameter prior (MOBOConfig.prior, gp/prior.py; without one these two change
+    # nothing): piBO's beta, the acquisition is weighted by prior(x)^(pibo_beta / n) after n
+    # observations (0: the prior shapes the warm-up only); and the fraction of the n_init
+    # warm-up points drawn from the prior, the rest uniform (1: all from the prior, as piBO's
+    # initial design; 0.5 keeps half the warm-up exploring wherever the prior is wrong).
+    # Settings, not Prior fields: they say how the optimizer uses a prior (a search policy,
+    # typed and checked like every acquisition setting and set by --optimizer-option), where
+    # the Prior says only where the operator believes good values lie. pibo_beta never enters
+    # the jitted proposal (beta / n is passed as a traced scalar); its hash only keys the cache.
+    pibo_beta: float = 10.0
+    warmup_prior_fraction: float = 0.5
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -108,7 +119,8 @@ class AcquisitionSettings:
 
 NAMES = tuple(f.name for f in dataclasses.fields(AcquisitionSettings))
 _KINDS = {f.name: f.type for f in dataclasses.fields(AcquisitionSettings)}
-_NONNEGATIVE = ("alpha", "ref_margin")
+_NONNEGATIVE = ("alpha", "ref_margin", "pibo_beta", "warmup_prior_fraction")
+_AT_MOST_ONE = ("warmup_prior_fraction",)
 _POSITIVE = ("tau", "learning_rate", "final_learning_rate")
 
 
@@ -125,6 +137,8 @@ def _field_problem(name: str, kind: str, v) -> str | None:
             return f"expected a finite number, got {v!r}"
         if name in _NONNEGATIVE and v < 0.0:
             return f"must be >= 0, got {v!r}"
+        if name in _AT_MOST_ONE and v > 1.0:
+            return f"must be <= 1 (a fraction), got {v!r}"
         if name in _POSITIVE and not v > 0.0:
             return f"must be > 0, got {v!r}"
     elif name in CHOICES and v not in CHOICES[name]:
