@@ -143,3 +143,14 @@ def test_the_scenarios_prior_is_the_default_and_prior_from_overrides_it(tmp_path
     assert over.prior["source"].endswith("overrides the scenario's parameter_priors")
     plain, plain_task = scenario_and_task("push", None)
     assert resolve_config(build_parser().parse_args(["push"]), plain, plain_task).prior is None  # shipped: none
+
+
+def test_the_header_says_which_prior_the_run_uses():
+    from mjxskill.training.priors import describe_prior
+
+    assert describe_prior(None) == "prior: none (uniform warm-up, plain acquisition)"
+    two = {**TOY_PRIOR, "source": "run runs/a (2 Pareto solutions, std 10% of each range); overrides the scenario's "
+                                  "parameter_priors", "mean": [[0.1, 0.0], [0.2, 0.0]], "std": [[0.1, 0.2]] * 2,
+           "weights": [0.5, 0.5]}
+    assert describe_prior(two) == ("prior: from the run runs/a (2 Pareto solutions, std 10% of each range); overrides "
+                                   "the scenario's parameter_priors, 2 components")
