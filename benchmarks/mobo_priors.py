@@ -151,8 +151,10 @@ def main(argv=None):
     checkpoints = sorted({c for c in (20, 40, args.budget) if c <= args.budget})
     started = time.monotonic()
     print(f"load average at start: {' '.join(f'{v:.2f}' for v in os.getloadavg())} ({os.cpu_count()} cores)")
-    print(f"budget {args.budget} = {args.init} warm-up + batches of {args.batch}; seeds 0..{args.seeds - 1}; "
-          f"priors: one truncated Gaussian per dimension, std {args.std_fraction:g} x range; options {options or 'defaults'}")
+    print(f"priors: one truncated Gaussian per dimension, std {args.std_fraction:g} x range; acquisition options "
+          f"{options or 'defaults'} (pibo_beta 10, warmup_prior_fraction 0.5 unless set)")
+    if not args.push_only:
+        print(f"GP problems: budget {args.budget} = {args.init} warm-up + batches of {args.batch}; seeds 0..{args.seeds - 1}")
     raw = {"args": vars(args), "checkpoints": checkpoints, "problems": {}}
     for name in [] if args.push_only else args.problems:
         problem = PROBLEMS[name]
