@@ -5,7 +5,7 @@ Problems: BraninCurrin and ZDT1 (d = 6) from ``benchmarks/mobo_quality.py`` (imp
 with ``--push``, the push task through the training loop's own functions (native engine, full
 12 s episodes, few worlds). Budget ``--budget`` (default 60) in batches of ``--batch`` (5)
 after ``--init`` (10) warm-up points; the optimizer's defaults otherwise (pibo_beta 2,
-warmup_prior_fraction 0.5: half the warm-up from the prior; ``--option pibo_beta=10`` as measured
+prior_share 0.5: half the warm-up from the prior; ``--option pibo_beta=10`` as measured
 before the default was lowered).
 
 The priors, per problem, each one Gaussian per dimension with a standard deviation of
@@ -153,7 +153,7 @@ def main(argv=None):
     started = time.monotonic()
     print(f"load average at start: {' '.join(f'{v:.2f}' for v in os.getloadavg())} ({os.cpu_count()} cores)")
     print(f"priors: one truncated Gaussian per dimension, std {args.std_fraction:g} x range; acquisition options "
-          f"{options or 'defaults'} (pibo_beta 2, warmup_prior_fraction 0.5 unless set)")
+          f"{options or 'defaults'} (pibo_beta 2, prior_share 0.5 unless set)")
     if not args.push_only:
         print(f"GP problems: budget {args.budget} = {args.init} warm-up + batches of {args.batch}; seeds 0..{args.seeds - 1}")
     raw = {"args": vars(args), "checkpoints": checkpoints, "problems": {}}

@@ -73,9 +73,14 @@ def test_pibo_shift_is_beta_over_n_times_log_prior():
     for beta, n in [(10.0, 10), (10.0, 40), (2.5, 7)]:
         w = pibo_weight(beta, n)
         assert w == beta / n
-        shift = prior_weighted(acq, up, w)(jnp.asarray(u)) - acq(jnp.asarray(u))
+        shift = prior_weighted(acq, up, w, 1.0)(jnp.asarray(u)) - acq(jnp.asarray(u))
         np.testing.assert_allclose(shift, beta / n * log_prior, rtol=1e-9)
-    assert prior_weighted(acq, None, 1.0) is acq
+        # the belief with a uniform share: the unit cube's uniform density is 1
+        for share in (0.5, 0.1):
+            shift = prior_weighted(acq, up, w, share)(jnp.asarray(u)) - acq(jnp.asarray(u))
+            np.testing.assert_allclose(shift, beta / n * np.log(share * np.exp(log_prior) + 1 - share), rtol=1e-9)
+            assert np.all(shift >= beta / n * np.log(1 - share) - 1e-12)  # a wrong prior's pull is bounded
+    assert prior_weighted(acq, None, 1.0, 0.5) is acq
 
 
 def test_ask_passes_beta_over_the_number_of_observations(monkeypatch):
@@ -93,7 +98,7 @@ def test_ask_passes_beta_over_the_number_of_observations(monkeypatch):
 @pytest.mark.parametrize("fraction", [0.5, 1.0])
 def test_warm_up_draws_follow_the_prior_mixed_with_uniform(fraction):
     n_init = 2000
-    x = ask(init(config(MIXTURE, n_init=n_init, warmup_prior_fraction=fraction)), num=n_init)
+    x = ask(init(config(MIXTURE, n_init=n_init, prior_share=fraction)), num=n_init)
     lo, hi = np.asarray(BOUNDS)
     assert x.shape == (n_init, 2) and np.all(x >= lo) and np.all(x <= hi)
     assert prior_rows(0, n_init, fraction).sum() == int(np.ceil(fraction * n_init))
@@ -132,7 +137,7 @@ def test_without_prior_the_proposals_are_mains():
 
 def test_a_strong_prior_pulls_the_proposals_toward_it():
     target = Prior(mean=[0.6, 1.6], std=[0.05, 0.05])
-    state = run(init(config(target, pibo_beta=500.0, warmup_prior_fraction=0.0)), 3)
+    state = run(init(config(target, pibo_beta=500.0, prior_share=0.9)), 3)
     model = state.x[5:]
     assert np.all(np.abs(model - [0.6, 1.6]).max(axis=1) < 0.3), model
 

@@ -212,7 +212,7 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
     twice without telling returns the same batch.
 
     With a prior, the warm-up points that ``prior_rows`` picks (a fraction
-    ``acquisition.warmup_prior_fraction``) are drawn from it and the rest stay the uniform
+    ``acquisition.prior_share``) are drawn from it and the rest stay the uniform
     draws a run without a prior makes; the model's proposals maximize log-EI plus
     (pibo_beta / n) log prior(x) after n observations.
     """
@@ -226,7 +226,7 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
         q = min(q, cfg.n_init - n)
         u = np.random.default_rng([cfg.seed, n]).random((q, cfg.dim))
         if cfg.prior is not None:
-            rows = prior_rows(n, q, cfg.acquisition.warmup_prior_fraction)
+            rows = prior_rows(n, q, cfg.acquisition.prior_share)
             drawn = sample_unit(unit_prior(cfg.prior, cfg.bounds), np.random.default_rng([cfg.seed, n, _PRIOR_STREAM]), q)
             u = np.where(rows[:, None], drawn, u)
         return lo + u * (hi - lo)

@@ -9,7 +9,7 @@ earlier run's Pareto front is one component per Pareto solution.
 The optimizer uses it twice (Hvarfner et al. 2022, piBO):
 
 * the warm-up draws a fraction of its points from the prior, the rest uniformly
-  (``AcquisitionSettings.warmup_prior_fraction``, see ``warmup_points``);
+  (``AcquisitionSettings.prior_share``, see ``warmup_points``);
 * the acquisition is weighted by the prior with an influence that decays with the number of
   observations n: acq(x) * prior(x)^(beta / n). Our acquisition is log-EI, so the proposal
   maximizes ``log_acq(x) + (beta / n) * log_prior(x)`` (``AcquisitionSettings.pibo_beta``).

@@ -30,7 +30,8 @@ values equal the mean, only the variance needs the update, computed here by a q 
 complement instead of refactorizing the n x n covariance.
 
 With a parameter prior (``prior``, ``prior_weight``: gp/prior.py) every element maximizes
-log-EI + prior_weight * log prior(x), piBO's prior-weighted acquisition in log space; without
+log-EI + prior_weight * log belief(x), piBO's prior-weighted acquisition in log space, the
+belief the prior mixed with the uniform density (``settings.prior_share``); without
 one (None) the proposal is the plain one, traced without a trace of the prior.
 
 Everything here is pure and jitted with static shapes; run it with x64 enabled.
@@ -38,6 +39,7 @@ Everything here is pure and jitted with static shapes; run it with x64 enabled.
 
 from __future__ import annotations
 
+import math
 from functools import partial
 from typing import NamedTuple
 
@@ -192,12 +194,17 @@ def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_of, 
     return acq
 
 
-def prior_weighted(acq, prior: UnitPrior | None, prior_weight):
-    """piBO in log space: xs -> acq(xs) + prior_weight * log prior(xs) (``acq`` itself without
-    a prior: None is part of the trace's structure, so this changes nothing then)."""
+def prior_weighted(acq, prior: UnitPrior | None, prior_weight, share: float):
+    """piBO in log space: xs -> acq(xs) + prior_weight * log belief(xs), the belief the prior
+    with weight ``share`` beside the unit cube's uniform density (1) with weight 1 - share
+    (``acq`` itself without a prior: None is part of the trace's structure, so this changes
+    nothing then)."""
     if prior is None:  # static
         return acq
-    return lambda xs: acq(xs) + prior_weight * log_prior_unit(prior, xs)
+    if share >= 1.0:  # static
+        return lambda xs: acq(xs) + prior_weight * log_prior_unit(prior, xs)
+    log_share, log_rest = math.log(share) if share > 0.0 else -math.inf, math.log1p(-share)
+    return lambda xs: acq(xs) + prior_weight * jnp.logaddexp(log_share + log_prior_unit(prior, xs), log_rest)
 
 
 def _maximize(acq, key, d: int, settings: AcquisitionSettings) -> jnp.ndarray:
@@ -279,7 +286,8 @@ def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None
         def choose_s(carry, j):
             fant, fant_mask = carry
             post = jax.tree.map(lambda a: a[j], posts_s)
-            acq = prior_weighted(_acquisition_for_element(post, targets[j], fant, fant_mask), prior, prior_weight)
+            acq = prior_weighted(_acquisition_for_element(post, targets[j], fant, fant_mask), prior, prior_weight,
+                                 settings.prior_share)
             xj = _maximize(acq, acq_keys[j], d, settings)
             return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
 
@@ -299,7 +307,7 @@ def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None
             fant, fant_mask = carry
             acq = _acquisition_per_objective(posts_o, y_mean, y_sd, partial(scal.log_ei, j), fant, fant_mask,
                                              settings.variance == "deflated")
-            acq = prior_weighted(acq, prior, prior_weight)
+            acq = prior_weighted(acq, prior, prior_weight, settings.prior_share)
             xj = _maximize(acq, acq_keys[j], d, settings)
             return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
 

@@ -90,20 +90,21 @@ class AcquisitionSettings:
     ei: str = "draws"
     tau: float = 1e-3
     # With a parameter prior (MOBOConfig.prior, gp/prior.py; without one these two change
-    # nothing): piBO's beta, the acquisition is weighted by prior(x)^(pibo_beta / n) after n
-    # observations (0: the prior shapes the warm-up only); and the fraction of the n_init
-    # warm-up points drawn from the prior, the rest uniform (1: all from the prior, as piBO's
-    # initial design; 0.5 keeps half the warm-up exploring wherever the prior is wrong).
+    # nothing): the optimizer's belief is the prior with weight prior_share beside the uniform
+    # density with weight 1 - prior_share. That share of the n_init warm-up points is drawn
+    # from the prior, the rest uniformly (0.5 keeps half the warm-up exploring wherever the
+    # prior is wrong), and the acquisition is weighted by that mixture to the power
+    # pibo_beta / n after n observations (piBO; 0: the prior shapes the warm-up only). The
+    # uniform part bounds how far a wrong prior can push the acquisition down: a product
+    # prior's log-density falls without bound away from its mean and grows with the
+    # dimension (about -111 nats at ZDT1's good region for a misleading prior at d = 6),
+    # the mixture's never below log(1 - prior_share).
     # Settings, not Prior fields: they say how the optimizer uses a prior (a search policy,
     # typed and checked like every acquisition setting and set by --optimizer-option), where
     # the Prior says only where the operator believes good values lie. pibo_beta never enters
     # the jitted proposal (beta / n is passed as a traced scalar); its hash only keys the cache.
-    # beta 2, not 10: log prior(x) of a product prior grows with the dimension, and with beta 10
-    # a misleading prior on ZDT1 (d = 6) still held the final hypervolume at 89.7 against 119.4
-    # without a prior (budget 60); beta 2 gave 106.5 there and kept most of a good prior's gain
-    # (benchmarks/RESULTS.md, "Parameter priors").
     pibo_beta: float = 2.0
-    warmup_prior_fraction: float = 0.5
+    prior_share: float = 0.5
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -123,8 +124,8 @@ class AcquisitionSettings:
 
 NAMES = tuple(f.name for f in dataclasses.fields(AcquisitionSettings))
 _KINDS = {f.name: f.type for f in dataclasses.fields(AcquisitionSettings)}
-_NONNEGATIVE = ("alpha", "ref_margin", "pibo_beta", "warmup_prior_fraction")
-_AT_MOST_ONE = ("warmup_prior_fraction",)
+_NONNEGATIVE = ("alpha", "ref_margin", "pibo_beta", "prior_share")
+_AT_MOST_ONE = ("prior_share",)
 _POSITIVE = ("tau", "learning_rate", "final_learning_rate")
 
 
