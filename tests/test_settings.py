@@ -21,7 +21,8 @@ def test_the_table_is_the_run_configuration_and_the_flags():
     fields = {f.name for f in dataclasses.fields(RunConfig)}
     assert {s.name for s in SETTINGS} <= fields  # each setting is a RunConfig field
     assert fields - {s.name for s in SETTINGS} == {"task", "scenario", "parameter_names", "parameter_units", "bounds",
-                                                   "objective_names", "optimizer_options"}  # the rest: the plan's
+                                                   "objective_names", "optimizer_options", "prior"}  # the rest: the plan's
+    # (and the prior: the scenario's or --prior-from's, mjxskill.training.priors)
     options = {a.dest: a for a in build_parser()._actions}
     for s in SETTINGS:
         assert options[s.name].option_strings == [s.flag]

@@ -5,6 +5,7 @@
     python -m mjxskill.train push --resume runs/push-0
     python -m mjxskill.train push --repeats 10 --out runs/push-x10
     python -m mjxskill.train push --optimizer random --out runs/push-random   # the random-search baseline
+    python -m mjxskill.train push --prior-from runs/push-0 --budget 100   # guided by an earlier run's front
 
 The flags over the scenario's defaults make the run's configuration (``config.yaml``); the
 loop itself is ``mjxskill.training.loop.train``, which this command drives with a progress bar
@@ -28,6 +29,7 @@ from mjxskill.cli import args as cli_args
 from mjxskill.engines import build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 from mjxskill.training.loop import rollout_evaluator, train
+from mjxskill.training.priors import describe_prior, prior_from_run, scenario_prior
 from mjxskill.training.run_config import optimizer_problem
 from mjxskill.training.run_dir import Evaluations, Run, RunConfig
 from mjxskill.training.settings import BY_NAME, SETTINGS, cross_problems, optimizer_option_value
@@ -82,6 +84,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_setting_arguments(parser)
     parser.add_argument("--out", type=Path, help="run directory (default runs/<task>-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue the run in RUN_DIR to its budget")
+    parser.add_argument("--prior-from", type=Path, metavar="RUN_DIR", dest="prior_from",
+                        help="guide the search by a prior built from the Pareto solutions of the earlier run in RUN_DIR "
+                             "(same learnable parameters; overrides the scenario's parameter_priors; stored with the run)")
     return parser
 
 
@@ -138,6 +143,7 @@ def resolve_config(args: argparse.Namespace, scn, task) -> RunConfig:
         bounds=(tuple(map(float, task.bounds[0])), tuple(map(float, task.bounds[1]))),
         objective_names=tuple(scn.objective_names),
         optimizer_options=dict(args.optimizer_option or []),
+        prior=run_prior(args, scn, task),
         **values,
     )
     if not config.parameter_names:
@@ -146,6 +152,17 @@ def resolve_config(args: argparse.Namespace, scn, task) -> RunConfig:
     if problem:
         raise CommandError(f"--optimizer-option: {problem}" if args.optimizer_option else f"the optimizer refuses this run: {problem}")
     return config
+
+
+def run_prior(args: argparse.Namespace, scn, task) -> dict | None:
+    """The prior of a new run: ``--prior-from``'s (over the scenario's) or the scenario's."""
+    own = scenario_prior(scn, task)
+    if getattr(args, "prior_from", None) is None:
+        return own
+    prior = prior_from_run(args.prior_from, task.parameter_names, task.bounds)
+    if own is not None:
+        prior["source"] += "; overrides the scenario's parameter_priors"
+    return prior
 
 
 def resumed_config(args: argparse.Namespace, run_path: Path | None = None) -> RunConfig:
@@ -159,6 +176,12 @@ def resumed_config(args: argparse.Namespace, run_path: Path | None = None) -> Ru
                  if getattr(args, s.name) is not None and getattr(args, s.name) != getattr(config, s.name)]
     if conflicts:
         raise CommandError(f"--resume continues {args.resume} with its own settings; drop {', '.join(conflicts)}")
+    if getattr(args, "prior_from", None) is not None:
+        given = prior_from_run(args.prior_from, config.parameter_names, config.bounds)
+        stored = None if config.prior is None else {k: v for k, v in config.prior.items() if k != "source"}
+        if stored != {k: v for k, v in given.items() if k != "source"}:
+            raise CommandError(f"--resume continues {args.resume} with the prior it started with "
+                               f"({describe_prior(config.prior)}); drop --prior-from {args.prior_from}")
     if args.out is not None and Path(args.out).resolve() != Path(args.resume).resolve():
         raise CommandError("--out and --resume name different directories; --resume writes into its own")
     return config
@@ -193,6 +216,7 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
           f"{config.worlds} worlds, {config.episode_seconds:g} s episodes, seed {config.seed}"
           + (f", {config.repeats} repeats" if config.repeats > 1 else "")
           + (", uniform random search after the warm-up" if config.optimizer == "random" else ""))
+    print(describe_prior(config.prior) + (" (the run's own)" if args.resume is not None and config.prior else ""))
     print(f"run directory: {run.path}", flush=True)
     why = "the run's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
     print(f"engine: {config.engine} ({why})", flush=True)

@@ -3,7 +3,9 @@ augmented Chebyshev scalarizations, sequential greedy batches (Kriging believer)
 
 ``minimize(f, bounds, budget, ...)`` for a whole run; ``MOBOConfig(bounds, n_objectives,
 batch_size, n_init, seed, acquisition=AcquisitionSettings(...))`` and ``init``/``ask``/``tell`` and
-``save_state``/``load_state`` for a run that stops and resumes; ``pareto_mask`` and
+``save_state``/``load_state`` for a run that stops and resumes; ``Prior(mean, std, weights)``
+(``MOBOConfig(prior=...)``, ``minimize(..., prior=...)``) for where good values are believed to
+lie: it shapes the warm-up and weights the acquisition (piBO); ``pareto_mask`` and
 ``hypervolume`` to read the result. Objectives are minimized.
 
 The GP computes in float64 inside local ``jax.enable_x64(True)`` scopes; importing this
@@ -22,6 +24,7 @@ from mjxskill.gp.optimizer import (
     tell,
 )
 from mjxskill.gp.pareto import hypervolume, pareto_mask
+from mjxskill.gp.prior import Prior
 from mjxskill.gp.settings import AcquisitionSettings, acquisition_settings
 
 __all__ = [
@@ -29,6 +32,7 @@ __all__ = [
     "MOBOConfig",
     "MOBOResult",
     "MOBOState",
+    "Prior",
     "acquisition_settings",
     "ask",
     "hypervolume",

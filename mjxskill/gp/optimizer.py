@@ -11,6 +11,10 @@ only, so a run restored from disk proposes exactly what the uninterrupted run wo
 Static shapes: the model sees the training set padded to the next multiple of
 ``config.acquisition.bucket`` rows, so the proposal compiles once per bucket, not once per batch.
 
+A parameter prior (``MOBOConfig.prior``, gp/prior.py) shapes the warm-up (a fraction of its
+points drawn from the prior) and weights the acquisition (piBO); without one, every proposal is
+the one this optimizer made before priors existed.
+
 Non-finite objective values (a crashed rollout) are kept in the state and on disk; the
 model sees them as the worst value observed for that objective (1 after normalization),
 which steers proposals away from them without breaking the GP.
@@ -31,6 +35,7 @@ import numpy as np
 
 from mjxskill.gp.hypervolume_scalarization import reference_point, warmup_reference
 from mjxskill.gp.pareto import pareto_mask
+from mjxskill.gp.prior import Prior, pibo_weight, prior_of, prior_rows, sample_unit, unit_prior
 from mjxskill.gp.proposal import propose_batch
 from mjxskill.gp.settings import AcquisitionSettings, acquisition_settings
 
@@ -48,6 +53,8 @@ class MOBOConfig:
     ref_point: (m,) reference point of the hypervolume scalarizations in objective units
     (minimized), e.g. the one the run's hypervolume is reported against; None infers it from
     the observed front at each proposal.
+    prior: where good parameter values are believed to lie (``Prior``, or its ``to_dict``
+    mapping), checked against the bounds; None: no prior (uniform warm-up, plain acquisition).
     """
 
     bounds: tuple
@@ -57,6 +64,7 @@ class MOBOConfig:
     seed: int = 0
     acquisition: AcquisitionSettings = AcquisitionSettings()
     ref_point: tuple | None = None
+    prior: Prior | None = None
 
     def __post_init__(self):
         b = np.asarray(self.bounds, dtype=np.float64)
@@ -86,6 +94,12 @@ class MOBOConfig:
             if r.shape != (self.n_objectives,) or not np.all(np.isfinite(r)):
                 raise ValueError(f"MOBOConfig.ref_point: expected {self.n_objectives} finite numbers, got {self.ref_point!r}")
             object.__setattr__(self, "ref_point", tuple(float(v) for v in r))
+        try:
+            object.__setattr__(self, "prior", prior_of(self.prior))
+            if self.prior is not None:
+                self.prior.check_bounds(self.bounds)
+        except ValueError as err:
+            raise ValueError(f"MOBOConfig.prior: {err}") from None
 
     @property
     def dim(self) -> int:
@@ -93,7 +107,8 @@ class MOBOConfig:
 
     def to_dict(self) -> dict:
         """Plain JSON-able form: the acquisition settings nested as a mapping."""
-        return {**{f.name: getattr(self, f.name) for f in dataclasses.fields(self)}, "acquisition": self.acquisition.to_dict()}
+        return {**{f.name: getattr(self, f.name) for f in dataclasses.fields(self)}, "acquisition": self.acquisition.to_dict(),
+                "prior": None if self.prior is None else self.prior.to_dict()}
 
 
 class MOBOState(NamedTuple):
@@ -195,6 +210,11 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
     q is ``num`` or ``config.batch_size``, except during warm-up, where it is cut so that
     exactly ``n_init`` random points are drawn before the model takes over. Pure: asking
     twice without telling returns the same batch.
+
+    With a prior, the warm-up points that ``prior_rows`` picks (a fraction
+    ``acquisition.prior_share``) are drawn from it and the rest stay the uniform
+    draws a run without a prior makes; the model's proposals maximize log-EI plus
+    (pibo_beta / n) log prior(x) after n observations.
     """
     cfg = state.config
     q = cfg.batch_size if num is None else int(num)
@@ -205,10 +225,19 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
     if n < cfg.n_init:
         q = min(q, cfg.n_init - n)
         u = np.random.default_rng([cfg.seed, n]).random((q, cfg.dim))
+        if cfg.prior is not None:
+            rows = prior_rows(n, q, cfg.acquisition.prior_share)
+            drawn = sample_unit(unit_prior(cfg.prior, cfg.bounds), np.random.default_rng([cfg.seed, n, _PRIOR_STREAM]), q)
+            u = np.where(rows[:, None], drawn, u)
         return lo + u * (hi - lo)
     x, y, mask, ref = _padded_training_set(state)
     with jax.enable_x64(True):
-        points, _ = propose_batch(x, y, mask, proposal_key(cfg.seed, n), ref, q=q, settings=cfg.acquisition)
+        prior_args = ()
+        if cfg.prior is not None:
+            prior_args = (jax.tree.map(jax.numpy.asarray, unit_prior(cfg.prior, cfg.bounds)),
+                          jax.numpy.asarray(pibo_weight(cfg.acquisition.pibo_beta, n), jax.numpy.float64))
+        points, _ = propose_batch(x, y, mask, proposal_key(cfg.seed, n), ref, *prior_args, q=q,
+                                  settings=cfg.acquisition)
         u = np.asarray(points, np.float64)
     return np.clip(lo + u * (hi - lo), lo, hi)
 
@@ -242,6 +271,8 @@ def save_state(state: MOBOState, path) -> None:
     with open(path, "wb") as fh:
         np.savez(fh, x=state.x, y=state.y, config_json=np.array(config_json))
 
+
+_PRIOR_STREAM = 0x9A10  # the prior's warm-up draws: a generator apart from the uniform ones
 
 _PROBLEM_FIELDS = ("bounds", "n_objectives", "batch_size", "n_init", "seed")
 
@@ -288,6 +319,7 @@ def minimize(
     callback: Callable[[MOBOState], None] | None = None,
     acquisition: AcquisitionSettings | Mapping | None = None,
     ref_point=None,
+    prior: Prior | Mapping | None = None,
     **options,
 ) -> MOBOResult:
     """Minimizes the vector objective f over a box with ``budget`` evaluations.
@@ -298,6 +330,7 @@ def minimize(
       budget: total number of evaluations (the last batch is cut to fit).
       acquisition: the acquisition settings (default ``AcquisitionSettings()``).
       ref_point: (m,) reference point of the hypervolume scalarizations (MOBOConfig.ref_point).
+      prior: where good values are believed to lie (``Prior``; MOBOConfig.prior).
       options: acquisition settings by name, applied over ``acquisition`` (as
         :func:`acquisition_settings` reads them, e.g. ``n_raw=256``).
     """
@@ -315,7 +348,7 @@ def minimize(
         acquisition = acquisition_settings(acquisition)
     settings = acquisition_settings(options, base=acquisition)
     probe = MOBOConfig(bounds=bounds, n_objectives=1, batch_size=batch_size, n_init=n_init, seed=seed,
-                       acquisition=settings)
+                       acquisition=settings, prior=prior)
     x0 = ask(init(probe))
     y0 = evaluate(x0)
     cfg = dataclasses.replace(probe, n_objectives=y0.shape[1], ref_point=ref_point)

@@ -29,11 +29,17 @@ variance around them, so later elements move away from earlier ones. Because the
 values equal the mean, only the variance needs the update, computed here by a q x q Schur
 complement instead of refactorizing the n x n covariance.
 
+With a parameter prior (``prior``, ``prior_weight``: gp/prior.py) every element maximizes
+log-EI + prior_weight * log belief(x), piBO's prior-weighted acquisition in log space, the
+belief the prior mixed with the uniform density (``settings.prior_share``); without
+one (None) the proposal is the plain one, traced without a trace of the prior.
+
 Everything here is pure and jitted with static shapes; run it with x64 enabled.
 """
 
 from __future__ import annotations
 
+import math
 from functools import partial
 from typing import NamedTuple
 
@@ -45,6 +51,7 @@ from mjxskill.gp import gp as gpm
 from mjxskill.gp import hypervolume_scalarization as hvs
 from mjxskill.gp.acquisition import chebyshev, log_ei, sample_simplex
 from mjxskill.gp.kernels import matern52
+from mjxskill.gp.prior import UnitPrior, log_prior_unit
 from mjxskill.gp.scalarized_posterior import chebyshev_moments, log_ei_draws, normal_draws
 from mjxskill.gp.settings import AcquisitionSettings
 
@@ -187,6 +194,19 @@ def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_of, 
     return acq
 
 
+def prior_weighted(acq, prior: UnitPrior | None, prior_weight, share: float):
+    """piBO in log space: xs -> acq(xs) + prior_weight * log belief(xs), the belief the prior
+    with weight ``share`` beside the unit cube's uniform density (1) with weight 1 - share
+    (``acq`` itself without a prior: None is part of the trace's structure, so this changes
+    nothing then)."""
+    if prior is None:  # static
+        return acq
+    if share >= 1.0:  # static
+        return lambda xs: acq(xs) + prior_weight * log_prior_unit(prior, xs)
+    log_share, log_rest = math.log(share) if share > 0.0 else -math.inf, math.log1p(-share)
+    return lambda xs: acq(xs) + prior_weight * jnp.logaddexp(log_share + log_prior_unit(prior, xs), log_rest)
+
+
 def _maximize(acq, key, d: int, settings: AcquisitionSettings) -> jnp.ndarray:
     """Best point in [0, 1]^d: random candidates, then projected Adam from the best ones."""
     raw = jax.random.uniform(key, (settings.n_raw, d), jnp.float64)
@@ -216,7 +236,8 @@ def _maximize(acq, key, d: int, settings: AcquisitionSettings) -> jnp.ndarray:
 
 
 @partial(jax.jit, static_argnames=("q", "settings"))
-def propose_batch(x, y_norm, mask, key, ref=None, *, q: int, settings: AcquisitionSettings = AcquisitionSettings()):
+def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None, prior_weight=0.0, *, q: int,
+                  settings: AcquisitionSettings = AcquisitionSettings()):
     """q new points in the unit cube.
 
     Args:
@@ -226,6 +247,8 @@ def propose_batch(x, y_norm, mask, key, ref=None, *, q: int, settings: Acquisiti
       mask: (n,) bool, True for real rows (at least 2 of them).
       key: PRNG key; the scalarizations and all random starts derive from it.
       ref: (m,) float64 reference point in the units of y_norm (hypervolume scalarization).
+      prior: the parameter prior in unit-cube coordinates (traced arrays), or None.
+      prior_weight: piBO's exponent of the prior, beta / n (a traced scalar).
     Returns:
       (points (q, d) float64 in [0, 1]^d, fitted GPParams).
     """
@@ -263,7 +286,8 @@ def propose_batch(x, y_norm, mask, key, ref=None, *, q: int, settings: Acquisiti
         def choose_s(carry, j):
             fant, fant_mask = carry
             post = jax.tree.map(lambda a: a[j], posts_s)
-            acq = _acquisition_for_element(post, targets[j], fant, fant_mask)
+            acq = prior_weighted(_acquisition_for_element(post, targets[j], fant, fant_mask), prior, prior_weight,
+                                 settings.prior_share)
             xj = _maximize(acq, acq_keys[j], d, settings)
             return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
 
@@ -283,6 +307,7 @@ def propose_batch(x, y_norm, mask, key, ref=None, *, q: int, settings: Acquisiti
             fant, fant_mask = carry
             acq = _acquisition_per_objective(posts_o, y_mean, y_sd, partial(scal.log_ei, j), fant, fant_mask,
                                              settings.variance == "deflated")
+            acq = prior_weighted(acq, prior, prior_weight, settings.prior_share)
             xj = _maximize(acq, acq_keys[j], d, settings)
             return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
 

@@ -22,7 +22,7 @@ from mjxskill.scenario.schema import (
 )
 from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.scenario.sections import optimizer, randomization, rewards, success
-from mjxskill.scenario.skills import manual_parameters, skill, skill_fields
+from mjxskill.scenario.skills import manual_parameters, parameter_priors, skill, skill_fields
 
 SCENARIO_DIR = Path(__file__).resolve().parents[2] / "assets" / "scenarios"
 
@@ -60,7 +60,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
             "robot", "objects", "goal", "objectives", "rewards", "success", "randomization",
             "optimizer",
         ),
-        optional=("manual_parameters", "skills", "skill_library"),
+        optional=("manual_parameters", "parameter_priors", "skills", "skill_library"),
     )
     types = _types(top["types"])
     predicates = _predicates(top["predicates"], types)
@@ -108,6 +108,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         randomization=randomization(top["randomization"], object_names),
         optimizer=optimizer(top["optimizer"]),
         manual_parameters=manual_parameters(top.get("manual_parameters"), skills),
+        parameter_priors=parameter_priors(top.get("parameter_priors"), skills),
         locations=frozen_mapping(_locations(top, robot_field, objects_field)),
     )
     try:  # the goal's syntax and names (planning it is mjxskill.task's)

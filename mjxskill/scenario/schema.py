@@ -288,6 +288,18 @@ class ManualSet:
     where: str
 
 
+@dataclass(frozen=True)
+class ParameterPrior:
+    """An operator's belief about one learnable parameter, from the YAML's ``parameter_priors``:
+    good values lie near ``mean`` (inside the parameter's bounds), ``std`` > 0 in the
+    parameter's unit; a Gaussian truncated to the bounds (``mjxskill.gp.Prior``). where: the
+    entry's place in the file."""
+
+    mean: float
+    std: float
+    where: str
+
+
 @dataclass(frozen=True, eq=False)
 class Scenario:
     """A validated scenario: the world model and the task settings, no plan (``mjxskill.task``
@@ -301,6 +313,8 @@ class Scenario:
     operators' parameter sets (illustrative values). locations: key path -> "file: key path
     (line N)" of the entries checked after loading (the goal, when it is planned; the scene
     references), so that those errors name the file, key and line too (``where``).
+    parameter_priors: learnable parameter name ("Push.offset_x_start") -> ParameterPrior, where
+    the operator believes good values lie (the optimizer's prior, ``mjxskill.training.priors``).
     """
 
     name: str
@@ -324,6 +338,7 @@ class Scenario:
     manual_parameters: Mapping[str, ManualSet]
     locations: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
     libraries: tuple[str, ...] = ()
+    parameter_priors: Mapping[str, ParameterPrior] = field(default_factory=lambda: MappingProxyType({}))
 
     def where(self, key_path: str) -> str:
         """``"file: key path (line N)"`` of a YAML entry (the file alone when not recorded)."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from mjxskill.planner.world_pddl import check_atom, parse_literal
 from mjxskill.scenario.fields import Field
-from mjxskill.scenario.schema import ManualSet, Skill, SkillParameter, frozen_mapping
+from mjxskill.scenario.schema import ManualSet, ParameterPrior, Skill, SkillParameter, frozen_mapping
 from mjxskill.scenario.skill_tree import read_tree
 
 
@@ -124,6 +124,31 @@ def manual_parameters(field: Field | None, skills) -> dict:
             values[key] = v
         sets[set_name] = ManualSet(frozen_mapping(values), values_field.where())
     return frozen_mapping(sets)
+
+
+def parameter_priors(field: Field | None, skills) -> dict:
+    """``parameter_priors``: learnable parameter ("<Skill>[#k].<parameter>", as in
+    ``manual_parameters``) -> ParameterPrior, ``{mean: m, std: s}`` in the parameter's unit: the
+    mean inside the parameter's bounds, the std positive. The priors sit beside the scenario's
+    task (the operator's knowledge of this task), not in the skill library the scenarios share."""
+    if field is None:
+        return frozen_mapping({})
+    priors = {}
+    for key, item in field.items():
+        parameter = _learnable(key, skills)
+        if parameter is None:
+            learnable = [f"{s.name}.{p.name}" for s in skills.values() for p in s.parameters if p.learnable]
+            item.fail(f"{key!r} is not a learnable parameter of the skill library (learnable: {', '.join(learnable)})")
+        f = item.mapping(required=("mean", "std"))
+        mean = f["mean"].number()
+        lower, upper = parameter.bounds
+        if not lower <= mean <= upper:
+            f["mean"].fail(f"prior mean {mean:g} is outside the bounds [{lower:g}, {upper:g}] {parameter.unit}")
+        std = f["std"].number()
+        if not std > 0:
+            f["std"].fail(f"prior std must be > 0 ({parameter.unit}), got {std:g}")
+        priors[key] = ParameterPrior(mean, std, item.where())
+    return frozen_mapping(priors)
 
 
 def _learnable(key: str, skills) -> SkillParameter | None:

@@ -5,6 +5,9 @@ error names the file, the key and the line) and its settings go through the chec
 go through (``mjxskill.training.settings``), so a hand-edited or damaged file is one
 ``RunError`` naming what is wrong instead of a run that loops forever or a traceback later.
 Unknown keys are refused by name; a setting added after a run was written takes its default.
+The run's parameter prior (``prior``: where it came from and ``mjxskill.gp.Prior``'s fields,
+``mjxskill.training.priors``) is checked against the run's bounds when read, so a resumed run
+uses the prior it started with.
 """
 
 from __future__ import annotations
@@ -52,6 +55,9 @@ class RunConfig:
     optimizer_options: dict = field(default_factory=dict)  # {acquisition setting: value}, see optimizer_config
     engine: str = "mjx"  # the physics engine its batches run on (mjxskill.engines); "mjx" before the setting
     optimizer: str = "mobo"  # "random": uniform random search after the warm-up (mjxskill.training.loop)
+    # The optimizer's parameter prior: {"source": text, "mean": (K, P), "std": (K, P), "weights":
+    # (K,)} (mjxskill.training.priors); None: none (every run before priors).
+    prior: dict | None = None
 
     def to_yaml(self) -> str:
         data = {"format": FORMAT, **asdict(self)}
@@ -60,6 +66,7 @@ class RunConfig:
         data["bounds"] = [list(self.bounds[0]), list(self.bounds[1])]
         data["objective_names"] = list(self.objective_names)
         data["optimizer_options"] = dict(self.optimizer_options)
+        data["prior"] = None if self.prior is None else {key: self.prior[key] for key in PRIOR_KEYS}
         return yaml.safe_dump(data, sort_keys=False)
 
     @classmethod
@@ -71,7 +78,7 @@ class RunConfig:
             raise RunError(f"{where} is not an mjxskill run configuration (format {FORMAT!r} expected)")
         f = root.mapping(
             required=("format", *IDENTITY, *(s.name for s in SETTINGS if s.default is NO_DEFAULT)),
-            optional=(*(s.name for s in SETTINGS if s.default is not NO_DEFAULT), "optimizer_options"),
+            optional=(*(s.name for s in SETTINGS if s.default is not NO_DEFAULT), "optimizer_options", "prior"),
         )
         names = _names(f["parameter_names"], "parameter")
         units = _texts(f["parameter_units"])
@@ -101,9 +108,13 @@ class RunConfig:
                     options[key] = optimizer_option_value(key, item.scalar())
                 except ValueError as err:
                     item.fail(str(err))
+        prior = None
+        if "prior" in f and not f["prior"].is_null():
+            prior = _prior(f["prior"], names, bounds)
         config = cls(task=f["task"].string(), scenario=f["scenario"].string(), parameter_names=names,
                      parameter_units=units, bounds=(tuple(bounds[0]), tuple(bounds[1])),
-                     objective_names=_names(f["objective_names"], "objective"), optimizer_options=options, **values)
+                     objective_names=_names(f["objective_names"], "objective"), optimizer_options=options, prior=prior,
+                     **values)
         problem = optimizer_problem(config)
         if problem:
             f.get("optimizer_options", root).fail(problem)
@@ -116,6 +127,30 @@ class RunConfig:
     def sub_run(self, seed: int) -> "RunConfig":
         """The configuration of repeat ``seed`` of a repeated run."""
         return replace(self, seed=seed, repeats=1)
+
+
+PRIOR_KEYS = ("source", "mean", "std", "weights")
+
+
+def _prior(field: Field, names, bounds) -> dict:
+    """config.yaml's ``prior``, checked as gp checks a Prior against the run's bounds."""
+    f = field.mapping(required=PRIOR_KEYS)
+    prior = {"source": f["source"].string(), "mean": [list(r) for r in f["mean"].matrix(len(names))],
+             "std": [list(r) for r in f["std"].matrix(len(names))], "weights": list(f["weights"].vector())}
+    try:
+        gp_prior(prior).check_bounds(bounds)
+    except ValueError as err:
+        field.fail(f"{err} (parameters: {', '.join(names)})")
+    return prior
+
+
+def gp_prior(prior: dict | None):
+    """The ``mjxskill.gp.Prior`` of a run's stored prior (None: none); ValueError if it is none."""
+    if prior is None:
+        return None
+    from mjxskill.gp import Prior
+
+    return Prior(mean=prior["mean"], std=prior["std"], weights=prior["weights"])
 
 
 def _texts(field: Field) -> tuple[str, ...]:
@@ -149,6 +184,7 @@ def optimizer_config(config: RunConfig):
         n_init=config.n_init,
         seed=config.seed,
         acquisition=acquisition_settings(config.optimizer_options),
+        prior=gp_prior(config.prior),
     )
 
 
@@ -179,4 +215,5 @@ def batch_sizes(budget: int, batch_size: int, n_init: int) -> Iterator[int]:
         n += q
 
 
-__all__ = ["FORMAT", "RunConfig", "batch_sizes", "evaluation_columns", "optimizer_config", "optimizer_problem"]
+__all__ = ["FORMAT", "PRIOR_KEYS", "RunConfig", "batch_sizes", "evaluation_columns", "gp_prior", "optimizer_config",
+           "optimizer_problem"]

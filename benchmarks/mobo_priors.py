@@ -1,0 +1,228 @@
+"""Parameter priors (piBO) in mjxskill.gp: hypervolume after 20 and 40 evaluations and at the
+full budget, without a prior, with a good prior and with a misleading one.
+
+Problems: BraninCurrin and ZDT1 (d = 6) from ``benchmarks/mobo_quality.py`` (imported), and,
+with ``--push``, the push task through the training loop's own functions (native engine, full
+12 s episodes, few worlds). Budget ``--budget`` (default 60) in batches of ``--batch`` (5)
+after ``--init`` (10) warm-up points; the optimizer's defaults otherwise (pibo_beta 2,
+prior_share 0.5: half the warm-up from the prior; ``--option pibo_beta=10`` as measured
+before the default was lowered).
+
+The priors, per problem, each one Gaussian per dimension with a standard deviation of
+``--std-fraction`` (0.15) of the range, truncated to the bounds:
+
+* good: centred on a known Pareto-optimal point. BraninCurrin: the Pareto-optimal point of a
+  401 x 401 grid closest (normalized objectives) to the ideal point; ZDT1: x1 = 0.5, x2..6 = 0
+  (its Pareto set is x2..6 = 0). Push: the scenario's operator set operator_a (a hand-written
+  push into the goal corner; illustrative, not a verified optimum).
+* misleading: centred on a region of poor objectives. BraninCurrin: (0.1, 0.1) (both objectives
+  near their worst: printed with their percentile among uniform draws); ZDT1: x1 = 0.5,
+  x2..6 = 1 (g = 10, the worst); push: every offset at +0.25 m (the tool starts and ends far
+  from the prism and the goal).
+
+    python benchmarks/mobo_priors.py --seeds 10 --save prior-runs.json
+    python benchmarks/mobo_priors.py --seeds 5 --push --push-only --push-worlds 3 --push-budget 36
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.path.dirname(__file__))
+import mjxskill  # noqa: E402,F401
+
+from mjxskill.gp import Prior, hypervolume, minimize  # noqa: E402
+from mobo_quality import PROBLEMS, branin_currin, parse_options  # noqa: E402
+
+SETTINGS = ("none", "good", "misleading")
+GP_PROBLEMS = ("BraninCurrin", "ZDT1 (d=6)")
+
+
+def branin_currin_pareto_point(n: int = 401) -> np.ndarray:
+    """The Pareto-optimal point of an n x n grid nearest the ideal point (normalized objectives)."""
+    g = np.linspace(0.0, 1.0, n)
+    x = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    x[:, 1] = np.maximum(x[:, 1], 1e-9)  # Currin divides by x2
+    y = branin_currin(x)
+    order = np.argsort(y[:, 0], kind="stable")
+    best2, front = np.inf, []
+    for i in order:  # a sweep by the first objective: non-dominated iff it improves the second
+        if y[i, 1] < best2:
+            best2 = y[i, 1]
+            front.append(i)
+    yf = y[front]
+    norm = (yf - yf.min(0)) / (yf.max(0) - yf.min(0))
+    return x[front][np.argmin(np.linalg.norm(norm, axis=1))]
+
+
+def gp_priors(name: str, d: int, std_fraction: float) -> dict:
+    if name == "BraninCurrin":
+        good, bad = branin_currin_pareto_point(), np.array([0.1, 0.1])
+    else:  # ZDT1
+        good, bad = np.r_[0.5, np.zeros(d - 1)], np.r_[0.5, np.ones(d - 1)]
+    return {"none": None, "good": Prior(mean=good, std=std_fraction), "misleading": Prior(mean=bad, std=std_fraction)}
+
+
+def percentile_of(problem, point, n=100_000) -> list:
+    """Each objective's percentile at ``point`` among uniform draws (100: worse than all)."""
+    y = problem["f"](np.random.default_rng(0).random((n, problem["d"])))
+    at = problem["f"](np.asarray(point)[None])[0]
+    return [float(np.mean(y[:, i] < at[i]) * 100) for i in range(len(at))]
+
+
+def run_gp(problem, prior, seed, args, options) -> np.ndarray:
+    bounds = np.stack([np.zeros(problem["d"]), np.ones(problem["d"])])
+    res = minimize(problem["f"], bounds, budget=args.budget, batch_size=args.batch, n_init=args.init, seed=seed,
+                   prior=prior, **options)
+    return res.Y
+
+
+def hv_at(y: np.ndarray, ref, checkpoints) -> list:
+    return [float(hypervolume(y[:c], ref)) for c in checkpoints]
+
+
+def quartiles(values) -> str:
+    q1, med, q3 = np.percentile(values, [25, 50, 75])
+    return f"{med:.2f} [{q1:.2f}, {q3:.2f}]"
+
+
+# -- the push task ----------------------------------------------------------------------------
+def push_priors(task, std_fraction: float) -> dict:
+    lo, hi = np.asarray(task.bounds)
+    std = std_fraction * (hi - lo)
+    good = np.asarray(task.manual_parameters["operator_a"])
+    bad = np.clip(np.full(len(lo), 0.25), lo, hi)
+    return {"none": None, "good": {"source": "operator_a", "mean": [good.tolist()], "std": [std.tolist()], "weights": [1.0]},
+            "misleading": {"source": "offsets +0.25", "mean": [bad.tolist()], "std": [std.tolist()], "weights": [1.0]}}
+
+
+def run_push(rollout, task, scn, prior, seed, args, options) -> np.ndarray:
+    """One training run of the push task with the training loop's functions (a temporary run
+    directory); returns the objectives (n, 2), larger is better, in evaluation order."""
+    from mjxskill.training.loop import rollout_evaluator, train
+    from mjxskill.training.run_dir import Run, RunConfig
+
+    config = RunConfig(task=scn.name, scenario="push", goal=task.goal, parameter_names=tuple(task.parameter_names),
+                       parameter_units=tuple(task.parameter_units),
+                       bounds=(tuple(map(float, task.bounds[0])), tuple(map(float, task.bounds[1]))),
+                       objective_names=tuple(scn.objective_names), budget=args.push_budget, batch_size=args.push_batch,
+                       n_init=args.push_init, worlds=args.push_worlds, seed=seed, episode_seconds=args.push_seconds,
+                       engine="native", optimizer_options=options, prior=prior)
+    with tempfile.TemporaryDirectory() as tmp:
+        run = Run(os.path.join(tmp, "run"))
+        from mjxskill.task import planning_texts
+
+        run.create(config, scn.source, planning_texts(task))
+        ev = train(run, config, rollout_evaluator(rollout, config.batch_size, seed))
+    return np.asarray(ev.objectives, np.float64)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--budget", type=int, default=60)
+    ap.add_argument("--batch", type=int, default=5)
+    ap.add_argument("--init", type=int, default=10)
+    ap.add_argument("--std-fraction", type=float, default=0.15)
+    ap.add_argument("--problems", nargs="*", default=list(GP_PROBLEMS))
+    ap.add_argument("--settings", default=",".join(SETTINGS))
+    ap.add_argument("--option", action="append", default=[], help="acquisition setting KEY=VALUE of mjxskill.gp")
+    ap.add_argument("--push", action="store_true", help="also the push task (slow: physics)")
+    ap.add_argument("--push-only", action="store_true", help="only the push task")
+    ap.add_argument("--push-seeds", type=int, default=None, help="seeds of the push task (default --seeds)")
+    ap.add_argument("--push-worlds", type=int, default=3)
+    ap.add_argument("--push-budget", type=int, default=36)
+    ap.add_argument("--push-batch", type=int, default=6)
+    ap.add_argument("--push-init", type=int, default=12)
+    ap.add_argument("--push-seconds", type=float, default=12.0, help="episode length (12: the scenario's full episodes)")
+    ap.add_argument("--save", help="write the raw results (objective values of every run) as JSON")
+    args = ap.parse_args(argv)
+    options = parse_options(args.option)
+    settings = [s for s in args.settings.split(",") if s]
+    checkpoints = sorted({c for c in (20, 40, args.budget) if c <= args.budget})
+    started = time.monotonic()
+    print(f"load average at start: {' '.join(f'{v:.2f}' for v in os.getloadavg())} ({os.cpu_count()} cores)")
+    print(f"priors: one truncated Gaussian per dimension, std {args.std_fraction:g} x range; acquisition options "
+          f"{options or 'defaults'} (pibo_beta 2, prior_share 0.5 unless set)")
+    if not args.push_only:
+        print(f"GP problems: budget {args.budget} = {args.init} warm-up + batches of {args.batch}; seeds 0..{args.seeds - 1}")
+    raw = {"args": vars(args), "checkpoints": checkpoints, "problems": {}}
+    for name in [] if args.push_only else args.problems:
+        problem = PROBLEMS[name]
+        priors = gp_priors(name, problem["d"], args.std_fraction)
+        print(f"\n{name} (ref {problem['ref']}, max hypervolume {problem['max_hv']}):")
+        for kind in ("good", "misleading"):
+            mean = np.asarray(priors[kind].mean[0])
+            print(f"  {kind} prior centred on {np.round(mean, 4).tolist()}: objectives "
+                  f"{np.round(problem['f'](mean[None])[0], 3).tolist()}, percentile among uniform draws "
+                  f"{np.round(percentile_of(problem, mean), 1).tolist()} (0: better than all)")
+        entry = raw["problems"][name] = {"ref": problem["ref"], "max_hv": problem["max_hv"], "runs": {}}
+        for kind in settings:
+            hvs, secs = [], []
+            for seed in range(args.seeds):
+                t0 = time.monotonic()
+                y = run_gp(problem, priors[kind], seed, args, options)
+                secs.append(time.monotonic() - t0)
+                hvs.append(hv_at(y, problem["ref"], checkpoints))
+                entry["runs"].setdefault(kind, []).append({"seed": seed, "y": y.tolist(), "hv": hvs[-1], "seconds": secs[-1]})
+            hv = np.asarray(hvs)
+            cells = ", ".join(f"{c}: {quartiles(hv[:, i])}" for i, c in enumerate(checkpoints))
+            print(f"  {kind:<10} hypervolume median [q1, q3] at {cells}  ({np.mean(secs):.0f} s/run)", flush=True)
+    if args.push or args.push_only:
+        _push(args, options, settings, raw)
+    print(f"\nload average at end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}; {time.monotonic() - started:.0f} s")
+    raw["load_end"] = os.getloadavg()
+    if args.save:
+        with open(args.save, "w") as fh:
+            json.dump(raw, fh)
+
+
+def _push(args, options, settings, raw) -> None:
+    from mjxskill.engines import build_rollout
+    from mjxskill.scenario import load_scenario
+    from mjxskill.task import plan_task
+
+    scn = load_scenario("push")
+    task = plan_task(scn)
+    priors = push_priors(task, args.std_fraction)
+    seeds = args.seeds if args.push_seeds is None else args.push_seeds
+    checkpoints = sorted({c for c in (20, args.push_budget) if c <= args.push_budget})
+    print(f"\npush: native engine, {args.push_worlds} worlds, {args.push_seconds:g} s episodes, budget {args.push_budget} "
+          f"= {args.push_init} warm-up + batches of {args.push_batch}, seeds 0..{seeds - 1}; good prior: operator_a "
+          f"{np.round(priors['good']['mean'][0], 3).tolist()}, misleading: offsets +0.25 m")
+    rollout = build_rollout(scn, task, "native", worlds=args.push_worlds, episode_seconds=args.push_seconds)
+    runs = {}
+    try:
+        for kind in settings:
+            for seed in range(seeds):
+                t0 = time.monotonic()
+                y = run_push(rollout, task, scn, priors[kind], seed, args, options)
+                runs.setdefault(kind, []).append({"seed": seed, "y": y.tolist(), "seconds": time.monotonic() - t0})
+                print(f"  {kind} seed {seed}: {time.monotonic() - t0:.0f} s", flush=True)
+    finally:
+        getattr(rollout, "close", lambda: None)()
+    # One reference for every run (objectives are maximized): the worst value of each objective
+    # over all runs' evaluations, so the hypervolumes of the settings compare.
+    everything = np.concatenate([np.asarray(r["y"]) for rs in runs.values() for r in rs])
+    ref = (-everything).max(axis=0)
+    for kind, rs in runs.items():
+        hv = np.asarray([hv_at(-np.asarray(r["y"]), ref, checkpoints) for r in rs])
+        for r, h in zip(rs, hv):
+            r["hv"] = h.tolist()
+        cells = ", ".join(f"{c}: {quartiles(hv[:, i])}" for i, c in enumerate(checkpoints))
+        print(f"  {kind:<10} hypervolume (ref {np.round(-ref, 3).tolist()} in rewards) median [q1, q3] at {cells}")
+    raw["problems"]["push"] = {"ref_rewards": (-ref).tolist(), "runs": runs}
+
+
+if __name__ == "__main__":
+    main()
