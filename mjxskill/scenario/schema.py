@@ -313,7 +313,7 @@ class Scenario:
     operators' parameter sets (illustrative values). locations: key path -> "file: key path
     (line N)" of the entries checked after loading (the goal, when it is planned; the scene
     references), so that those errors name the file, key and line too (``where``).
-    parameter_priors: learnable parameter name ("Push.offset_x_start") -> ParameterPrior, where
+    parameter_priors: learnable parameter name ("<skill>.<parameter>") -> ParameterPrior, where
     the operator believes good values lie (the optimizer's prior, ``mjxskill.training.priors``).
     """
 
