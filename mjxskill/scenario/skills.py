@@ -113,10 +113,7 @@ def manual_parameters(field: Field | None, skills) -> dict:
     for set_name, values_field in field.items():
         values = {}
         for key, item in values_field.items():
-            parameter = _learnable(key, skills)
-            if parameter is None:
-                learnable = [f"{s.name}.{p.name}" for s in skills.values() for p in s.parameters if p.learnable]
-                item.fail(f"{key!r} is not a learnable parameter of the skill library (learnable: {', '.join(learnable)})")
+            parameter = _learnable_named(key, item, skills)
             v = item.number()
             lower, upper = parameter.bounds
             if not lower <= v <= upper:
@@ -135,10 +132,7 @@ def parameter_priors(field: Field | None, skills) -> dict:
         return frozen_mapping({})
     priors = {}
     for key, item in field.items():
-        parameter = _learnable(key, skills)
-        if parameter is None:
-            learnable = [f"{s.name}.{p.name}" for s in skills.values() for p in s.parameters if p.learnable]
-            item.fail(f"{key!r} is not a learnable parameter of the skill library (learnable: {', '.join(learnable)})")
+        parameter = _learnable_named(key, item, skills)
         f = item.mapping(required=("mean", "std"))
         mean = f["mean"].number()
         lower, upper = parameter.bounds
@@ -149,6 +143,16 @@ def parameter_priors(field: Field | None, skills) -> dict:
             f["std"].fail(f"prior std must be > 0 ({parameter.unit}), got {std:g}")
         priors[key] = ParameterPrior(mean, std, item.where())
     return frozen_mapping(priors)
+
+
+def _learnable_named(key: str, item: Field, skills) -> SkillParameter:
+    """The learnable parameter ``key`` names; a located error at ``item`` listing the learnable
+    ones when it names none."""
+    parameter = _learnable(key, skills)
+    if parameter is None:
+        learnable = [f"{s.name}.{p.name}" for s in skills.values() for p in s.parameters if p.learnable]
+        item.fail(f"{key!r} is not a learnable parameter of the skill library (learnable: {', '.join(learnable)})")
+    return parameter
 
 
 def _learnable(key: str, skills) -> SkillParameter | None:
