@@ -214,7 +214,8 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
     With a prior, the warm-up points that ``prior_rows`` picks (a fraction
     ``acquisition.prior_share``) are drawn from it and the rest stay the uniform
     draws a run without a prior makes; the model's proposals maximize log-EI plus
-    (pibo_beta / n) log prior(x) after n observations.
+    (pibo_beta / n) log belief(x) after n observations, the belief the prior mixed
+    with the uniform density (``proposal.prior_weighted``).
     """
     cfg = state.config
     q = cfg.batch_size if num is None else int(num)

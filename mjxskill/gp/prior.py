@@ -9,10 +9,12 @@ earlier run's Pareto front is one component per Pareto solution.
 The optimizer uses it twice (Hvarfner et al. 2022, piBO):
 
 * the warm-up draws a fraction of its points from the prior, the rest uniformly
-  (``AcquisitionSettings.prior_share``, see ``warmup_points``);
-* the acquisition is weighted by the prior with an influence that decays with the number of
-  observations n: acq(x) * prior(x)^(beta / n). Our acquisition is log-EI, so the proposal
-  maximizes ``log_acq(x) + (beta / n) * log_prior(x)`` (``AcquisitionSettings.pibo_beta``).
+  (``AcquisitionSettings.prior_share``, see ``prior_rows``);
+* the acquisition is weighted by the belief (the prior with weight ``prior_share`` beside the
+  uniform density) with an influence that decays with the number of observations n:
+  acq(x) * belief(x)^(beta / n). Our acquisition is log-EI, so the proposal maximizes
+  ``log_acq(x) + (beta / n) * log belief(x)`` (``AcquisitionSettings.pibo_beta``;
+  ``proposal.prior_weighted``).
   Early on the prior steers the search; as data accumulate the model's EI dominates, so a
   misleading prior costs evaluations but not the final front.
 
@@ -176,7 +178,7 @@ def log_density(prior: Prior, bounds, x) -> np.ndarray:
 
 def pibo_weight(beta: float, n_observations: int) -> float:
     """piBO's exponent of the prior after n observations: beta / n (the log-acquisition shift
-    is this times log prior(x))."""
+    is this times log belief(x))."""
     return float(beta) / max(int(n_observations), 1)
 
 
