@@ -42,6 +42,32 @@ except KeyboardInterrupt:
     sys.exit(130)
 """
 
+NOEXCEPT_SCRIPT = """
+import os, signal, sys, time
+from mjxskill.cli import interrupt
+if sys.argv[1] == "install":
+    interrupt.install("noexcept-test")
+else:  # Python's own handler
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+import numpy.lib.format
+from scipy.stats import qmc
+read_array = numpy.lib.format.read_array
+def reading(*args, **kwargs):  # Ctrl-C lands while scipy's Sobol set-up (a Cython noexcept
+    os.kill(os.getpid(), signal.SIGINT)  # function) loads its direction numbers
+    time.sleep(0.01)
+    return read_array(*args, **kwargs)
+numpy.lib.format.read_array = reading
+print("ready", flush=True)
+try:
+    qmc.Sobol(d=2, seed=0).random(4)
+    time.sleep(3)
+    print("not interrupted", flush=True)
+except KeyboardInterrupt:
+    interrupt.acknowledge()
+    print("caught", flush=True)
+    sys.exit(130)
+"""
+
 STUCK_SCRIPT = """
 import ctypes, signal, sys
 from mjxskill.cli import interrupt
@@ -72,6 +98,17 @@ def test_an_interrupt_swallowed_by_a_gc_callback_is_raised_again():
     assert "Exception ignored" in err and "KeyboardInterrupt" in err
 
     proc = start(GC_SCRIPT, "install")
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and out.strip() == "caught", (out, err)
+    assert "Exception ignored" not in err and "Traceback" not in err, err
+
+
+def test_an_interrupt_an_extension_prints_and_drops_is_raised_again_without_a_traceback():
+    reference = start(NOEXCEPT_SCRIPT, "python")  # Python's own handling: printed, then lost
+    out, err = reference.communicate(timeout=60)
+    assert out.strip() == "not interrupted" and "Traceback" in err and "KeyboardInterrupt" in err, (out, err)
+
+    proc = start(NOEXCEPT_SCRIPT, "install")
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130 and out.strip() == "caught", (out, err)
     assert "Exception ignored" not in err and "Traceback" not in err, err

@@ -11,7 +11,10 @@ of a ``python -m mjxskill.<command>`` (``run_command``; never on import):
   knows what is on disk and calls ``acknowledge()``;
 * one that would be raised inside a gc callback (seen from the handler's frame) or that a
   finalizer swallowed (seen by ``sys.unraisablehook``, silenced for it) is raised again in the
-  main thread a moment later by the watchdog (``_thread.interrupt_main``), until it lands;
+  main thread a moment later by the watchdog (``_thread.interrupt_main``), until it lands. An
+  extension function that cannot raise (Cython's ``noexcept``, e.g. scipy's Sobol set-up) first
+  prints the traceback through ``sys.excepthook`` and then hands the exception to the
+  unraisable hook: after a Ctrl-C that print is silenced too;
 * Python runs its handler only when the main thread next runs Python code, so a watchdog
   thread hears the signal itself (``signal.set_wakeup_fd``: the C-level handler writes to a
   pipe at once). If nothing acknowledged the interrupt after ``GRACE_SECONDS`` (the main
@@ -41,7 +44,8 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT, what shells report for a Ctrl-C
 GRACE_SECONDS = 5.0
 
 _state = {"prog": "mjxskill", "acknowledged": False, "redeliver": False, "redelivered": 0,
-          "message": "interrupted", "previous_hook": None, "request_fd": None, "pressed": False}
+          "message": "interrupted", "previous_hook": None, "previous_excepthook": None, "request_fd": None,
+          "pressed": False}
 
 
 def run_command(prog: str, module: str) -> int:
@@ -77,6 +81,8 @@ def install(prog: str) -> None:
     if _state["previous_hook"] is None:
         _state["previous_hook"] = sys.unraisablehook
         sys.unraisablehook = _on_unraisable
+        _state["previous_excepthook"] = sys.excepthook
+        sys.excepthook = _on_excepthook
         signals, write = os.pipe()
         os.set_blocking(write, False)
         signal.set_wakeup_fd(write, warn_on_full_buffer=False)
@@ -127,6 +133,12 @@ def _on_unraisable(unraisable) -> None:
         _request_redelivery()  # raised where Python cannot propagate it (a finalizer, a callback)
         return
     _state["previous_hook"](unraisable)
+
+
+def _on_excepthook(exc_type, value, traceback) -> None:
+    if issubclass(exc_type, KeyboardInterrupt) and _state["pressed"]:
+        return  # an extension printing the Ctrl-C it cannot raise; _on_unraisable hears it next
+    _state["previous_excepthook"](exc_type, value, traceback)
 
 
 def _in_gc_callback(frame) -> bool:
