@@ -7,6 +7,7 @@ import jax.flatten_util
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 from scipy.stats import multivariate_normal
 
 from mjxskill.gp import gp as gpm
@@ -86,3 +87,25 @@ def test_importing_and_using_the_gp_leaves_float32_default():
 
     assert not jax.config.jax_enable_x64
     assert jnp.zeros(2).dtype == jnp.float32
+
+
+@settings(max_examples=25, deadline=None)
+@given(b=st.integers(1, 5), n=st.integers(1, 9), seed=st.integers(0, 2**31 - 1))
+def test_symmetric_quadratic_form_gradients_are_autodiffs_of_the_plain_form(b, n, seed):
+    # The custom VJP reuses k a for the gradient in k; the reference is autodiff of the plain
+    # expression, which multiplies by a^T itself (equal for symmetric a).
+    with jax.enable_x64(True):
+        rng = np.random.default_rng(seed)
+        k = jnp.asarray(rng.standard_normal((b, n)))
+        half = rng.standard_normal((n, n))
+        a = jnp.asarray(half + half.T)
+        g = jnp.asarray(rng.standard_normal(b))
+
+        def plain(k, a):
+            return jnp.sum((k @ a) * k, axis=-1)
+
+        np.testing.assert_allclose(gpm.symmetric_quadratic_form(k, a), plain(k, a), rtol=1e-12, atol=1e-12)
+        ours = jax.vjp(gpm.symmetric_quadratic_form, k, a)[1](g)
+        reference = jax.vjp(plain, k, a)[1](g)
+        for got, want in zip(ours, reference):
+            np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10)
