@@ -83,7 +83,7 @@ def percentile_of(problem, point, n=100_000) -> list:
 def run_gp(problem, prior, seed, args, options) -> np.ndarray:
     bounds = np.stack([np.zeros(problem["d"]), np.ones(problem["d"])])
     res = minimize(problem["f"], bounds, budget=args.budget, batch_size=args.batch, n_init=args.init, seed=seed,
-                   prior=prior, **options)
+                   prior=prior, acquisition=options)  # not **options: its "prior" is the GP's
     return res.Y
 
 

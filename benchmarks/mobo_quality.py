@@ -75,8 +75,10 @@ PROBLEMS = {
 def run_ours(problem, seed, given_ref=False, **options):
     """given_ref: pass the problem's reference point (as qLogNEHVI gets it); else inferred."""
     bounds = np.stack([np.zeros(problem["d"]), np.ones(problem["d"])])
+    # acquisition=, not **options: the acquisition setting "prior" (the GP's hyperparameter
+    # prior) would land on minimize's parameter prior
     res = minimize(problem["f"], bounds, budget=BUDGET, batch_size=BATCH, n_init=N_INIT, seed=seed,
-                   ref_point=problem["ref"] if given_ref else None, **options)
+                   ref_point=problem["ref"] if given_ref else None, acquisition=options)
     return hypervolume(res.Y, problem["ref"])
 
 

@@ -133,3 +133,72 @@ def test_warmup_reference_is_the_worst_value_plus_a_margin_of_the_range():
     np.testing.assert_allclose(hvs.warmup_reference(y, 0.1), [3.3, 4.4])
     got = hvs.warmup_reference(np.array([[1.0, np.nan], [1.0, np.nan]]), 0.1)
     assert got[0] == pytest.approx(1.0 + 1e-10) and np.isnan(got[1])
+
+
+@pytest.mark.parametrize("m", [2, 3, 4])
+def test_quasi_random_directions_are_uniform_and_cover_the_sphere_evenly(m):
+    with jax.enable_x64(True):
+        groups = np.asarray(hvs.quasi_random_directions(jax.random.PRNGKey(m), 400, 64, m))
+    lam = groups.reshape(-1, m)
+    np.testing.assert_allclose(np.linalg.norm(lam, axis=1), 1.0, atol=1e-12)
+    assert np.all(lam >= 0)
+    # Each direction uniform on the positive sphere (the same mean as independent directions);
+    # groups are independent, so the standard error is over groups at most.
+    expected = {2: 2 / np.pi, 3: 0.5, 4: 4 / (3 * np.pi)}[m]
+    np.testing.assert_allclose(lam.mean(0), expected, atol=5 * 0.5 / np.sqrt(400))
+    # Even cover (m = 2, 3): the hypervolume estimate of a front from one group of 64 varies far less
+    # between groups than from 64 independent directions (the reason they exist).
+    front = {2: np.array([[0.0, 0.6], [0.3, 0.3], [0.7, 0.0]]),
+             3: np.array([[0.0, 0.5, 0.5], [0.5, 0.0, 0.5], [0.5, 0.5, 0.0]]),
+             4: np.eye(4) * 0.0 + np.array([[0.0, 0.5, 0.5, 0.5], [0.5, 0.0, 0.5, 0.5], [0.5, 0.5, 0.0, 0.5],
+                                             [0.5, 0.5, 0.5, 0.0]])}[m]
+    with jax.enable_x64(True):
+        independent = np.asarray(hvs.sample_directions(jax.random.PRNGKey(99), 400 * 64, m)).reshape(400, 64, m)
+
+    def estimates(dirs):
+        best = np.max(numpy_scalarization(front[None, None], dirs[:, :, None, :]), axis=2)  # (groups, 64)
+        return hvs.hypervolume_constant(m) * best.mean(1)
+
+    exact = hypervolume(front, np.ones(m))
+    qmc_est, iid_est = estimates(groups), estimates(independent)
+    assert abs(qmc_est.mean() - exact) < 5 * qmc_est.std() / np.sqrt(400) + 1e-12  # unbiased
+    if m <= 3:  # area-preserving maps; above, the normal quantile's map keeps only the uniformity
+        assert qmc_est.std() < 0.5 * iid_est.std()
+
+
+@settings(deadline=None, max_examples=60)
+@given(st.floats(-3000.0, 3000.0), st.floats(0.0, 60.0), st.integers(0, 2**32 - 1))
+def test_log_mean_softplus_is_exact_with_its_gradient_in_every_regime(shift, scale, seed):
+    import mpmath as mp
+
+    from mjxskill.gp.scalarized_posterior import log_mean_softplus
+
+    z = np.random.default_rng(seed).normal(size=(3, 16)) * scale + shift
+    mp.mp.dps = 40
+    values = [[mp.log1p(mp.exp(mp.mpf(float(v)))) for v in row] for row in z]
+    sums = [mp.fsum(row) for row in values]
+    want = np.array([float(mp.log(s / z.shape[1])) for s in sums])
+    # d/dz_i log sum softplus = sigmoid(z_i) / sum softplus
+    want_grad = np.array([[float(mp.exp(mp.mpf(float(v)) - mp.log1p(mp.exp(mp.mpf(float(v))))) / s) for v in row]
+                          for row, s in zip(z, sums)])
+    with jax.enable_x64(True):
+        got = np.asarray(log_mean_softplus(jnp.asarray(z), axis=-1))
+        grad = np.asarray(jax.grad(lambda v: jnp.sum(log_mean_softplus(v, axis=-1)))(jnp.asarray(z)))
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+    big = want_grad > 1e-280  # gradients that float64 holds without underflow
+    np.testing.assert_allclose(grad[big], want_grad[big], rtol=1e-9)
+    assert np.all(np.abs(grad[~big]) < 1e-270)
+
+
+@settings(max_examples=40, deadline=None)
+@given(u=arrays(np.float64, (9, 3), elements=st.sampled_from([0.0, 0.1, 0.25, 0.5, 0.8, 1.0, 1.6, 3.0])),
+       n_masked=st.integers(1, 9), margin=st.sampled_from([0.0, 0.1, 0.5]))
+def test_front_reference_is_the_inferred_reference_point_within_the_runs(u, n_masked, margin):
+    """The jitted front reference against the host-side reference_point (BoTorch's rule):
+    nadir plus a margin of the extent, the observed range where the front has none; at most 1.
+    Values from a small grid, so ties, duplicates and one-point fronts come up."""
+    mask = np.arange(9) < n_masked
+    with jax.enable_x64(True):
+        got = np.asarray(jax.jit(hvs.front_reference, static_argnums=2)(jnp.asarray(u), jnp.asarray(mask), margin))
+    want = np.clip(hvs.reference_point(u[mask], margin), 1e-6, 1.0)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)

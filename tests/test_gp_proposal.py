@@ -11,6 +11,7 @@ import pytest
 
 from mjxskill.gp import AcquisitionSettings, MOBOConfig, ask, init, tell
 from mjxskill.gp import gp as gpm
+from mjxskill.gp import hypervolume_scalarization as hvs
 from mjxskill.gp.proposal import _believer_predictor, _scalarization
 
 
@@ -42,7 +43,8 @@ def test_believer_update_equals_conditioning_on_the_believed_points():
 def test_per_objective_model_with_moment_matching_proposes_distinct_points_in_bounds():
     cfg = MOBOConfig(bounds=[[0.0, 0.0], [1.0, 1.0]], n_objectives=2, batch_size=3, n_init=6, seed=1,
                      acquisition=AcquisitionSettings(bucket=16, n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1,
-                                                     fit_steps=5, model="per_objective", ei="moments"))
+                                                     fit_steps=5, model="per_objective", ei="moments",
+                                                     scalarization="chebyshev"))
     x = np.random.default_rng(0).random((6, 2))
     state = tell(init(cfg), x, np.stack([x[:, 0], 1 - x[:, 0] + x[:, 1] ** 2], 1))
     batch = ask(state)
@@ -93,7 +95,8 @@ def test_pending_values_take_away_the_improvement_a_pending_point_already_offers
         got = {}
         for pending in ("variance", "values"):
             scal = _scalarization(*args, AcquisitionSettings(scalarization=scalarization, pending=pending, tau=1e-6))
-            got[pending] = float(scal.log_ei(0, jnp.asarray(better), var, pend, pend_mask)[0])
+            best = scal.incumbents(scal.space, jnp.asarray(mask))[0]
+            got[pending] = float(scal.log_ei(0, best, jnp.asarray(better), var, pend, pend_mask)[0])
     assert got["variance"] > np.log(1e-3)  # a real improvement while the pending point is ignored
     assert got["values"] < np.log(1e-5)  # none left once the pending point counts at its believed value
 
@@ -102,10 +105,85 @@ def test_hypervolume_scalarization_proposes_distinct_points_in_bounds():
     cfg = MOBOConfig(bounds=[[0.0, 0.0], [1.0, 1.0]], n_objectives=2, batch_size=3, n_init=6, seed=1,
                      acquisition=AcquisitionSettings(bucket=16, n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1,
                                                      fit_steps=5, scalarization="hypervolume", model="per_objective",
-                                                     n_directions=2, pending="values", variance="deflated"),
+                                                     n_directions=2, pending="values", variance="deflated",
+                                                     directions="quasi_random", single_direction_share=0.34,
+                                                     single_direction_reference="front", incumbent="posterior_mean"),
                      ref_point=(1.2, 2.2))
     x = np.random.default_rng(0).random((6, 2))
     state = tell(init(cfg), x, np.stack([x[:, 0], 1 - x[:, 0] + x[:, 1] ** 2], 1))
     batch = ask(state)
     assert batch.shape == (3, 2) and np.all((batch >= 0) & (batch <= 1))
     assert np.min(np.linalg.norm(batch[:, None] - batch[None], axis=-1) + np.eye(3) * 9) > 1e-3
+
+
+def _anchored_value(v, lam):
+    """Golovin and Zhang's scalarization in reference units, from its definition (numpy):
+    t = min_i (1 - v_i) / lam_i, t^m where positive, t itself below."""
+    t = np.min((1.0 - v) / lam, axis=-1)
+    return np.where(t > 0, np.maximum(t, 0.0) ** v.shape[-1], t)
+
+
+def test_single_direction_elements_scalarize_about_the_fronts_own_reference():
+    rng = np.random.default_rng(7)
+    y_norm = rng.random((15, 2)) ** 2
+    mask = np.arange(15) < 12  # 3 padding rows
+    settings = AcquisitionSettings(scalarization="hypervolume", model="per_objective", n_directions=8,
+                                   directions="quasi_random", single_direction_share=0.5,
+                                   single_direction_reference="front", beyond_reference="linear")
+    with jax.enable_x64(True):
+        scal = _scalarization(jnp.asarray(y_norm), jnp.asarray(mask), jnp.array([1.5, 1.5]), jax.random.PRNGKey(1), 4,
+                              settings)
+        best = np.asarray(scal.incumbents(scal.space, jnp.asarray(mask)))  # (4, 8)
+    u, lam, scale = np.asarray(scal.space), np.asarray(scal.directions), np.asarray(scal.scale)
+    front_ref = np.minimum(hvs.reference_point(u[mask], settings.ref_margin), 1.0)
+    assert np.all(front_ref < 0.9)  # the front's reference lies well inside the run's here
+    # The first two elements average 8 distinct directions about the run's reference (1).
+    np.testing.assert_allclose(scale[:2], 1.0)
+    assert len(np.unique(np.round(lam[0, :, 0], 12))) == 8
+    np.testing.assert_allclose(best[:2], np.max(_anchored_value(u[mask][None, None] / 1.0, lam[:2, :, None]), axis=-1))
+    # The last two follow one direction each, about the front's own reference point.
+    np.testing.assert_allclose(scale[2:], np.broadcast_to(front_ref, (2, 2)), rtol=1e-9)
+    np.testing.assert_allclose(lam[2:], np.broadcast_to(lam[2:, :1], lam[2:].shape))
+    np.testing.assert_allclose(best[2:], np.max(_anchored_value(u[mask][None, None] / front_ref, lam[2:, :, None]),
+                                                axis=-1), rtol=1e-9)
+    np.testing.assert_allclose(np.asarray(scal.targets)[2:, mask], -np.min((1.0 - u[mask] / front_ref) / lam[2:, :1], axis=-1),
+                               rtol=1e-9)
+
+
+@pytest.mark.parametrize("scalarization", ["chebyshev", "hypervolume"])
+def test_posterior_mean_incumbent_follows_the_model_not_a_noisy_observation(scalarization):
+    """The incumbent from the model's means at the observed points: where the GP interpolates
+    (tiny noise) it is the observed incumbent; where it smooths (noise fitted), one observation
+    far below the others' trend no longer sets it, so re-evaluating that point offers no
+    improvement the model believes in."""
+    rng = np.random.default_rng(5)
+    x = rng.random((14, 2))
+    y = np.stack([x[:, 0], 1 - x[:, 0] + 0.3 * x[:, 1]], 1)
+    y_low = y.copy()
+    y_low[3] -= 0.4  # an outlier below the trend in both objectives
+    mask = np.ones(14, bool)
+    settings = AcquisitionSettings(scalarization=scalarization, model="per_objective", n_directions=4,
+                                   beyond_reference="linear")
+
+    def incumbents(values, noise):
+        fitted = []
+        for i in range(2):
+            col = values[:, i]
+            post = gpm.condition(gpm.params_from_values([0.5, 0.5], 1.0, noise), jnp.asarray(x),
+                                 jnp.asarray((col - col.mean()) / col.std()), jnp.asarray(mask))
+            fitted.append(np.asarray(gpm.predict(post, jnp.asarray(x))[0]) * col.std() + col.mean())
+        scal = _scalarization(jnp.asarray(values), jnp.asarray(mask), jnp.array([1.5, 1.5]), jax.random.PRNGKey(0), 3,
+                              settings)
+        # The fitted means in the scalarization's space (hypervolume: reference units, an
+        # affine map of each objective; its scale read off two rows).
+        scale = (np.asarray(scal.space)[1] - np.asarray(scal.space)[0]) / (values[1] - values[0])
+        in_space = np.asarray(scal.space) + (np.stack(fitted, 1) - values) * scale
+        return (np.asarray(scal.incumbents(scal.space, jnp.asarray(mask))),
+                np.asarray(scal.incumbents(jnp.asarray(in_space), jnp.asarray(mask))))
+
+    with jax.enable_x64(True):
+        observed, believed = incumbents(y, 1e-6)
+        np.testing.assert_allclose(believed, observed, rtol=1e-3, atol=1e-4)
+        observed, believed = incumbents(y_low, 0.3)
+    better = np.less if scalarization == "chebyshev" else np.greater  # Chebyshev is minimized
+    assert np.all(better(observed, believed))  # the outlier no longer sets the bar

@@ -181,3 +181,21 @@ def test_config_bounds_that_leave_nothing_to_learn_are_named_not_blamed_on_optio
     line = text[: text.index("bounds:")].count("\n") + 1
     assert str(err.value) == (f"{tmp_path / 'config.yaml'}: bounds (line {line}): S.x: lower bound 0 is not below "
                               f"the upper bound 0")
+
+
+def test_a_run_resumes_with_the_optimizer_defaults_it_began_with(tmp_path):
+    # A config.yaml written before issue 19 has no optimizer_defaults: its options were
+    # relative to generation 1 (Chebyshev, hybrid), which it keeps; a new run records today's.
+    from mjxskill.gp.settings import GENERATION, acquisition_defaults
+    from mjxskill.training.run_config import optimizer_config
+
+    config = make_config()
+    assert config.optimizer_defaults == GENERATION
+    assert optimizer_config(config).acquisition == acquisition_defaults()
+    old_text = config.to_yaml().replace(f"optimizer_defaults: {GENERATION}\n", "")
+    old = RunConfig.from_yaml(old_text, "old/config.yaml")
+    assert old.optimizer_defaults == 1 and optimizer_config(old).acquisition == acquisition_defaults(1)
+    assert RunConfig.from_yaml(old.to_yaml(), "old/config.yaml") == old  # written back, it stays generation 1
+    with pytest.raises(RunError, match=r"optimizer_defaults \(line \d+\).*got 'two'"):
+        RunConfig.from_yaml(config.to_yaml().replace(f"optimizer_defaults: {GENERATION}", "optimizer_defaults: two"),
+                            "bad/config.yaml")

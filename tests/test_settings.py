@@ -21,8 +21,10 @@ def test_the_table_is_the_run_configuration_and_the_flags():
     fields = {f.name for f in dataclasses.fields(RunConfig)}
     assert {s.name for s in SETTINGS} <= fields  # each setting is a RunConfig field
     assert fields - {s.name for s in SETTINGS} == {"task", "scenario", "parameter_names", "parameter_units", "bounds",
-                                                   "objective_names", "optimizer_options", "prior"}  # the rest: the plan's
-    # (and the prior: the scenario's or --prior-from's, mjxskill.training.priors)
+                                                   "objective_names", "optimizer_options", "prior",
+                                                   "optimizer_defaults"}  # the rest: the plan's
+    # (the prior: the scenario's or --prior-from's, mjxskill.training.priors; the generation of
+    # gp's defaults the run began with)
     options = {a.dest: a for a in build_parser()._actions}
     for s in SETTINGS:
         assert options[s.name].option_strings == [s.flag]
@@ -90,9 +92,12 @@ def option_as_flag(text: str):
         return "error", None
 
 
-def options_as_config_entry(body: str):
+def options_as_config_entry(body: str, older: bool = False):
+    """(kind, RunConfig or error) of a config.yaml with these optimizer_options; older: as
+    written before the generation of the optimizer's defaults was recorded."""
     data = yaml.safe_load(make_config().to_yaml())
-    text = yaml.safe_dump({k: v for k, v in data.items() if k != "optimizer_options"}, sort_keys=False)
+    dropped = ("optimizer_options", "optimizer_defaults") if older else ("optimizer_options",)
+    text = yaml.safe_dump({k: v for k, v in data.items() if k not in dropped}, sort_keys=False)
     try:
         return "ok", RunConfig.from_yaml(text + f"optimizer_options:\n{body}", "run/config.yaml")
     except RunError as err:
@@ -135,13 +140,14 @@ def test_a_bad_optimizer_option_is_refused_by_both_sources_naming_it(capsys, bod
 def test_the_optimizer_options_an_older_run_wrote_are_still_read():
     """Before the acquisition settings were one gp field, config.yaml held MOBOConfig's flat
     fields under optimizer_options; those are the same names, values and meanings."""
-    from mjxskill.gp import AcquisitionSettings
+    from mjxskill.gp.settings import acquisition_defaults
     from mjxskill.training.run_config import optimizer_config
 
     old = {"alpha": 0.1, "bucket": 32, "n_raw": 256, "n_restarts": 4, "n_opt_steps": 50, "fit_starts": 1,
            "fit_steps": 20, "per_element_fit_max_rows": 64, "fit_max_rows": 64, "model": "scalarized", "n_draws": 64,
            "ei": "moments", "tau": 0.01}
-    kind, config = options_as_config_entry("".join(f"  {k}: {v}\n" for k, v in old.items()))
+    kind, config = options_as_config_entry("".join(f"  {k}: {v}\n" for k, v in old.items()), older=True)
     assert kind == "ok", config
-    assert optimizer_config(config).acquisition == AcquisitionSettings(**old)
+    # Relative to the defaults of their time (generation 1: Chebyshev, hybrid), not today's.
+    assert optimizer_config(config).acquisition == dataclasses.replace(acquisition_defaults(1), **old)
     assert RunConfig.from_yaml(config.to_yaml(), "again/config.yaml") == config

@@ -1,5 +1,7 @@
-"""Multi-objective Bayesian optimization in JAX: a float64 Matern 5/2 GP, log-EI on random
-augmented Chebyshev scalarizations, sequential greedy batches (Kriging believer).
+"""Multi-objective Bayesian optimization in JAX: float64 Matern 5/2 GPs (one per objective by
+default), log-EI on random scalarizations of their posterior draws (hypervolume
+scalarizations by default, augmented Chebyshev as an option), sequential greedy batches
+(Kriging believer).
 
 ``minimize(f, bounds, budget, ...)`` for a whole run; ``MOBOConfig(bounds, n_objectives,
 batch_size, n_init, seed, acquisition=AcquisitionSettings(...))`` and ``init``/``ask``/``tell`` and

@@ -58,6 +58,10 @@ class RunConfig:
     # The optimizer's parameter prior: {"source": text, "mean": (K, P), "std": (K, P), "weights":
     # (K,)} (mjxskill.training.priors); None: none (every run before priors).
     prior: dict | None = None
+    # The generation of gp's acquisition defaults the run began with (gp.settings
+    # DEFAULTS_BY_GENERATION): the options it does not name keep those defaults when it resumes.
+    # Absent from config.yaml: 1, every run before the hypervolume defaults (issue 19).
+    optimizer_defaults: int = field(default_factory=lambda: _optimizer_generations()[1])
 
     def to_yaml(self) -> str:
         data = {"format": FORMAT, **asdict(self)}
@@ -78,7 +82,8 @@ class RunConfig:
             raise RunError(f"{where} is not an mjxskill run configuration (format {FORMAT!r} expected)")
         f = root.mapping(
             required=("format", *IDENTITY, *(s.name for s in SETTINGS if s.default is NO_DEFAULT)),
-            optional=(*(s.name for s in SETTINGS if s.default is not NO_DEFAULT), "optimizer_options", "prior"),
+            optional=(*(s.name for s in SETTINGS if s.default is not NO_DEFAULT), "optimizer_options", "prior",
+                      "optimizer_defaults"),
         )
         names = _names(f["parameter_names"], "parameter")
         units = _texts(f["parameter_units"])
@@ -111,10 +116,17 @@ class RunConfig:
         prior = None
         if "prior" in f and not f["prior"].is_null():
             prior = _prior(f["prior"], names, bounds)
+        generation = 1
+        if "optimizer_defaults" in f:
+            generation = f["optimizer_defaults"].scalar()
+            known = _optimizer_generations()[0]
+            if isinstance(generation, bool) or generation not in known:
+                f["optimizer_defaults"].fail(f"expected a generation of the optimizer's defaults "
+                                             f"({', '.join(map(str, known))}), got {generation!r}")
         config = cls(task=f["task"].string(), scenario=f["scenario"].string(), parameter_names=names,
                      parameter_units=units, bounds=(tuple(bounds[0]), tuple(bounds[1])),
                      objective_names=_names(f["objective_names"], "objective"), optimizer_options=options, prior=prior,
-                     **values)
+                     optimizer_defaults=generation, **values)
         problem = optimizer_problem(config)
         if problem:
             f.get("optimizer_options", root).fail(problem)
@@ -172,10 +184,19 @@ def _names(field: Field, what: str) -> tuple[str, ...]:
     return names
 
 
+def _optimizer_generations():
+    """(the known generations of gp's acquisition defaults, the current one); imported when
+    needed, as gp's settings are elsewhere here."""
+    from mjxskill.gp.settings import DEFAULTS_BY_GENERATION, GENERATION
+
+    return tuple(DEFAULTS_BY_GENERATION), GENERATION
+
+
 def optimizer_config(config: RunConfig):
     """The ``mjxskill.gp.MOBOConfig`` of a run: its parameter space, batches and seed, and the
     acquisition settings its optimizer options name (gp's defaults for the others)."""
     from mjxskill.gp import MOBOConfig, acquisition_settings
+    from mjxskill.gp.settings import acquisition_defaults
 
     return MOBOConfig(
         bounds=config.bounds,
@@ -183,7 +204,7 @@ def optimizer_config(config: RunConfig):
         batch_size=config.batch_size,
         n_init=config.n_init,
         seed=config.seed,
-        acquisition=acquisition_settings(config.optimizer_options),
+        acquisition=acquisition_settings(config.optimizer_options, acquisition_defaults(config.optimizer_defaults)),
         prior=gp_prior(config.prior),
     )
 
