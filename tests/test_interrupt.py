@@ -68,6 +68,28 @@ except KeyboardInterrupt:
     sys.exit(130)
 """
 
+HALF_BUILT_SCRIPT = """
+import io, os, signal, sys, time, zipfile
+from mjxskill.cli import interrupt
+if sys.argv[1] == "install":
+    interrupt.install("half-built-test")
+else:  # Python's own handler
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+print("ready", flush=True)
+try:
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(3)
+except KeyboardInterrupt:
+    interrupt.acknowledge()
+    # What a Ctrl-C inside ZipFile.__init__ (np.load, np.savez) leaves: a ZipFile whose
+    # finalizer fails on attributes __init__ never set.
+    half = zipfile.ZipFile.__new__(zipfile.ZipFile)
+    half.fp = io.BytesIO()  # the file is open, _writing not yet set
+    del half
+    print("caught", flush=True)
+    sys.exit(130)
+"""
+
 STUCK_SCRIPT = """
 import ctypes, signal, sys
 from mjxskill.cli import interrupt
@@ -109,6 +131,17 @@ def test_an_interrupt_an_extension_prints_and_drops_is_raised_again_without_a_tr
     assert out.strip() == "not interrupted" and "Traceback" in err and "KeyboardInterrupt" in err, (out, err)
 
     proc = start(NOEXCEPT_SCRIPT, "install")
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and out.strip() == "caught", (out, err)
+    assert "Exception ignored" not in err and "Traceback" not in err, err
+
+
+def test_finalizers_of_objects_an_interrupt_left_half_built_stay_quiet():
+    reference = start(HALF_BUILT_SCRIPT, "python")  # Python's own handling prints them
+    out, err = reference.communicate(timeout=60)
+    assert out.strip() == "caught" and "Exception ignored" in err and "AttributeError" in err, (out, err)
+
+    proc = start(HALF_BUILT_SCRIPT, "install")
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130 and out.strip() == "caught", (out, err)
     assert "Exception ignored" not in err and "Traceback" not in err, err

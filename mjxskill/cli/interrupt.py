@@ -14,7 +14,8 @@ of a ``python -m mjxskill.<command>`` (``run_command``; never on import):
   main thread a moment later by the watchdog (``_thread.interrupt_main``), until it lands. An
   extension function that cannot raise (Cython's ``noexcept``, e.g. scipy's Sobol set-up) first
   prints the traceback through ``sys.excepthook`` and then hands the exception to the
-  unraisable hook: after a Ctrl-C that print is silenced too;
+  unraisable hook: after a Ctrl-C that print is silenced too, as are the finalizers that fail
+  on objects the interrupt left half-built;
 * Python runs its handler only when the main thread next runs Python code, so a watchdog
   thread hears the signal itself (``signal.set_wakeup_fd``: the C-level handler writes to a
   pipe at once). If nothing acknowledged the interrupt after ``GRACE_SECONDS`` (the main
@@ -131,6 +132,10 @@ def _on_sigint(signum, frame) -> None:
 def _on_unraisable(unraisable) -> None:
     if issubclass(unraisable.exc_type, KeyboardInterrupt) and not _state["acknowledged"]:
         _request_redelivery()  # raised where Python cannot propagate it (a finalizer, a callback)
+        return
+    if _state["pressed"]:
+        # A finalizer failing on an object the Ctrl-C left half-built (a ZipFile interrupted in
+        # its __init__ fails in __del__ on an attribute it never set): noise on the way out.
         return
     _state["previous_hook"](unraisable)
 
