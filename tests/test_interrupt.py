@@ -90,6 +90,31 @@ except KeyboardInterrupt:
     sys.exit(130)
 """
 
+IN_HOOK_SCRIPT = """
+import os, signal, sys, time
+from mjxskill.cli import interrupt
+def slow_hook(unraisable):  # the hook printing a finalizer's error when Ctrl-C lands
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(0.5)
+sys.unraisablehook = slow_hook
+if sys.argv[1] == "install":
+    interrupt.install("in-hook-test")  # slow_hook is the hook it passes other errors on to
+else:  # Python's own handler
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+class Failing:
+    def __del__(self):
+        raise ValueError("a finalizer's own error")
+print("ready", flush=True)
+try:
+    Failing()
+    time.sleep(3)
+    print("not interrupted", flush=True)
+except KeyboardInterrupt:
+    interrupt.acknowledge()
+    print("caught", flush=True)
+    sys.exit(130)
+"""
+
 STUCK_SCRIPT = """
 import ctypes, signal, sys
 from mjxskill.cli import interrupt
@@ -107,8 +132,21 @@ ctypes.CDLL(None).pause()  # the test signals 0.3 s after "ready": by then the m
 def start(script, *args):
     proc = subprocess.Popen([sys.executable, "-c", script, *args], cwd=ROOT, env=subprocess_env(),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert proc.stdout.readline().strip() == "ready"
+    assert first_line(proc.stdout) == "ready"
     return proc
+
+
+def first_line(pipe) -> str:
+    """The first line, read a byte at a time: ``readline`` fills the text buffer with whatever is
+    already in the pipe ("caught" too, from a fast script), and ``communicate`` reads the
+    file descriptor directly, so the rest would be lost (CI saw an empty stdout)."""
+    line = b""
+    while not line.endswith(b"\n"):
+        byte = os.read(pipe.fileno(), 1)
+        if not byte:
+            break
+        line += byte
+    return line.decode().strip()
 
 
 def test_an_interrupt_swallowed_by_a_gc_callback_is_raised_again():
@@ -142,6 +180,17 @@ def test_finalizers_of_objects_an_interrupt_left_half_built_stay_quiet():
     assert out.strip() == "caught" and "Exception ignored" in err and "AttributeError" in err, (out, err)
 
     proc = start(HALF_BUILT_SCRIPT, "install")
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and out.strip() == "caught", (out, err)
+    assert "Exception ignored" not in err and "Traceback" not in err, err
+
+
+def test_an_interrupt_landing_inside_the_unraisable_hook_is_raised_again():
+    reference = start(IN_HOOK_SCRIPT, "python")  # Python's own handling: printed, then lost
+    out, err = reference.communicate(timeout=60)
+    assert out.strip() == "not interrupted" and "Exception ignored in sys.unraisablehook" in err, (out, err)
+
+    proc = start(IN_HOOK_SCRIPT, "install")
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130 and out.strip() == "caught", (out, err)
     assert "Exception ignored" not in err and "Traceback" not in err, err

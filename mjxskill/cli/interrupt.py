@@ -9,8 +9,8 @@ of a ``python -m mjxskill.<command>`` (``run_command``; never on import):
 
 * the first Ctrl-C raises ``KeyboardInterrupt`` as usual; the command handles it where it
   knows what is on disk and calls ``acknowledge()``;
-* one that would be raised inside a gc callback (seen from the handler's frame) or that a
-  finalizer swallowed (seen by ``sys.unraisablehook``, silenced for it) is raised again in the
+* one that would be raised inside a gc callback or inside the hooks below (seen from the
+  handler's frame) or that a finalizer swallowed (seen by ``sys.unraisablehook``, silenced for it) is raised again in the
   main thread a moment later by the watchdog (``_thread.interrupt_main``), until it lands. An
   extension function that cannot raise (Cython's ``noexcept``, e.g. scipy's Sobol set-up) first
   prints the traceback through ``sys.excepthook`` and then hands the exception to the
@@ -122,7 +122,7 @@ def stopped(prog: str, save=None) -> int:
 
 def _on_sigint(signum, frame) -> None:
     _state["pressed"] = True
-    if _in_gc_callback(frame):  # it would be printed and dropped there: raise it again after
+    if _would_be_swallowed(frame):  # it would be printed and dropped there: raise it again after
         _request_redelivery()
         return
     _state["redeliver"] = False
@@ -146,8 +146,13 @@ def _on_excepthook(exc_type, value, traceback) -> None:
     _state["previous_excepthook"](exc_type, value, traceback)
 
 
-def _in_gc_callback(frame) -> bool:
+def _would_be_swallowed(frame) -> bool:
+    """Whether ``frame`` runs inside a gc callback or inside our own hooks (and whatever hook
+    they call): Python prints an exception raised there ("Exception ignored in
+    sys.unraisablehook") and goes on. A redelivered interrupt can land in ``_on_unraisable``
+    itself, which had just asked for it (CI lost one so)."""
     codes = {getattr(getattr(cb, "__func__", cb), "__code__", None) for cb in gc.callbacks}
+    codes |= {_on_unraisable.__code__, _on_excepthook.__code__}
     while frame is not None:
         if frame.f_code in codes:
             return True
