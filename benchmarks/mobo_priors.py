@@ -15,10 +15,17 @@ The priors, per problem, each one Gaussian per dimension with a standard deviati
   401 x 401 grid closest (normalized objectives) to the ideal point; ZDT1: x1 = 0.5, x2..6 = 0
   (its Pareto set is x2..6 = 0). Push: the scenario's operator set operator_a (a hand-written
   push into the goal corner; illustrative, not a verified optimum).
+* transfer: what ``train --prior-from`` builds from an earlier run's front, one component per
+  Pareto solution (std ``PRIOR_FROM_STD_FRACTION`` of the range), here 8 Pareto-optimal points
+  spread evenly along the front's length (ZDT1: x1 = 0, 1/7, .., 1; BraninCurrin: from the
+  401 x 401 grid's front). Push: not measured.
 * misleading: centred on a region of poor objectives. BraninCurrin: (0.1, 0.1) (both objectives
   near their worst: printed with their percentile among uniform draws); ZDT1: x1 = 0.5,
   x2..6 = 1 (g = 10, the worst); push: every offset at +0.25 m (the tool starts and ends far
   from the prism and the goal).
+
+The reference point is inferred from the warm-up (as a robot run has it) unless
+``--given-ref`` gives the optimizer the problem's.
 
     python benchmarks/mobo_priors.py --seeds 10 --save prior-runs.json
     python benchmarks/mobo_priors.py --seeds 5 --push --push-only --push-worlds 3 --push-budget 36
@@ -42,14 +49,23 @@ sys.path.insert(0, os.path.dirname(__file__))
 import mjxskill  # noqa: E402,F401
 
 from mjxskill.gp import Prior, hypervolume, minimize  # noqa: E402
+from mjxskill.training.priors import PRIOR_FROM_STD_FRACTION  # noqa: E402
 from mobo_quality import PROBLEMS, branin_currin, parse_options  # noqa: E402
 
-SETTINGS = ("none", "good", "misleading")
+SETTINGS = ("none", "good", "misleading", "transfer")
+TRANSFER_COMPONENTS = 8  # Pareto solutions an earlier run hands on (a run's front holds 5-15)
 GP_PROBLEMS = ("BraninCurrin", "ZDT1 (d=6)")
 
 
 def branin_currin_pareto_point(n: int = 401) -> np.ndarray:
     """The Pareto-optimal point of an n x n grid nearest the ideal point (normalized objectives)."""
+    x, y = branin_currin_pareto_set(n)
+    norm = (y - y.min(0)) / (y.max(0) - y.min(0))
+    return x[np.argmin(np.linalg.norm(norm, axis=1))]
+
+
+def branin_currin_pareto_set(n: int = 401) -> tuple[np.ndarray, np.ndarray]:
+    """The Pareto-optimal points of an n x n grid and their objectives, by the first objective."""
     g = np.linspace(0.0, 1.0, n)
     x = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
     x[:, 1] = np.maximum(x[:, 1], 1e-9)  # Currin divides by x2
@@ -60,17 +76,26 @@ def branin_currin_pareto_point(n: int = 401) -> np.ndarray:
         if y[i, 1] < best2:
             best2 = y[i, 1]
             front.append(i)
-    yf = y[front]
-    norm = (yf - yf.min(0)) / (yf.max(0) - yf.min(0))
-    return x[front][np.argmin(np.linalg.norm(norm, axis=1))]
+    return x[front], y[front]
+
+
+def spread_along_front(x: np.ndarray, y: np.ndarray, k: int) -> np.ndarray:
+    """k of the Pareto-optimal points ``x`` (ordered by the first objective) evenly spaced along
+    the front's length in normalized objectives."""
+    u = (y - y.min(0)) / (y.max(0) - y.min(0))
+    length = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(u, axis=0), axis=1))]
+    return x[[int(np.argmin(np.abs(length - t))) for t in np.linspace(0.0, length[-1], k)]]
 
 
 def gp_priors(name: str, d: int, std_fraction: float) -> dict:
     if name == "BraninCurrin":
         good, bad = branin_currin_pareto_point(), np.array([0.1, 0.1])
-    else:  # ZDT1
+        front = spread_along_front(*branin_currin_pareto_set(), TRANSFER_COMPONENTS)
+    else:  # ZDT1: the Pareto set is x2..6 = 0, x1 anywhere
         good, bad = np.r_[0.5, np.zeros(d - 1)], np.r_[0.5, np.ones(d - 1)]
-    return {"none": None, "good": Prior(mean=good, std=std_fraction), "misleading": Prior(mean=bad, std=std_fraction)}
+        front = np.c_[np.linspace(0.0, 1.0, TRANSFER_COMPONENTS), np.zeros((TRANSFER_COMPONENTS, d - 1))]
+    return {"none": None, "good": Prior(mean=good, std=std_fraction), "misleading": Prior(mean=bad, std=std_fraction),
+            "transfer": Prior(mean=front, std=PRIOR_FROM_STD_FRACTION)}
 
 
 def percentile_of(problem, point, n=100_000) -> list:
@@ -83,7 +108,8 @@ def percentile_of(problem, point, n=100_000) -> list:
 def run_gp(problem, prior, seed, args, options) -> np.ndarray:
     bounds = np.stack([np.zeros(problem["d"]), np.ones(problem["d"])])
     res = minimize(problem["f"], bounds, budget=args.budget, batch_size=args.batch, n_init=args.init, seed=seed,
-                   prior=prior, acquisition=options)  # not **options: its "prior" is the GP's
+                   prior=prior, acquisition=options,  # not **options: its "prior" is the GP's
+                   ref_point=problem["ref"] if args.given_ref else None)
     return res.Y
 
 
@@ -136,6 +162,8 @@ def main(argv=None):
     ap.add_argument("--std-fraction", type=float, default=0.15)
     ap.add_argument("--problems", nargs="*", default=list(GP_PROBLEMS))
     ap.add_argument("--settings", default=",".join(SETTINGS))
+    ap.add_argument("--given-ref", action="store_true",
+                    help="give the optimizer the problem's reference point (default: inferred from the warm-up, as a robot run has it)")
     ap.add_argument("--option", action="append", default=[], help="acquisition setting KEY=VALUE of mjxskill.gp")
     ap.add_argument("--push", action="store_true", help="also the push task (slow: physics)")
     ap.add_argument("--push-only", action="store_true", help="only the push task")
@@ -203,7 +231,7 @@ def _push(args, options, settings, raw) -> None:
     rollout = build_rollout(scn, task, "native", worlds=args.push_worlds, episode_seconds=args.push_seconds)
     runs = {}
     try:
-        for kind in settings:
+        for kind in [k for k in settings if k in priors]:  # no earlier push run to transfer from
             for seed in range(seeds):
                 t0 = time.monotonic()
                 y = run_push(rollout, task, scn, priors[kind], seed, args, options)
