@@ -57,9 +57,8 @@ TRANSFER_COMPONENTS = 8  # Pareto solutions an earlier run hands on (a run's fro
 GP_PROBLEMS = ("BraninCurrin", "ZDT1 (d=6)")
 
 
-def branin_currin_pareto_point(n: int = 401) -> np.ndarray:
-    """The Pareto-optimal point of an n x n grid nearest the ideal point (normalized objectives)."""
-    x, y = branin_currin_pareto_set(n)
+def nearest_ideal(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The Pareto-optimal point of ``x`` nearest the ideal point (normalized objectives ``y``)."""
     norm = (y - y.min(0)) / (y.max(0) - y.min(0))
     return x[np.argmin(np.linalg.norm(norm, axis=1))]
 
@@ -89,8 +88,9 @@ def spread_along_front(x: np.ndarray, y: np.ndarray, k: int) -> np.ndarray:
 
 def gp_priors(name: str, d: int, std_fraction: float) -> dict:
     if name == "BraninCurrin":
-        good, bad = branin_currin_pareto_point(), np.array([0.1, 0.1])
-        front = spread_along_front(*branin_currin_pareto_set(), TRANSFER_COMPONENTS)
+        pareto_set = branin_currin_pareto_set()  # a 401 x 401 grid: once for both priors
+        good, bad = nearest_ideal(*pareto_set), np.array([0.1, 0.1])
+        front = spread_along_front(*pareto_set, TRANSFER_COMPONENTS)
     else:  # ZDT1: the Pareto set is x2..6 = 0, x1 anywhere
         good, bad = np.r_[0.5, np.zeros(d - 1)], np.r_[0.5, np.ones(d - 1)]
         front = np.c_[np.linspace(0.0, 1.0, TRANSFER_COMPONENTS), np.zeros((TRANSFER_COMPONENTS, d - 1))]

@@ -149,6 +149,15 @@ def first_line(pipe) -> str:
     return line.decode().strip()
 
 
+def assert_caught_quietly(script):
+    """With ``interrupt.install``, the script's own handler caught the interrupt (exit 130,
+    "caught") and nothing was printed on the way."""
+    proc = start(script, "install")
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and out.strip() == "caught", (out, err)
+    assert "Exception ignored" not in err and "Traceback" not in err, err
+
+
 def test_an_interrupt_swallowed_by_a_gc_callback_is_raised_again():
     reference = start(GC_SCRIPT, "python")  # Python's own handling: the interrupt is lost
     with pytest.raises(subprocess.TimeoutExpired):  # still running: the interrupt was lost
@@ -157,10 +166,7 @@ def test_an_interrupt_swallowed_by_a_gc_callback_is_raised_again():
     _, err = reference.communicate()
     assert "Exception ignored" in err and "KeyboardInterrupt" in err
 
-    proc = start(GC_SCRIPT, "install")
-    out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and out.strip() == "caught", (out, err)
-    assert "Exception ignored" not in err and "Traceback" not in err, err
+    assert_caught_quietly(GC_SCRIPT)
 
 
 def test_an_interrupt_an_extension_prints_and_drops_is_raised_again_without_a_traceback():
@@ -168,10 +174,7 @@ def test_an_interrupt_an_extension_prints_and_drops_is_raised_again_without_a_tr
     out, err = reference.communicate(timeout=60)
     assert out.strip() == "not interrupted" and "Traceback" in err and "KeyboardInterrupt" in err, (out, err)
 
-    proc = start(NOEXCEPT_SCRIPT, "install")
-    out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and out.strip() == "caught", (out, err)
-    assert "Exception ignored" not in err and "Traceback" not in err, err
+    assert_caught_quietly(NOEXCEPT_SCRIPT)
 
 
 def test_finalizers_of_objects_an_interrupt_left_half_built_stay_quiet():
@@ -179,10 +182,7 @@ def test_finalizers_of_objects_an_interrupt_left_half_built_stay_quiet():
     out, err = reference.communicate(timeout=60)
     assert out.strip() == "caught" and "Exception ignored" in err and "AttributeError" in err, (out, err)
 
-    proc = start(HALF_BUILT_SCRIPT, "install")
-    out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and out.strip() == "caught", (out, err)
-    assert "Exception ignored" not in err and "Traceback" not in err, err
+    assert_caught_quietly(HALF_BUILT_SCRIPT)
 
 
 def test_an_interrupt_landing_inside_the_unraisable_hook_is_raised_again():
@@ -190,10 +190,7 @@ def test_an_interrupt_landing_inside_the_unraisable_hook_is_raised_again():
     out, err = reference.communicate(timeout=60)
     assert out.strip() == "not interrupted" and "Exception ignored in sys.unraisablehook" in err, (out, err)
 
-    proc = start(IN_HOOK_SCRIPT, "install")
-    out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and out.strip() == "caught", (out, err)
-    assert "Exception ignored" not in err and "Traceback" not in err, err
+    assert_caught_quietly(IN_HOOK_SCRIPT)
 
 
 def test_an_interrupt_nothing_handles_ends_the_process_after_the_grace_period():

@@ -10,8 +10,9 @@ of a ``python -m mjxskill.<command>`` (``run_command``; never on import):
 * the first Ctrl-C raises ``KeyboardInterrupt`` as usual; the command handles it where it
   knows what is on disk and calls ``acknowledge()``;
 * one that would be raised inside a gc callback or inside the hooks below (seen from the
-  handler's frame) or that a finalizer swallowed (seen by ``sys.unraisablehook``, silenced for it) is raised again in the
-  main thread a moment later by the watchdog (``_thread.interrupt_main``), until it lands. An
+  handler's frame) or that a finalizer swallowed (seen by ``sys.unraisablehook``, silenced
+  for it) is raised again in the main thread a moment later by the watchdog
+  (``_thread.interrupt_main``), until it lands. An
   extension function that cannot raise (Cython's ``noexcept``, e.g. scipy's Sobol set-up) first
   prints the traceback through ``sys.excepthook`` and then hands the exception to the
   unraisable hook: after a Ctrl-C that print is silenced too, as are the finalizers that fail
