@@ -18,7 +18,8 @@ TINY = ["--repeats", "2", "--budget", "4", "--batch-size", "2", "--init", "2", "
         "--per-config", "1", "--random", "1", "--quiet", *(a for option in QUICK_GP for a in ("--optimizer-option", option))]
 RESULTS = ("optimizer/seed-0/evaluations.csv", "optimizer/seed-1/evaluations.csv", "random_search/seed-0/evaluations.csv",
            "random_search/seed-1/evaluations.csv", "optimizer/seed-0/evaluation/evaluation.json",
-           "optimizer/seed-1/evaluation/evaluation.json")
+           "optimizer/seed-1/evaluation/evaluation.json", "optimizer/seed-0/evaluation/validation.json",
+           "optimizer/seed-1/evaluation/validation.json")
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +50,10 @@ def test_the_experiment_writes_every_repetition_and_the_report(experiment):
     times = json.loads((out / "state.json").read_text())["times"]
     assert set(times) == {f"{k}/seed-{s}" for k in ("optimizer", "random_search") for s in (0, 1)}
     assert all(t["train_seconds_evaluations"] == 4 for t in times.values())
+    assert all("validate_seconds" in times[f"optimizer/seed-{s}"] for s in (0, 1))
+    assert "repetition 2 of 2 (seed 1): validation of the pick" in stdout
+    assert report["protocol"]["validation_per_config"] == 5 and report["training_pick"]["validated"]
+    assert all(p["validation_worlds"] == 5 * 4 for p in report["picked"])  # 4 known start configurations
     for name in ("report.md", "fronts.png", "hypervolume.png", "success.png"):
         assert (out / name).is_file()
 
@@ -74,6 +79,27 @@ def test_a_killed_experiment_resumes_to_the_same_results(experiment, tmp_path):
         assert (cut / name).read_text() == (out / name).read_text(), name
     a, b = (json.loads((d / "report.json").read_text()) for d in (out, cut))
     assert a["groups"] == b["groups"] and a["hypervolume"]["optimizer"] == b["hypervolume"]["optimizer"]
+
+
+def test_a_resumed_experiment_may_pick_without_validation_and_retrains_nothing(experiment, tmp_path):
+    import shutil
+
+    out, _ = experiment
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    before = {n: (copy / n).read_text() for n in RESULTS}
+    done = run_cli("experiment", "push", "--resume", copy, "--validation-per-config", "0", "--quiet")
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "the picks are now validated with 0 worlds per known start configuration" in done.stdout
+    assert {n: (copy / n).read_text() for n in RESULTS} == before  # nothing retrained, evaluated or validated again
+    report = json.loads((copy / "report.json").read_text())
+    assert report["protocol"]["validation_per_config"] == 0 and report["training_pick"] == {"validated": False}
+    assert report["pick_rule"].startswith("the Pareto solution with the highest training success rate")
+    own = json.loads((out / "report.json").read_text())
+    # the training-only picks are the ones the validated report names as such
+    changed = {c["seed"]: c["training_row"] for c in own["training_pick"]["changed"]}
+    assert [p["pareto_row"] for p in report["picked"]] == [changed.get(p["seed"], p["pareto_row"]) for p in own["picked"]]
+    assert "validation_per_config: 0" in (copy / "experiment.yaml").read_text()
 
 
 def test_ctrl_c_says_where_the_work_is_and_how_to_continue(tmp_path):
@@ -131,6 +157,9 @@ BAD_INPUT = (
     (["experiment", "push", "--max-force", "-2"], "argument --max-force: must be a finite number >= 0"),
     (["experiment", "push", "--resume", "{exp}", "--budget", "9"], "drop --budget 9 (the run has 4)"),
     (["experiment", "push", "--resume", "{exp}", "--per-config", "7"], "drop --per-config 7 (the experiment has 1)"),
+    (["experiment", "push", "--validation-per-config", "-1"], "argument --validation-per-config: must be at least 0, got -1"),
+    (["experiment", "push", "--validation-candidates", "0"], "argument --validation-candidates: must be at least 1"),
+    (["evaluate", "{exp}", "--validation-per-config", "2"], "drop --validation-per-config 2 (the experiment has 5)"),
     (["experiment", "push", "--resume", "{run}"], "is not an experiment directory (no experiment.yaml)"),
     (["experiment", "peg", "--resume", "{exp}"], "is a run of task 'push', not 'peg'"),
     (["experiment", "push", "--out", "{exp}"], "already holds an experiment; continue it with --resume"),

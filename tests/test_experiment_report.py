@@ -16,6 +16,7 @@ from mjxskill.task import plan_task, planning_texts
 from mjxskill.training.evaluate_run import evaluate_run
 from mjxskill.training.experiment import Experiment, Protocol, write_report
 from mjxskill.training.experiment.directory import repetition_settings
+from mjxskill.training.experiment.driver import validate_timed
 from mjxskill.training.experiment.stats import normalization, normalized_curve
 from mjxskill.training.front import pareto_mask_of
 from mjxskill.training.run_dir import Evaluations, RunConfig, batch_sizes
@@ -30,7 +31,7 @@ CONFIG = RunConfig(task="push", scenario="push", goal=TASK.goal, parameter_names
                    parameter_units=TASK.parameter_units, bounds=tuple(tuple(map(float, b)) for b in TASK.bounds),
                    objective_names=SCN.objective_names, budget=8, batch_size=3, n_init=3, worlds=2, seed=5,
                    episode_seconds=0.2, repeats=2, engine="native")
-PROTOCOL = Protocol(per_config=2, random_sets=3, max_force=None)
+PROTOCOL = Protocol(per_config=2, random_sets=3, max_force=None, validation_per_config=2, validation_candidates=3)
 
 
 def training_rows(seed: int, kind: int) -> Evaluations:
@@ -60,6 +61,7 @@ def experiment(tmp_path_factory):
         if i == 1:  # the first repetition's random search is not finished
             fill(rnd, training_rows(CONFIG.seed + i, 1))
         evaluate_run(opt, opt.config(), rollout, TASK, repetition_settings(CONFIG, PROTOCOL, CONFIG.seed + i))
+        validate_timed(exp, opt, rollout, CONFIG, PROTOCOL, CONFIG.seed + i)
     write_report(exp)
     return exp, rollout
 
@@ -118,8 +120,18 @@ def test_the_report_covers_the_finished_repetitions_with_the_stated_pick(experim
     bound = expected(rollout, params, N_KNOWN + N_UNSEEN, 2, SCN.bt_hz)[1].max()
     ok = front.peak_commanded_force <= bound  # the commanded force, not the measured contact force
     assert not ok.all() and front.success_rate[~ok].max() == 1  # the bound excludes a fully successful solution
-    best = max(np.flatnonzero(ok), key=lambda k: (front.success_rate[k], front.objectives[k, 0]))
+    # the three best in training, validated in 2 worlds from each known configuration (the
+    # scripted worlds do not depend on the key: those are worlds r = 0, 1 of each known one)
+    contenders = sorted(np.flatnonzero(ok), key=lambda k: (-front.success_rate[k], -front.objectives[k, 0]))[:3]
+    validation = expected(rollout, front.params[contenders], N_KNOWN, 2, SCN.bt_hz)[0].mean(axis=1)
+    best = max(contenders, key=lambda k: (validation[contenders.index(k)], front.success_rate[k], front.objectives[k, 0]))
     assert report["picked"][0]["pareto_row"] == best and report["picked"][0]["bound_N"] == pytest.approx(bound)
+    assert report["picked"][0]["validated"] == {str(k): pytest.approx(v) for k, v in zip(contenders, validation)}
+    assert report["picked"][0]["validation_worlds"] == 2 * N_KNOWN
+    assert report["protocol"]["validation_per_config"] == 2 and report["protocol"]["validation_candidates"] == 3
+    # what the training success alone picks, and whether that differs
+    changed = [] if best == contenders[0] else [{"seed": 6, "validated_row": best, "training_row": contenders[0]}]
+    assert report["training_pick"]["validated"] and report["training_pick"]["changed"] == changed
     # the picked group's numbers, by brute force over the scripted worlds
     success, _, _ = expected(rollout, front.params[best][None], N_KNOWN + N_UNSEEN, 2, SCN.bt_hz)
     assert report["groups"]["picked"]["known"] == pytest.approx(success[0, :N_KNOWN].mean())
@@ -148,7 +160,9 @@ def test_the_report_files_and_the_side_by_side_table(experiment):
     assert "1 of 2 repetitions finished (the report covers the finished ones)." in text
     assert "Protocol 2 repetitions x 8 evaluations x 2 worlds, smaller than the paper's 10 x 400 x 7." in text
     assert "| Pareto front size (mean over repetitions) | 8.3 |" in text
-    assert "![success rates](success.png)" in text and "Rule: the Pareto solution with the highest training success" in text
+    assert "![success rates](success.png)" in text
+    assert "Rule: of the Pareto solutions whose commanded force" in text and f"rolled out again in {2 * N_KNOWN} fresh worlds" in text
+    assert "| training success | validation success |" in text
 
 
 def test_hypervolume_in_the_space_normalized_by_every_run():
@@ -304,11 +318,22 @@ DAMAGED = (  # (file, its text, what the one error line says)
     ("experiment.yaml", GOOD_PROTOCOL.replace("max_force: null", "max_force: -1"),
      "experiment.yaml: max_force (line 5): expected a number >= 0, got -1"),
     ("experiment.yaml", GOOD_PROTOCOL.replace("max_force: null\n", ""), "experiment.yaml: <top level> (line 1): missing key 'max_force'"),
+    ("experiment.yaml", GOOD_PROTOCOL + "validation_per_config: -1\n",
+     "experiment.yaml: validation_per_config (line 6): expected an integer >= 0, got -1"),
     ("experiment.yaml", GOOD_PROTOCOL.replace("mjxskill.experiment/1", "other"),
      "experiment.yaml: format (line 1): not an mjxskill experiment"),
     ("experiment.yaml", "format: mjxskill.experiment/1\nper_config: [\n", "experiment.yaml (line 3, column 1): not valid YAML"),
     ("state.json", "{not json", "state.json is not an experiment state"),
 )
+
+
+def test_an_experiment_written_before_validation_picks_by_training_success():
+    from mjxskill.training.experiment.stats import pick_rule
+
+    old = Protocol.from_yaml(GOOD_PROTOCOL, "experiment.yaml")
+    assert (old.validation_per_config, old.per_config, old.random_sets) == (0, 2, 3)
+    assert pick_rule(old, 4).startswith("the Pareto solution with the highest training success rate")
+    assert Protocol.from_yaml(PROTOCOL.to_yaml("push"), "experiment.yaml") == PROTOCOL  # round trip
 
 
 @pytest.mark.parametrize("name, text, message", DAMAGED)

@@ -12,8 +12,9 @@ from mjxskill.scenario import load_scenario
 from mjxskill.task import plan_task
 from mjxskill.training.evaluate_run import CHUNKS, FOLDER, RESULT, evaluate_run, evaluation_current, evaluation_settings, load_evaluation
 from mjxskill.training.evaluation import Candidates, Evaluation, mean_success_seconds
-from mjxskill.training.pooled import Pick, group_force_and_time, pick, pooled_samples, pooled_tests
+from mjxskill.training.pooled import Pick, contenders, group_force_and_time, pick, pooled_samples, pooled_tests
 from mjxskill.training.run_dir import Evaluations
+from mjxskill.training.validation import Validation
 from scripted import ScriptedRollout, expected
 from test_bad_input import front_rows, push_run
 
@@ -134,6 +135,53 @@ def test_the_pick_is_the_most_successful_training_solution_within_the_operators_
     assert pick(tied, ev).row == 1  # ties: the higher first objective
     with pytest.raises(Exception, match="evaluate the run again"):
         pick(front_of(ev, [0.5, 0.8], [1, 1], [1, 2]), ev)  # a front that is not the evaluated one
+
+
+def test_a_validated_pick_takes_the_contender_most_successful_in_the_validation_worlds():
+    ev = toy_evaluation(np.ones((5, 3)), manual_force=[4.0, 6.0])
+    # rows 0 and 1 tie at 100 % training success; row 0 has the higher first objective (the
+    # training pick) but is a knife-edge set (20 % in validation), row 1 is robust (90 %); row 3
+    # presses beyond the operators' 6 N, row 4 trails in training and is not validated
+    front = front_of(ev, [1.0, 1.0, 0.8, 1.0, 0.5], [2.0, 3.0, 1.0, 9.0, 1.0], [5.0, 4.0, 3.0, 9.0, 1.0])
+    assert pick(front, ev).row == 0
+    assert contenders(front, 6.0, 3) == [0, 1, 2] and contenders(front, None, 2) == [3, 0]
+    assert contenders(front, 0.5, 3) == []
+    validated = pick(front, ev, validation=Validation((0, 1, 2), np.array([0.2, 0.9, 0.9]), 20))
+    assert validated == Pick(1, 6.0, "the largest force an operator set commands")  # 0.9 tie: the training success
+    assert pick(front, ev, validation=Validation((0, 1, 2), np.array([0.2, 0.5, 0.9]), 20)).row == 2
+    assert pick(front, ev, max_force=0.5, validation=Validation((), np.zeros(0), 20)).row is None
+    with pytest.raises(Exception, match="validate the run again"):
+        pick(front, ev, validation=Validation((0, 2), np.array([0.2, 0.9]), 20))  # not the two in contention
+
+
+def test_the_validation_rolls_out_the_contenders_in_fresh_known_worlds_and_is_reused(run):
+    from mjxskill.training.validation import FILE, load_validation, validate, validation_settings
+
+    def vsettings(**changes):
+        values = dict(per_config=2, candidates=2, seed=3, engine="native", episode_seconds=0.2)
+        values.update(changes)
+        return validation_settings(**values)
+
+    front = run.front(run.config())
+    rollout = ScriptedRollout(SCN, TASK.bounds)
+    v, reused = validate(run, front, [2, 0], rollout, vsettings())
+    assert not reused and v.rows == (2, 0) and v.worlds == 2 * N_KNOWN
+    # only the known start configurations: the unseen ones stay for the evaluation
+    success = expected(rollout, front.params[[2, 0]], N_KNOWN, 2, SCN.bt_hz)[0].mean(axis=1)
+    np.testing.assert_allclose(v.success, success)
+    assert [len(c) for c in rollout.calls] == [2]  # one call of the two rows, not padded to a batch
+    doc = json.loads((run.path / FOLDER / FILE).read_text())
+    assert doc["rows"] == [2, 0] and doc["worlds"] == 2 * N_KNOWN
+    again = ScriptedRollout(SCN, TASK.bounds)
+    v2, reused = validate(run, front, [0], again, vsettings(candidates=1))  # a subset: reused
+    assert reused and again.calls == [] and v2.rows == (0,) and v2.success[0] == pytest.approx(success[1])
+    assert load_validation(run, front, [1], vsettings()) is None  # row 1 was not validated
+    assert load_validation(run, front, [0], vsettings(seed=4)) is None  # other worlds
+    moved = Evaluations(front.iteration, front.params + 0.01, *front[2:])  # not _replace: len() is rows
+    assert load_validation(run, moved, [0], vsettings()) is None  # another front
+    (run.path / FOLDER / FILE).write_text('{"format": "mjxskill.validation/1", "rows": [0], "success": [1.5]}')
+    with pytest.raises(Exception, match="is not a readable validation"):
+        load_validation(run, front, [0], vsettings())
 
 
 def test_pooled_samples_are_one_per_run_candidate_and_configuration():

@@ -9,7 +9,8 @@ DIR is a run, a repeated run (``train --repeats``) or an experiment directory
 (``mjxskill.training.runs``). A run's evaluation goes to ``RUN_DIR/evaluation/`` and is reused
 when it is current (``mjxskill.training.evaluate_run``). A repeated run evaluates sub-run i in
 the worlds of seed ``--seed`` + i and pools them: one picked solution per run against the
-baselines (``mjxskill.training.pooled``), in ``DIR/evaluation/``. An experiment evaluates every
+baselines (``mjxskill.training.pooled``; each pick validated as an experiment's is, unless
+``--validation-per-config 0``), in ``DIR/evaluation/``. An experiment evaluates every
 repetition whose runs are finished with its own protocol and rewrites its report.
 """
 
@@ -41,6 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "how a solution transfers between engines)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="force bound of each repeated "
                         "run's picked solution, N (default: the largest force an operator set commands)")
+    cli_args.add_validation_arguments(parser, "a repeated run, before each run's pick")
     return parser
 
 
@@ -106,7 +108,8 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
             if not repeated:
                 print(table(ev, tests))
             print(f"wrote {sub.path / FOLDER}")
-            results.append((sub, sub_config, ev))
+            validation = _validate(args, sub, sub_config, ev, rollout, settings) if repeated else None
+            results.append((sub, sub_config, ev, validation))
     finally:
         getattr(rollout, "close", lambda: None)()
     if repeated:
@@ -114,20 +117,42 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
     return 0
 
 
+def _validate(args, sub, config, ev, rollout, settings: dict):
+    """The validation of one sub-run's pick (``mjxskill.training.validation``; None: asked for none)."""
+    from mjxskill.training.validation import in_contention, validate, validation_settings
+
+    per = 5 if args.validation_per_config is None else args.validation_per_config
+    if not per:
+        return None
+    k = args.validation_candidates or 3
+    front = sub.front(config)
+    with sub.lock():
+        validation, reused = validate(sub, front, in_contention(front, ev, args.max_force, k), rollout,
+                                      validation_settings(per, k, settings["seed"], settings["engine"],
+                                                          settings["episode_seconds"]))
+    print(f"{sub.path}: the pick's {len(validation.rows)} best candidates in {validation.worlds} validation worlds"
+          + (" (current: reused)" if reused else ""), flush=True)
+    return validation
+
+
 def _pool(run, config, results, max_force) -> str:
     """Picks, pooled groups and tests of a repeated run into ``DIR/evaluation/``."""
     from mjxskill.training.evaluate_run import FOLDER
     from mjxskill.training.pooled import group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
 
-    picks = [pick(sub.front(c), ev, max_force) for sub, c, ev in results]
+    picks = [pick(sub.front(c), ev, max_force, validation) for sub, c, ev, validation in results]
+    validations = [v for *_, v in results]
+    results = [(sub, c, ev) for sub, c, ev, _ in results]
     samples = pooled_samples([ev for _, _, ev in results], picks)
     tests = pooled_tests(samples)
     out = run.path / FOLDER
     out.mkdir(exist_ok=True)
     plot_pooled(samples, out / "success.png", f"{config.task}: success rate per start configuration, {len(results)} runs")
     doc = {"runs": [str(sub.path) for sub, _, _ in results],
-           "picked": [{"seed": c.seed, "pareto_row": p.row, "bound_N": p.bound, "bound_source": p.source}
-                      for (_, c, _), p in zip(results, picks)],
+           "picked": [{"seed": c.seed, "pareto_row": p.row, "bound_N": p.bound, "bound_source": p.source,
+                       "validation_success": None if v is None or p.row is None else v.success_of(p.row),
+                       "validation_worlds": None if v is None else v.worlds}
+                      for (_, c, _), p, v in zip(results, picks, validations)],
            "groups": group_means(samples), "samples": {g: {"known": len(v[0]), "unseen": len(v[1])} for g, v in samples.items()},
            "mann_whitney": tests}
     (out / "pooled.json").write_text(json.dumps(doc, indent=1) + "\n")
@@ -139,14 +164,16 @@ def _pool(run, config, results, max_force) -> str:
 def _experiment(args: argparse.Namespace) -> int:
     from mjxskill.training.experiment import Experiment, write_report
     from mjxskill.training.experiment.directory import is_done, repetition_settings
-    from mjxskill.training.experiment.driver import evaluate_timed
+    from mjxskill.training.experiment.driver import evaluate_timed, validate_timed
     from mjxskill.training.run_task import load_run_task
 
     exp = Experiment(args.run)
     config, protocol = exp.config(), exp.protocol()
     given = {"--per-config": (args.per_config, protocol.per_config), "--random": (args.random, protocol.random_sets),
              "--max-force": (args.max_force, protocol.max_force), "--episode-seconds": (args.episode_seconds, config.episode_seconds),
-             "--engine": (args.engine and resolve_engine(args.engine)[0], config.engine)}
+             "--engine": (args.engine and resolve_engine(args.engine)[0], config.engine),
+             "--validation-per-config": (args.validation_per_config, protocol.validation_per_config),
+             "--validation-candidates": (args.validation_candidates, protocol.validation_candidates)}
     conflicts = [f"{flag} {value} (the experiment has {own})" for flag, (value, own) in given.items()
                  if value is not None and value != own]
     if args.seed is not None:
@@ -169,6 +196,10 @@ def _experiment(args: argparse.Namespace) -> int:
                 _say(scn, settings, opt, opt.config(), task)
                 ran = evaluate_timed(exp, opt, rollout, task, settings, progress=_progress)
                 print(f"wrote {opt.path / 'evaluation'}" if ran else f"{opt.path / 'evaluation'} is current: reused")
+                validated = validate_timed(exp, opt, rollout, config, protocol, seed)
+                if validated is not None:
+                    print(f"validated the pick's candidates of seed {seed}" if validated else
+                          f"the validation of seed {seed} is current: reused")
         finally:
             getattr(rollout, "close", lambda: None)()
         print(write_report(exp))

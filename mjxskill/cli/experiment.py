@@ -26,6 +26,7 @@ from mjxskill.errors import CommandError
 
 # The evaluation's flags: name -> (default, what the protocol field is called)
 EVALUATION_DEFAULTS = {"per_config": 5, "random": 10, "max_force": None}
+VALIDATION = ("validation_per_config", "validation_candidates")  # the pick's validation: may change on resume
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -41,6 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets per evaluation (default 10)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N",
                         help="force bound of the picked solution, N (default: the largest force an operator set commands)")
+    cli_args.add_validation_arguments(parser, "before each pick (may be changed on --resume: the picks are made "
+                                              "again, nothing is retrained)")
     parser.add_argument("--out", type=Path, help="experiment directory (default runs/<task>-experiment-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="EXP_DIR", help="continue the experiment in EXP_DIR")
     return parser
@@ -55,6 +58,18 @@ def _protocol_conflicts(args: argparse.Namespace, protocol) -> list[str]:
     flags = {"per_config": "--per-config", "random": "--random", "max_force": "--max-force"}
     return [f"{flags[k]} {getattr(args, k)} (the experiment has {stored[k]})" for k in stored
             if getattr(args, k) is not None and getattr(args, k) != stored[k]]
+
+
+def _change_validation(args: argparse.Namespace, exp, protocol) -> None:
+    """A resumed experiment may validate its picks otherwise (experiment.yaml rewritten)."""
+    wanted = {field: getattr(protocol, field) if getattr(args, field) is None else getattr(args, field)
+              for field in VALIDATION}
+    if all(wanted[field] == getattr(protocol, field) for field in VALIDATION):
+        return
+    exp.set_validation(wanted["validation_per_config"], wanted["validation_candidates"])
+    print(f"{exp.path}: the picks are now validated with {wanted['validation_per_config']} worlds per known start "
+          f"configuration and {wanted['validation_candidates']} candidates (were {protocol.validation_per_config} and "
+          f"{protocol.validation_candidates}); the runs and evaluations are kept", flush=True)
 
 
 def _main(args: argparse.Namespace) -> int:
@@ -75,6 +90,7 @@ def _main(args: argparse.Namespace) -> int:
             exp.config()  # both runs' configurations agree
             exp.optimizer.check(config)
             exp.random_search.check(random_search_config(config))
+            _change_validation(args, exp, protocol)
             scn, task = load_run_task(exp.optimizer, config, scenario=args.task)
             return _run(args, exp, config, scn, task, started)
     scn, task = scenario_and_task(args.task, args.goal)
@@ -83,7 +99,8 @@ def _main(args: argparse.Namespace) -> int:
     config = resolve_config(args, scn, task)
     protocol = Protocol(per_config=args.per_config or EVALUATION_DEFAULTS["per_config"],
                         random_sets=EVALUATION_DEFAULTS["random"] if args.random is None else args.random,
-                        max_force=args.max_force)
+                        max_force=args.max_force,
+                        **{field: getattr(args, field) for field in VALIDATION if getattr(args, field) is not None})
     exp = Experiment(args.out or Path("runs") / f"{scn.name}-experiment-{time.strftime('%Y%m%d-%H%M%S')}")
     exp.create(config, protocol, scn.source, planning_texts(task))
     with exp.lock():
@@ -101,7 +118,10 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
           f"{config.n_init} random warm-up, {config.worlds} worlds, {config.episode_seconds:g} s episodes")
     print(f"evaluation per repetition: {protocol.per_config} worlds per start configuration, {protocol.random_sets} "
           f"random sets; pick bound " + (f"{protocol.max_force:g} N" if protocol.max_force is not None else
-                                         "the operators' largest commanded force"))
+                                         "the operators' largest commanded force")
+          + (f"; the pick's {protocol.validation_candidates} best candidates validated in {protocol.validation_per_config} "
+             "fresh worlds per known start configuration" if protocol.validation_per_config else
+             "; the pick by training success (no validation)"))
     print(f"experiment directory: {exp.path}", flush=True)
     why = "the experiment's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
     print(f"engine: {config.engine} ({why})", flush=True)

@@ -8,8 +8,13 @@ mean over the training worlds) is at most the bound, ties broken by the higher f
 --max-force`` bounds the measured contact force). The bound is the one given, else the largest
 force any operator set commands in that run's evaluation, so that the picked solution never
 commands more than the hardest-pressing operator (the paper's operators' chosen force against
-the learned one: both are set forces, not measured ones); without operator sets there is no bound. The pick reads only the
-training front, as an operator would; its evaluation is its row in the run's evaluation.
+the learned one: both are set forces, not measured ones); without operator sets there is no bound.
+The pick reads only the training front, as an operator would; its evaluation is its row in the
+run's evaluation. **Validated** (an experiment's default, ``mjxskill.training.validation``): the
+K solutions within the bound with the highest training success are rolled out again in fresh
+worlds of the known start configurations, and the highest success there decides (ties: the
+training success, then the first objective), so that a knife-edge set that was lucky in its few
+training worlds is not picked over a robust one.
 
 **The samples** of a group (Mann-Whitney U, box plots): one success rate per (run, candidate,
 start configuration), the unit ``evaluate`` uses for one run. The picked group has one
@@ -54,25 +59,44 @@ def force_bound(ev: Evaluation, max_force: float | None) -> tuple[float | None, 
     return float(np.max(ev.peak_commanded_force[manual])), "the largest force an operator set commands"
 
 
-def pick(front, ev: Evaluation, max_force: float | None = None) -> Pick:
+def pick(front, ev: Evaluation, max_force: float | None = None, validation=None) -> Pick:
     """The picked Pareto solution of a run (``front``: its training Pareto rows, the ones ``ev``
-    evaluated as ``pareto-<k>``)."""
+    evaluated as ``pareto-<k>``). ``validation`` (``mjxskill.training.validation.Validation``
+    of the rows :func:`contenders` names): the highest validation success among them decides."""
+    check_front(front, ev)
+    bound, source = force_bound(ev, max_force)
+    if validation is None:
+        return Pick(choose_commanded(front, bound), bound, source)
+    rows = contenders(front, bound, len(validation.rows))
+    if list(rows) != list(validation.rows):
+        raise RunError("the validation is not of the Pareto solutions in contention: validate the run again")
+    if not rows:
+        return Pick(None, bound, source)
+    r = np.asarray(rows)
+    order = np.lexsort((-front.objectives[r, 0], -front.success_rate[r], -np.asarray(validation.success)))
+    return Pick(int(r[order[0]]), bound, source)
+
+
+def check_front(front, ev: Evaluation) -> None:
     pareto = [i for i, g in enumerate(ev.candidates.groups) if g == "pareto"]
     if len(pareto) != len(front) or not np.array_equal(ev.candidates.params[pareto], front.params):
         raise RunError("the evaluation is not of the run's current Pareto front: evaluate the run again")
-    bound, source = force_bound(ev, max_force)
-    return Pick(choose_commanded(front, bound), bound, source)
+
+
+def contenders(front, bound: float | None, n: int) -> list[int]:
+    """The ``n`` rows of ``front`` within ``bound`` (None: all) with the best training success,
+    ties by the first objective, best first (fewer when fewer are within the bound)."""
+    ok = np.ones(len(front), bool) if bound is None else front.peak_commanded_force <= bound  # NaN: not within
+    rows = np.flatnonzero(ok)
+    order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows]))
+    return [int(r) for r in rows[order[:n]]]
 
 
 def choose_commanded(front, bound: float | None) -> int | None:
     """The row of ``front`` with the best success rate, ties by the first objective, among those
     whose peak_commanded_force is at most ``bound`` (None: all); None when no row is."""
-    ok = np.ones(len(front), bool) if bound is None else front.peak_commanded_force <= bound  # NaN: not within
-    rows = np.flatnonzero(ok)
-    if not len(rows):
-        return None
-    order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows]))
-    return int(rows[order[0]])
+    best = contenders(front, bound, 1)
+    return best[0] if best else None
 
 
 def picked_row(ev: Evaluation, p: Pick) -> int | None:

@@ -22,6 +22,7 @@ from mjxskill.scenario.fields import compose_text, read_text
 from mjxskill.training.evaluate_run import evaluation_settings
 from mjxskill.training.run_dir import Run, RunConfig, created_whole
 from mjxskill.training.run_lock import RunLock, lock_run
+from mjxskill.training.validation import validation_settings
 from mjxskill.training.runs import EXPERIMENT, OPTIMIZER_RUNS, RANDOM_RUNS
 
 FORMAT = "mjxskill.experiment/1"
@@ -32,26 +33,37 @@ STATE = "state.json"
 class Protocol:
     """How each repetition is evaluated. per_config: worlds from each known and each unseen
     start configuration; random_sets: uniform parameter sets; max_force: the pick's force bound,
-    N (None: the largest force an operator set commands, ``mjxskill.training.pooled``)."""
+    N (None: the largest force an operator set commands, ``mjxskill.training.pooled``);
+    validation_per_config: fresh worlds from each known start configuration in which the
+    validation_candidates best solutions within the bound are rolled out again before the pick
+    (``mjxskill.training.validation``; 0: the training success alone decides, as in an
+    experiment.yaml written before validation existed, which has neither key)."""
 
     per_config: int = 5
     random_sets: int = 10
     max_force: float | None = None
+    validation_per_config: int = 5
+    validation_candidates: int = 3
 
     def to_yaml(self, task: str) -> str:
         import yaml
 
         return yaml.safe_dump({"format": FORMAT, "task": task, "per_config": self.per_config,
-                               "random_sets": self.random_sets, "max_force": self.max_force}, sort_keys=False)
+                               "random_sets": self.random_sets, "max_force": self.max_force,
+                               "validation_per_config": self.validation_per_config,
+                               "validation_candidates": self.validation_candidates}, sort_keys=False)
 
     @classmethod
     def from_yaml(cls, text: str, where: str) -> "Protocol":
         root = compose_text(text, where, RunError)
-        f = root.mapping(required=("format", "task", "per_config", "random_sets", "max_force"))
+        f = root.mapping(required=("format", "task", "per_config", "random_sets", "max_force"),
+                         optional=("validation_per_config", "validation_candidates"))
         if f["format"].is_null() or f["format"].scalar() != FORMAT:
             f["format"].fail(f"not an mjxskill experiment (format {FORMAT!r} expected)")
         return cls(per_config=f["per_config"].integer(minimum=1), random_sets=f["random_sets"].integer(minimum=0),
-                   max_force=None if f["max_force"].is_null() else f["max_force"].number(nonnegative=True))
+                   max_force=None if f["max_force"].is_null() else f["max_force"].number(nonnegative=True),
+                   validation_per_config=f["validation_per_config"].integer(minimum=0) if "validation_per_config" in f else 0,
+                   validation_candidates=f["validation_candidates"].integer(minimum=1) if "validation_candidates" in f else 3)
 
 
 def random_search_config(config: RunConfig) -> RunConfig:
@@ -90,6 +102,16 @@ class Experiment:
         if not path.is_file():
             raise RunError(f"{self.path} is not an experiment directory (no {EXPERIMENT})")
         return Protocol.from_yaml(read_text(path, RunError, "experiment protocol"), str(path))
+
+    def set_validation(self, per_config: int, candidates: int) -> Protocol:
+        """Rewrites experiment.yaml with another validation of the pick (the one protocol setting
+        a resumed experiment may change: the runs and evaluations do not depend on it, the picks
+        are made again from them); returns the new protocol."""
+        protocol = replace(self.protocol(), validation_per_config=per_config, validation_candidates=candidates)
+        tmp = self.path / (EXPERIMENT + ".tmp")
+        tmp.write_text(protocol.to_yaml(self.config().task))
+        os.replace(tmp, self.path / EXPERIMENT)
+        return protocol
 
     def config(self) -> RunConfig:
         """The training configuration (the optimizer's), checked against the random search's."""
@@ -147,6 +169,14 @@ def repetition_settings(config: RunConfig, protocol: Protocol, seed: int) -> dic
                                config.episode_seconds)
 
 
+def repetition_validation(config: RunConfig, protocol: Protocol, seed: int) -> dict | None:
+    """The validation settings of the repetition of seed ``seed`` (None: the protocol has none)."""
+    if not protocol.validation_per_config:
+        return None
+    return validation_settings(protocol.validation_per_config, protocol.validation_candidates, seed, config.engine,
+                               config.episode_seconds)
+
+
 def is_done(run: Run, config: RunConfig) -> bool:
     return len(run.evaluations(config)) >= config.budget
 
@@ -156,4 +186,4 @@ def time_key(kind: str, seed: int) -> str:
 
 
 __all__ = ["FORMAT", "STATE", "Experiment", "Protocol", "is_done", "random_search_config",
-           "repetition_settings", "runs_of", "time_key"]
+           "repetition_settings", "repetition_validation", "runs_of", "time_key"]

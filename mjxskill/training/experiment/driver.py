@@ -3,8 +3,9 @@
 Per repetition (seed s = seed + i): train the optimizer run ``optimizer/seed-<s>``, train the
 random search ``random_search/seed-<s>`` (``mjxskill.training.loop.train``: each batch on disk
 before the next, resumed where it stopped), evaluate the optimizer run
-(``mjxskill.training.evaluate_run``, worlds drawn from s, chunk by chunk on disk), then rewrite
-the report over every finished repetition. A killed experiment continues where it stopped: a
+(``mjxskill.training.evaluate_run``, worlds drawn from s, chunk by chunk on disk), validate the
+solutions in contention for its pick (``mjxskill.training.validation``), then rewrite the report
+over every finished repetition. A killed experiment continues where it stopped: a
 finished run only replays its file, a current evaluation is reused. Wall times go to
 ``state.json`` as they are spent (a session's time is written even when it is interrupted).
 """
@@ -14,11 +15,18 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-from mjxskill.training.evaluate_run import evaluate_run
-from mjxskill.training.experiment.directory import Experiment, repetition_settings, time_key
+from mjxskill.training.evaluate_run import evaluate_run, load_evaluation
+from mjxskill.training.experiment.directory import (
+    Experiment,
+    Protocol,
+    repetition_settings,
+    repetition_validation,
+    time_key,
+)
 from mjxskill.training.loop import BatchResult, rollout_evaluator, train
-from mjxskill.training.run_dir import Run
+from mjxskill.training.run_dir import Run, RunConfig
 from mjxskill.training.runs import KINDS
+from mjxskill.training.validation import in_contention, validate
 
 
 def _timed(evaluate, clock: dict) -> Callable[[object, int], BatchResult]:
@@ -64,6 +72,23 @@ def evaluate_timed(exp: Experiment, run: Run, rollout, task, settings: dict, pro
     return not reused
 
 
+def validate_timed(exp: Experiment, run: Run, rollout, config: RunConfig, protocol: Protocol, seed: int) -> bool | None:
+    """Validates the pick of one evaluated optimizer run (``mjxskill.training.validation``; reused
+    when current). True when it ran now, False when reused, None when the protocol has none."""
+    settings = repetition_validation(config, protocol, seed)
+    if settings is None:
+        return None
+    run_config = run.config()
+    t0 = time.monotonic()
+    with run.lock():
+        front = run.front(run_config)
+        rows = in_contention(front, load_evaluation(run)[0], protocol.max_force, protocol.validation_candidates)
+        _, reused = validate(run, front, rows, rollout, settings)
+    if not reused:
+        exp.add_time(time_key(KINDS[run_config.optimizer], run_config.seed), "validate_seconds", time.monotonic() - t0)
+    return not reused
+
+
 def run_experiment(exp: Experiment, rollout, task, *, progress_for, log: Callable[[str], None],
                    evaluation_progress=None) -> None:
     """Runs (or continues) every repetition of ``exp`` to its end and writes the report after
@@ -82,10 +107,13 @@ def run_experiment(exp: Experiment, rollout, task, *, progress_for, log: Callabl
         train_timed(exp, rnd, rollout, progress_for)
         log(f"repetition {i + 1} of {len(pairs)} (seed {seed}): evaluation")
         evaluate_timed(exp, opt, rollout, task, repetition_settings(config, protocol, seed), evaluation_progress)
+        if protocol.validation_per_config:
+            log(f"repetition {i + 1} of {len(pairs)} (seed {seed}): validation of the pick")
+            validate_timed(exp, opt, rollout, config, protocol, seed)
         log(write_report(exp))
     for repeated in (exp.optimizer, exp.random_search):
         if config.repeats > 1:
             log(write_repeats(repeated, repeated.config(), [p for p in repeated.sub_runs(repeated.config())]))
 
 
-__all__ = ["evaluate_timed", "run_experiment", "train_timed"]
+__all__ = ["evaluate_timed", "run_experiment", "train_timed", "validate_timed"]

@@ -3,7 +3,9 @@ same numbers for people, side by side with the paper) and the figures, in the ex
 directory. Rewritten after every repetition, so a long experiment has a report all along.
 
 report.json: ``task``; ``status`` (repetitions done of all); ``protocol`` (every setting);
-``pick_rule`` and ``picked`` (per repetition); ``front_size`` (``mean``, ``sd``, per
+``pick_rule`` and ``picked`` (per repetition, with the validation's success rates);
+``training_pick`` (the picks the training success alone makes, where they differ, and their
+success rates: what the validation changed); ``front_size`` (``mean``, ``sd``, per
 repetition, and the random search's); ``groups`` (group -> ``known``, ``unseen`` mean success
 rates); ``samples`` (their counts); ``mann_whitney`` (baseline -> ``known``, ``unseen``: p of the
 picked solutions against it); ``force_and_time`` (group -> ``peak_commanded_force_N``, the
@@ -109,13 +111,17 @@ def markdown(s: dict, figures: bool = True) -> str:
 
     lines += ["## Picked solutions", "", f"Rule: {s['pick_rule']}.", ""]
     names = list(p["parameters"])
+    validated = s.get("training_pick", {}).get("validated", False)
     rows = [[str(r["seed"]), _num(r["pareto_row"], "{}"), _num(r["bound_N"], "{:.2f} N")]
-            + ([_num(r["parameters"][n], "{:.4g}") for n in names] + [_pct(r["training_success"]),
-               _num(r["training_peak_commanded_force_N"], "{:.2f}"), _pct(r["known"]), _pct(r["unseen"])]
-               if r["pareto_row"] is not None else ["no Pareto solution within the bound"] + [""] * (len(names) + 3))
+            + ([_num(r["parameters"][n], "{:.4g}") for n in names] + [_pct(r["training_success"])]
+               + ([_pct(r["validation_success"])] if validated else [])
+               + [_num(r["training_peak_commanded_force_N"], "{:.2f}"), _pct(r["known"]), _pct(r["unseen"])]
+               if r["pareto_row"] is not None else
+               ["no Pareto solution within the bound"] + [""] * (len(names) + 3 + validated))
             for r in s["picked"]]
     lines += _table(["seed", "Pareto row", "bound", *(n.split(".")[-1] for n in names), "training success",
-                     "commanded force [N]", "known", "unseen"], rows) + [""]
+                     *(["validation success"] if validated else []), "commanded force [N]", "known", "unseen"], rows)
+    lines += [""] + _validation_effect(s)
 
     f = s["front_size"]
     lines += ["## Pareto fronts", ""] + ([f"![Pareto fronts]({FRONTS})", ""] if figures else [])
@@ -136,11 +142,13 @@ def markdown(s: dict, figures: bool = True) -> str:
     rows = []
     for seed, kinds in s["wall_time"].items():
         o, r = kinds["optimizer"], kinds["random_search"]
-        total = sum(e.get(k, 0.0) for e, k in ((o, "train_seconds"), (r, "train_seconds"), (o, "evaluate_seconds")))
+        total = sum(e.get(k, 0.0) for e, k in ((o, "train_seconds"), (r, "train_seconds"), (o, "evaluate_seconds"),
+                                                (o, "validate_seconds")))
         rows.append([seed, _secs(o, "train_seconds"), _secs(o, "simulation_seconds"), _secs(r, "train_seconds"),
-                     _num(o.get("evaluate_seconds"), "{:.0f} s"), f"{total:.0f} s"])
+                     _num(o.get("evaluate_seconds"), "{:.0f} s"), _num(o.get("validate_seconds"), "{:.0f} s"),
+                     f"{total:.0f} s"])
     lines += _table(["seed", "optimizer run (evaluations)", "of it simulation", "random search run", "evaluation",
-                     "repetition"], rows)
+                     "validation", "repetition"], rows)
     sessions = s["sessions"]
     lines += ["", f"{len(sessions)} session(s); start-up (planning, engine start, compilation) "
               + ", ".join(f"{x['startup_seconds']:.0f} s ({x['engine']}, {x['cpus']} CPUs)" for x in sessions)
@@ -150,6 +158,21 @@ def markdown(s: dict, figures: bool = True) -> str:
     lines += ["", "Parameters: " + ", ".join(f"{n} in [{v['bounds'][0]:g}, {v['bounds'][1]:g}] {v['unit']}"
                                              for n, v in p["parameters"].items()) + ".", ""]
     return "\n".join(lines)
+
+
+def _validation_effect(s: dict) -> list[str]:
+    """What the validation changed: the picks the training success alone would have made."""
+    t = s.get("training_pick", {})
+    if not t.get("validated"):
+        return []
+    if not t["changed"]:
+        return ["The validation picked what the training success alone picks in every repetition.", ""]
+    seeds = ", ".join(f"seed {c['seed']}: row {c['validated_row']} instead of {c['training_row']}" for c in t["changed"])
+    g, mine = t["groups"], s["groups"].get("picked", {})
+    return [f"The validation changed the pick in {len(t['changed'])} of {len(s['picked'])} repetitions ({seeds}). "
+            f"The training success alone would have picked solutions that reach {_pct(g.get('known'))} known, "
+            f"{_pct(g.get('unseen'))} unseen, against {_pct(mine.get('known'))} and {_pct(mine.get('unseen'))} for "
+            "the validated picks.", ""]
 
 
 def _secs(entry: dict, field: str) -> str:

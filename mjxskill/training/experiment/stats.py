@@ -22,6 +22,7 @@ from mjxskill.training.experiment.directory import (
     Protocol,
     is_done,
     repetition_settings,
+    repetition_validation,
     time_key,
 )
 from mjxskill.training.front import HV_MARGIN, hypervolume_history, pareto_mask_of
@@ -34,6 +35,7 @@ from mjxskill.training.pooled import (
     pooled_tests,
 )
 from mjxskill.training.run_dir import Evaluations, RunConfig
+from mjxskill.training.validation import Validation, in_contention, load_validation
 
 # The paper's numbers (Mayr et al., experiments section), per scenario name.
 PAPER = {
@@ -52,9 +54,13 @@ class Repetition(NamedTuple):
     front: Evaluations
     evaluation: Evaluation
     pick: Pick
+    validation: Validation | None = None  # of the pick's contenders (None: the protocol has none)
+    training_pick: Pick | None = None  # what the training success alone picks (the rule without validation)
 
 
 def finished_repetitions(exp: Experiment, config: RunConfig, protocol: Protocol) -> list[Repetition]:
+    """The repetitions whose runs are finished, evaluated and (when the protocol says so) whose
+    pick is validated, with the settings of ``protocol``."""
     reps = []
     for i, (opt, rnd) in enumerate(exp.runs(config)):
         seed = config.seed + i
@@ -64,7 +70,15 @@ def finished_repetitions(exp: Experiment, config: RunConfig, protocol: Protocol)
             continue
         front = opt.front(opt_config)
         ev, _ = load_evaluation(opt)
+        validation = None
+        settings = repetition_validation(config, protocol, seed)
+        if settings is not None:
+            rows = in_contention(front, ev, protocol.max_force, protocol.validation_candidates)
+            validation = load_validation(opt, front, rows, settings)
+            if validation is None:
+                continue
         reps.append(Repetition(seed, opt.evaluations(opt_config), rnd.evaluations(rnd_config), front, ev,
+                               pick(front, ev, protocol.max_force, validation), validation,
                                pick(front, ev, protocol.max_force)))
     return reps
 
@@ -160,16 +174,13 @@ def summarize(exp: Experiment) -> dict:
                                     zip(config.parameter_names, *config.bounds, config.parameter_units)},
                      "objectives": list(config.objective_names), "scenario": config.scenario,
                      "per_config": protocol.per_config, "random_sets": protocol.random_sets,
-                     "max_force": protocol.max_force,
+                     "max_force": protocol.max_force, "validation_per_config": protocol.validation_per_config,
+                     "validation_candidates": protocol.validation_candidates,
                      "known_configs": n_known, "unseen_configs": None if not reps else int((~reps[0].evaluation.known).sum()),
                      "evaluation_seeds": "each repetition's own training seed"},
-        "pick_rule": ("the Pareto solution with the highest training success rate among those whose commanded force "
-                      "(peak_commanded_force: the largest feed-forward force the skills command in an episode, mean "
-                      "over the training worlds; not the measured contact force) is at most the bound; "
-                      "ties: the higher first objective. Bound: " +
-                      (f"{protocol.max_force:g} N (given)" if protocol.max_force is not None else
-                       "the largest force an operator set commands in the repetition's evaluation")),
+        "pick_rule": pick_rule(protocol, n_known),
         "picked": [_picked(r, config) for r in reps],
+        "training_pick": training_pick(reps),
         "front_size": front,
         "groups": means,
         "samples": {g: {"known": len(v[0]), "unseen": len(v[1])} for g, v in samples.items()},
@@ -181,6 +192,36 @@ def summarize(exp: Experiment) -> dict:
         "sessions": state["sessions"],
         "paper": paper_rows(config.task, front, means, force_time),
     }
+
+
+def pick_rule(protocol: Protocol, n_known: int | None) -> str:
+    """The pick rule in words (report.json's ``pick_rule``)."""
+    force = ("commanded force (peak_commanded_force: the largest feed-forward force the skills command in an episode, "
+             "mean over the training worlds; not the measured contact force) is at most the bound")
+    bound = "Bound: " + (f"{protocol.max_force:g} N (given)" if protocol.max_force is not None else
+                         "the largest force an operator set commands in the repetition's evaluation")
+    if not protocol.validation_per_config:
+        return (f"the Pareto solution with the highest training success rate among those whose {force}; ties: the "
+                f"higher first objective. {bound}")
+    per = protocol.validation_per_config
+    worlds = f"{per * n_known} fresh worlds ({per}" if n_known else f"fresh worlds ({per}"
+    return (f"of the Pareto solutions whose {force}, the {protocol.validation_candidates} with the highest training "
+            f"success rate (ties: the higher first objective) are rolled out again in {worlds} from each known start "
+            "configuration, drawn from the repetition's seed apart from the training and evaluation worlds); the one "
+            "with the highest success rate there is picked; ties: the higher training success rate, then the higher "
+            f"first objective. {bound}")
+
+
+def training_pick(reps: list[Repetition]) -> dict:
+    """What the pick would have been without validation: per repetition where it differs, and
+    the success rates of those picks pooled (the validation's effect, measured)."""
+    if not reps or all(r.validation is None for r in reps):
+        return {"validated": False}
+    evals, picks = [r.evaluation for r in reps], [r.training_pick for r in reps]
+    means = group_means(pooled_samples(evals, picks)).get("picked", {"known": None, "unseen": None})
+    changed = [{"seed": r.seed, "validated_row": r.pick.row, "training_row": r.training_pick.row}
+               for r in reps if r.pick.row != r.training_pick.row]
+    return {"validated": True, "changed": changed, "groups": means}
 
 
 def _finite(v) -> float | None:
@@ -195,8 +236,13 @@ def _picked(r: Repetition, config: RunConfig) -> dict:
         row = ev.candidates.names.index(f"pareto-{p.row}")
         out.update(parameters=dict(zip(config.parameter_names, map(float, r.front.params[p.row]))),
                    training_success=float(r.front.success_rate[p.row]), training_peak_commanded_force_N=float(r.front.peak_commanded_force[p.row]),
+                   validation_success=None if r.validation is None else r.validation.success_of(p.row),
                    known=float(ev.mean(True)[row]), unseen=_finite(ev.mean(False)[row]))
+    if r.validation is not None:
+        out["validated"] = {str(row): rate for row, rate in zip(r.validation.rows, map(float, r.validation.success))}
+        out["validation_worlds"] = r.validation.worlds
     return out
 
 
-__all__ = ["PAPER", "Repetition", "finished_repetitions", "hypervolumes", "normalization", "normalized_curve", "summarize"]
+__all__ = ["PAPER", "Repetition", "finished_repetitions", "hypervolumes", "normalization", "normalized_curve", "pick_rule",
+           "summarize", "training_pick"]

@@ -1,0 +1,149 @@
+"""The pick's validation: the Pareto solutions in contention rolled out again in fresh worlds.
+
+A Pareto solution's training success rate comes from the few worlds of its own batch
+(``--worlds``: 7 in the paper), and the front keeps whatever did best there, so a knife-edge set
+that happened to succeed in all of them looks as good as a robust one: on peg an 8 mm spiral
+with 100 % training success reached 30-40 % in the evaluation and was picked over a set that
+reached 93-100 % at the same training success (docs/experiments/peg). Before the pick
+(``mjxskill.training.pooled.pick``) the ``candidates`` Pareto solutions within the force bound
+with the highest training success are rolled out in ``per_config`` fresh worlds from each
+*known* start configuration, drawn from the repetition's seed on a stream of their own (not the
+training batches' worlds, not the evaluation's); the pick takes the highest validation success.
+An operator could do the same on the real cell before committing to a set; the unseen start
+configurations stay unseen until the evaluation.
+
+``RUN_DIR/evaluation/validation.json``: the settings, the validated Pareto rows, their parameters
+and success rates. It is *current* for a pick when its settings are the ones asked for and it
+validated the rows in contention with the same parameters; a current one is reused (the same
+inputs give the same numbers). It is small and quick to make, so a killed validation is run
+again whole.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from mjxskill.errors import RunError
+from mjxskill.scenario.fields import read_text
+from mjxskill.training.evaluate_run import FOLDER
+from mjxskill.training.evaluation import evaluate_chunk
+from mjxskill.training.run_dir import Evaluations, Run
+
+FILE = "validation.json"
+FORMAT = "mjxskill.validation/1"
+STREAM = 0x7A11D  # the validation worlds' PRNG stream (training: 0x0ED0, evaluation: 0xE7A1)
+
+
+class Validation(NamedTuple):
+    """rows: the validated Pareto rows; success: their success rates (len(rows),) over
+    ``worlds`` validation worlds each."""
+
+    rows: tuple[int, ...]
+    success: np.ndarray
+    worlds: int
+
+    def success_of(self, row: int) -> float:
+        return float(self.success[self.rows.index(row)])
+
+
+def validation_settings(per_config: int, candidates: int, seed: int, engine: str, episode_seconds: float) -> dict:
+    """What a validation's numbers depend on (candidates: how many were asked for)."""
+    return {"per_config": int(per_config), "candidates": int(candidates), "seed": int(seed), "engine": str(engine),
+            "episode_seconds": float(episode_seconds)}
+
+
+def _same(a: dict, b: dict) -> bool:
+    return all(a.get(k) == b.get(k) for k in ("per_config", "seed", "engine", "episode_seconds"))
+
+
+def in_contention(front: Evaluations, ev, max_force: float | None, n: int) -> list[int]:
+    """The Pareto rows a validated pick chooses from: the ``n`` within the pick's force bound
+    (from the run's evaluation ``ev``) with the best training success."""
+    from mjxskill.training.pooled import contenders, force_bound
+
+    return contenders(front, force_bound(ev, max_force)[0], n)
+
+
+def validation_worlds(rollout, per_config: int, seed: int):
+    """``per_config`` worlds from each known start configuration, from ``seed``'s own stream."""
+    import jax
+
+    known = np.asarray(rollout.scenario.robot.start_configs)
+    return rollout.worlds_per_config(jax.random.fold_in(jax.random.PRNGKey(seed), STREAM), per_config, known), len(known)
+
+
+def validate_rows(rollout, params: np.ndarray, per_config: int, seed: int) -> np.ndarray:
+    """The success rate of each row of ``params`` over the validation worlds of ``seed``, in one
+    call of exactly those rows: padding them to the run's batch would roll out copies for
+    nothing, and the world count differs from training's and evaluation's anyway (MJX compiles
+    this shape once more)."""
+    if not len(params):
+        return np.zeros(0)
+    worlds, n_cfg = validation_worlds(rollout, per_config, seed)
+    return evaluate_chunk(rollout, params, worlds, n_cfg, per_config, len(params))["success"].mean(axis=1)
+
+
+def validate(run: Run, front: Evaluations, rows: Sequence[int], rollout, settings: dict) -> tuple[Validation, bool]:
+    """Validates Pareto ``rows`` of ``run``'s ``front`` (reuses a current validation.json, else
+    rolls them out and writes it). Returns (validation, whether it was reused)."""
+    rows = tuple(int(r) for r in rows)
+    old = load_validation(run, front, rows, settings)
+    if old is not None:
+        return old, True
+    success = validate_rows(rollout, front.params[list(rows)], settings["per_config"], settings["seed"])
+    n_known = len(rollout.scenario.robot.start_configs)
+    result = Validation(rows, success, settings["per_config"] * n_known)
+    doc = {"format": FORMAT, "settings": settings, "worlds": result.worlds, "rows": list(rows),
+           "params": front.params[list(rows)].tolist(), "success": success.tolist()}
+    folder = run.path / FOLDER
+    folder.mkdir(exist_ok=True)
+    tmp = folder / (FILE + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n")
+    os.replace(tmp, folder / FILE)
+    return result, False
+
+
+def load_validation(run: Run, front: Evaluations, rows: Sequence[int], settings: dict) -> Validation | None:
+    """The validation of Pareto ``rows`` on disk when it is current (see the module docstring);
+    None when there is none or it is of other settings or parameters. RunError when the file
+    is damaged."""
+    path = run.path / FOLDER / FILE
+    if not path.is_file():
+        return None
+    try:
+        doc = json.loads(read_text(path, RunError, "validation"))
+        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+            raise ValueError(f"format {FORMAT!r} expected")
+        stored_rows = [int(r) for r in doc["rows"]]
+        params = np.array(doc["params"], np.float64).reshape(len(stored_rows), -1)
+        success = np.array(doc["success"], np.float64).reshape(len(stored_rows))
+        worlds = int(doc["worlds"])
+        if not isinstance(doc["settings"], dict) or not np.all((success >= 0) & (success <= 1)) or worlds < 1:
+            raise ValueError("settings, success rates in [0, 1] and a positive world count expected")
+    except (KeyError, TypeError, ValueError) as err:
+        raise RunError(f"{path} is not a readable validation ({err}); delete it (it is made again in a minute)") from None
+    if not _same(doc["settings"], settings) or not set(rows) <= set(stored_rows):
+        return None
+    index = [stored_rows.index(r) for r in rows]
+    if any(r >= len(front) for r in rows) or not np.array_equal(params[index], front.params[list(rows)]):
+        return None
+    return Validation(tuple(rows), success[index], worlds)
+
+
+def describe(settings_or_none: dict | None, n_known: int | None = None) -> str:
+    """The validation in words, for the pick rule."""
+    if not settings_or_none or not settings_or_none.get("per_config"):
+        return "no validation: the training success decides"
+    per, k = settings_or_none["per_config"], settings_or_none["candidates"]
+    worlds = f"{per * n_known} fresh worlds" if n_known else "fresh worlds"
+    return (f"the {k} with the highest training success are rolled out again in {worlds} ({per} from each known "
+            "start configuration, drawn apart from the training and evaluation worlds) and the highest success "
+            "there decides")
+
+
+__all__ = ["FILE", "FORMAT", "Validation", "in_contention", "load_validation", "validate", "validate_rows", "validation_settings",
+           "validation_worlds"]
