@@ -90,7 +90,8 @@ def test_a_resumed_experiment_may_pick_without_validation_and_retrains_nothing(e
     before = {n: (copy / n).read_text() for n in RESULTS}
     done = run_cli("experiment", "push", "--resume", copy, "--validation-per-config", "0", "--quiet")
     assert done.returncode == 0, done.stderr[-3000:]
-    assert "the picks are now validated with 0 worlds per known start configuration" in done.stdout
+    assert "the picks are now made by training success alone (no validation) (were after validating the 3 best " \
+           "candidates in 5 worlds per known start configuration)" in done.stdout
     assert {n: (copy / n).read_text() for n in RESULTS} == before  # nothing retrained, evaluated or validated again
     report = json.loads((copy / "report.json").read_text())
     assert report["protocol"]["validation_per_config"] == 0 and report["training_pick"] == {"validated": False}
@@ -160,6 +161,9 @@ BAD_INPUT = (
     (["experiment", "push", "--validation-per-config", "-1"], "argument --validation-per-config: must be at least 0, got -1"),
     (["experiment", "push", "--validation-candidates", "0"], "argument --validation-candidates: must be at least 1"),
     (["evaluate", "{exp}", "--validation-per-config", "2"], "drop --validation-per-config 2 (the experiment has 5)"),
+    (["experiment", "push", "--resume", "{exp}", "--validation-per-config", "0", "--validation-candidates", "2"],
+     "--validation-candidates 2: {exp} picks without validation; give --validation-per-config N as well"),
+    (["experiment", "peg", "--resume", "{exp}", "--validation-per-config", "0"], "is a run of task 'push', not 'peg'"),
     (["experiment", "push", "--resume", "{run}"], "is not an experiment directory (no experiment.yaml)"),
     (["experiment", "peg", "--resume", "{exp}"], "is a run of task 'push', not 'peg'"),
     (["experiment", "push", "--out", "{exp}"], "already holds an experiment; continue it with --resume"),

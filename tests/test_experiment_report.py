@@ -126,7 +126,7 @@ def test_the_report_covers_the_finished_repetitions_with_the_stated_pick(experim
     validation = expected(rollout, front.params[contenders], N_KNOWN, 2, SCN.bt_hz)[0].mean(axis=1)
     best = max(contenders, key=lambda k: (validation[contenders.index(k)], front.success_rate[k], front.objectives[k, 0]))
     assert report["picked"][0]["pareto_row"] == best and report["picked"][0]["bound_N"] == pytest.approx(bound)
-    assert report["picked"][0]["validated"] == {str(k): pytest.approx(v) for k, v in zip(contenders, validation)}
+    assert report["picked"][0]["validation_rates"] == {str(k): pytest.approx(v) for k, v in zip(contenders, validation)}
     assert report["picked"][0]["validation_worlds"] == 2 * N_KNOWN
     assert report["protocol"]["validation_per_config"] == 2 and report["protocol"]["validation_candidates"] == 3
     # what the training success alone picks, and whether that differs

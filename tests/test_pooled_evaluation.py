@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy.stats import mannwhitneyu
 
+from mjxskill.errors import RunError
 from mjxskill.scenario import load_scenario
 from mjxskill.task import plan_task
 from mjxskill.training.evaluate_run import CHUNKS, FOLDER, RESULT, evaluate_run, evaluation_current, evaluation_settings, load_evaluation
@@ -179,9 +180,18 @@ def test_the_validation_rolls_out_the_contenders_in_fresh_known_worlds_and_is_re
     assert load_validation(run, front, [0], vsettings(seed=4)) is None  # other worlds
     moved = Evaluations(front.iteration, front.params + 0.01, *front[2:])  # not _replace: len() is rows
     assert load_validation(run, moved, [0], vsettings()) is None  # another front
-    (run.path / FOLDER / FILE).write_text('{"format": "mjxskill.validation/1", "rows": [0], "success": [1.5]}')
-    with pytest.raises(Exception, match="is not a readable validation"):
-        load_validation(run, front, [0], vsettings())
+    # nothing within the bound: nothing rolled out, nothing written, the same answer when read
+    empty, reused = validate(run, front, [], again, vsettings())
+    assert empty.rows == () and again.calls == [] and load_validation(run, front, [], vsettings()).rows == ()
+    good = (run.path / FOLDER / FILE).read_text()
+    for damaged in ('{"format": "mjxskill.validation/1", "rows": [0], "success": [1.5]}',
+                    good.replace('"worlds": 8', '"worlds": 1e400'), good.replace('"worlds": 8', '"worlds": 8.5'),
+                    good.replace('"rows": [\n  2,', '"rows": [\n  true,'), good.replace('"rows": [\n  2,\n  0\n ]', '"rows": []'),
+                    good[:-20], "[" * 100000 + "]" * 100000):
+        assert damaged != good
+        (run.path / FOLDER / FILE).write_text(damaged)
+        with pytest.raises(RunError, match=f"{FILE} is not a readable validation"):
+            load_validation(run, front, [0], vsettings())
 
 
 def test_pooled_samples_are_one_per_run_candidate_and_configuration():

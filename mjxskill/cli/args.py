@@ -12,12 +12,12 @@ def add_task_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("task", help="scenario name (push, peg) or path of a scenario YAML file")
 
 
-def add_validation_arguments(parser: argparse.ArgumentParser, when: str) -> None:
+def add_validation_arguments(parser: argparse.ArgumentParser, when: str, default: str) -> None:
     """The pick's validation flags (``mjxskill.training.validation``) of experiment and evaluate;
-    ``when``: to which picks they apply, for the help."""
+    ``when``: to which picks they apply, ``default``: what applies without the flag (for the help)."""
     parser.add_argument("--validation-per-config", type=int_at_least(0), metavar="N",
                         help=f"{when}: the best solutions within the force bound are rolled out again in N fresh worlds "
-                             "from each known start configuration and the best there is picked (default 5; 0: the "
+                             f"from each known start configuration and the best there is picked ({default}; 0: the "
                              "training success alone decides)")
     parser.add_argument("--validation-candidates", type=positive_int, metavar="K",
                         help="how many solutions the validation rolls out (default 3: the best by training success)")

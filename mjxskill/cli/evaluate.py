@@ -33,8 +33,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("run", type=Path, help="run, repeated run or experiment directory")
     parser.add_argument("--per-config", type=cli_args.positive_int, help="worlds per start configuration (default 5)")
     parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets (default 10)")
-    parser.add_argument("--seed", type=cli_args.seed_type(), help="seed of the worlds and the random sets (default 0; "
-                        "a repeated run's sub-run i: seed + i)")
+    parser.add_argument("--seed", type=cli_args.seed_type(), help="seed of the worlds (the evaluation's and a repeated run's "
+                        "validation's) and the random sets (default 0; a repeated run's sub-run i: seed + i)")
     parser.add_argument("--batch-size", type=cli_args.positive_int, help="candidates per compiled call (default: the run's batch size)")
     parser.add_argument("--episode-seconds", type=cli_args.setting_type(BY_NAME["episode_seconds"]),
                         help="episode length in s (default: the run's)")
@@ -42,7 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "how a solution transfers between engines)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="force bound of each repeated "
                         "run's picked solution, N (default: the largest force an operator set commands)")
-    cli_args.add_validation_arguments(parser, "a repeated run, before each run's pick")
+    cli_args.add_validation_arguments(parser, "a repeated run, before each run's pick", "default 5; an experiment: "
+                                              "its own")
     return parser
 
 

@@ -42,8 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets per evaluation (default 10)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N",
                         help="force bound of the picked solution, N (default: the largest force an operator set commands)")
-    cli_args.add_validation_arguments(parser, "before each pick (may be changed on --resume: the picks are made "
-                                              "again, nothing is retrained)")
+    cli_args.add_validation_arguments(parser, "before each pick", "default 5; on --resume the experiment's own, which "
+                                              "this flag changes: the picks are made again, nothing is retrained")
     parser.add_argument("--out", type=Path, help="experiment directory (default runs/<task>-experiment-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="EXP_DIR", help="continue the experiment in EXP_DIR")
     return parser
@@ -66,10 +66,19 @@ def _change_validation(args: argparse.Namespace, exp, protocol) -> None:
               for field in VALIDATION}
     if all(wanted[field] == getattr(protocol, field) for field in VALIDATION):
         return
-    exp.set_validation(wanted["validation_per_config"], wanted["validation_candidates"])
-    print(f"{exp.path}: the picks are now validated with {wanted['validation_per_config']} worlds per known start "
-          f"configuration and {wanted['validation_candidates']} candidates (were {protocol.validation_per_config} and "
-          f"{protocol.validation_candidates}); the runs and evaluations are kept", flush=True)
+    if not wanted["validation_per_config"] and args.validation_candidates is not None:
+        raise CommandError(f"--validation-candidates {args.validation_candidates}: {exp.path} picks without validation; "
+                           "give --validation-per-config N as well")
+    new = exp.set_validation(wanted["validation_per_config"], wanted["validation_candidates"])
+    print(f"{exp.path}: the picks are now made {_validation_words(new)} (were {_validation_words(protocol)}); the runs "
+          "and evaluations are kept", flush=True)
+
+
+def _validation_words(protocol) -> str:
+    if not protocol.validation_per_config:
+        return "by training success alone (no validation)"
+    return (f"after validating the {protocol.validation_candidates} best candidates in {protocol.validation_per_config} "
+            "worlds per known start configuration")
 
 
 def _main(args: argparse.Namespace) -> int:
@@ -119,9 +128,7 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
     print(f"evaluation per repetition: {protocol.per_config} worlds per start configuration, {protocol.random_sets} "
           f"random sets; pick bound " + (f"{protocol.max_force:g} N" if protocol.max_force is not None else
                                          "the operators' largest commanded force")
-          + (f"; the pick's {protocol.validation_candidates} best candidates validated in {protocol.validation_per_config} "
-             "fresh worlds per known start configuration" if protocol.validation_per_config else
-             "; the pick by training success (no validation)"))
+          + f"; picks made {_validation_words(protocol)}")
     print(f"experiment directory: {exp.path}", flush=True)
     why = "the experiment's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
     print(f"engine: {config.engine} ({why})", flush=True)

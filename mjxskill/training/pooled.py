@@ -67,7 +67,7 @@ def pick(front, ev: Evaluation, max_force: float | None = None, validation=None)
     bound, source = force_bound(ev, max_force)
     if validation is None:
         return Pick(choose_commanded(front, bound), bound, source)
-    rows = contenders(front, bound, len(validation.rows))
+    rows = contenders(front, bound, validation.candidates or len(validation.rows))
     if list(rows) != list(validation.rows):
         raise RunError("the validation is not of the Pareto solutions in contention: validate the run again")
     if not rows:
@@ -182,5 +182,5 @@ def pooled_table(samples: dict, tests: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["BASELINES", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "choose_commanded", "force_bound", "group_force_and_time", "group_means",
+__all__ = ["BASELINES", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "check_front", "choose_commanded", "contenders", "force_bound", "group_force_and_time", "group_means",
            "pick", "picked_row", "plot_pooled", "pooled_samples", "pooled_table", "pooled_tests"]

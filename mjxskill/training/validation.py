@@ -7,16 +7,18 @@ with 100 % training success reached 30-40 % in the evaluation and was picked ove
 reached 93-100 % at the same training success (docs/experiments/peg). Before the pick
 (``mjxskill.training.pooled.pick``) the ``candidates`` Pareto solutions within the force bound
 with the highest training success are rolled out in ``per_config`` fresh worlds from each
-*known* start configuration, drawn from the repetition's seed on a stream of their own (not the
-training batches' worlds, not the evaluation's); the pick takes the highest validation success.
+*known* start configuration, drawn from the evaluation's seed (an experiment's: the
+repetition's) on a stream of their own (not the training batches' worlds, not the
+evaluation's); the pick takes the highest validation success.
 An operator could do the same on the real cell before committing to a set; the unseen start
 configurations stay unseen until the evaluation.
 
 ``RUN_DIR/evaluation/validation.json``: the settings, the validated Pareto rows, their parameters
-and success rates. It is *current* for a pick when its settings are the ones asked for and it
-validated the rows in contention with the same parameters; a current one is reused (the same
-inputs give the same numbers). It is small and quick to make, so a killed validation is run
-again whole.
+and success rates. It is *current* for a pick when it has the same worlds (per_config, seed,
+engine, episode length) and validated every row in contention with the same parameters (a
+validation of more candidates serves one of fewer); a current one is reused (the same inputs
+give the same numbers). It is small and quick to make, so a killed validation is run again
+whole. With no solution within the bound there is nothing to validate and no file.
 """
 
 from __future__ import annotations
@@ -39,12 +41,14 @@ STREAM = 0x7A11D  # the validation worlds' PRNG stream (training: 0x0ED0, evalua
 
 
 class Validation(NamedTuple):
-    """rows: the validated Pareto rows; success: their success rates (len(rows),) over
-    ``worlds`` validation worlds each."""
+    """rows: the validated Pareto rows (the contenders, best in training first); success: their
+    success rates (len(rows),) over ``worlds`` validation worlds each; candidates: how many
+    contenders were asked for (None: len(rows))."""
 
     rows: tuple[int, ...]
     success: np.ndarray
     worlds: int
+    candidates: int | None = None
 
     def success_of(self, row: int) -> float:
         return float(self.success[self.rows.index(row)])
@@ -76,27 +80,28 @@ def validation_worlds(rollout, per_config: int, seed: int):
     return rollout.worlds_per_config(jax.random.fold_in(jax.random.PRNGKey(seed), STREAM), per_config, known), len(known)
 
 
-def validate_rows(rollout, params: np.ndarray, per_config: int, seed: int) -> np.ndarray:
+def validate_rows(rollout, params: np.ndarray, per_config: int, seed: int, pad_to: int = 0) -> np.ndarray:
     """The success rate of each row of ``params`` over the validation worlds of ``seed``, in one
-    call of exactly those rows: padding them to the run's batch would roll out copies for
-    nothing, and the world count differs from training's and evaluation's anyway (MJX compiles
-    this shape once more)."""
+    call padded to ``pad_to`` rows (the number of candidates asked for: one compiled shape for
+    MJX whatever the number in contention; the world count differs from training's and the
+    evaluation's, so MJX compiles that shape once more)."""
     if not len(params):
         return np.zeros(0)
     worlds, n_cfg = validation_worlds(rollout, per_config, seed)
-    return evaluate_chunk(rollout, params, worlds, n_cfg, per_config, len(params))["success"].mean(axis=1)
+    return evaluate_chunk(rollout, params, worlds, n_cfg, per_config, max(len(params), pad_to))["success"].mean(axis=1)
 
 
 def validate(run: Run, front: Evaluations, rows: Sequence[int], rollout, settings: dict) -> tuple[Validation, bool]:
     """Validates Pareto ``rows`` of ``run``'s ``front`` (reuses a current validation.json, else
-    rolls them out and writes it). Returns (validation, whether it was reused)."""
+    rolls them out and writes it). Returns (validation, whether nothing was rolled out)."""
     rows = tuple(int(r) for r in rows)
     old = load_validation(run, front, rows, settings)
     if old is not None:
         return old, True
-    success = validate_rows(rollout, front.params[list(rows)], settings["per_config"], settings["seed"])
+    success = validate_rows(rollout, front.params[list(rows)], settings["per_config"], settings["seed"],
+                            settings["candidates"])
     n_known = len(rollout.scenario.robot.start_configs)
-    result = Validation(rows, success, settings["per_config"] * n_known)
+    result = Validation(rows, success, settings["per_config"] * n_known, settings["candidates"])
     doc = {"format": FORMAT, "settings": settings, "worlds": result.worlds, "rows": list(rows),
            "params": front.params[list(rows)].tolist(), "success": success.tolist()}
     folder = run.path / FOLDER
@@ -109,8 +114,10 @@ def validate(run: Run, front: Evaluations, rows: Sequence[int], rollout, setting
 
 def load_validation(run: Run, front: Evaluations, rows: Sequence[int], settings: dict) -> Validation | None:
     """The validation of Pareto ``rows`` on disk when it is current (see the module docstring);
-    None when there is none or it is of other settings or parameters. RunError when the file
-    is damaged."""
+    None when there is none or it is of other worlds or parameters. No rows: an empty
+    validation, no file needed. RunError when the file is damaged."""
+    if not len(rows):
+        return Validation((), np.zeros(0), 0, settings["candidates"])
     path = run.path / FOLDER / FILE
     if not path.is_file():
         return None
@@ -118,31 +125,28 @@ def load_validation(run: Run, front: Evaluations, rows: Sequence[int], settings:
         doc = json.loads(read_text(path, RunError, "validation"))
         if not isinstance(doc, dict) or doc.get("format") != FORMAT:
             raise ValueError(f"format {FORMAT!r} expected")
-        stored_rows = [int(r) for r in doc["rows"]]
+        stored_rows, worlds = doc["rows"], doc["worlds"]
+        if not isinstance(stored_rows, list) or not stored_rows or not all(_count(r) for r in stored_rows):
+            raise ValueError("rows: a list of Pareto row numbers expected")
+        if not _count(worlds) or worlds < 1 or not isinstance(doc["settings"], dict):
+            raise ValueError("a positive world count and the settings expected")
         params = np.array(doc["params"], np.float64).reshape(len(stored_rows), -1)
         success = np.array(doc["success"], np.float64).reshape(len(stored_rows))
-        worlds = int(doc["worlds"])
-        if not isinstance(doc["settings"], dict) or not np.all((success >= 0) & (success <= 1)) or worlds < 1:
-            raise ValueError("settings, success rates in [0, 1] and a positive world count expected")
-    except (KeyError, TypeError, ValueError) as err:
+        if not np.all((success >= 0) & (success <= 1)):
+            raise ValueError("success rates in [0, 1] expected")
+    except (KeyError, TypeError, ValueError, OverflowError, RecursionError) as err:
         raise RunError(f"{path} is not a readable validation ({err}); delete it (it is made again in a minute)") from None
     if not _same(doc["settings"], settings) or not set(rows) <= set(stored_rows):
         return None
     index = [stored_rows.index(r) for r in rows]
     if any(r >= len(front) for r in rows) or not np.array_equal(params[index], front.params[list(rows)]):
         return None
-    return Validation(tuple(rows), success[index], worlds)
+    return Validation(tuple(rows), success[index], worlds, settings["candidates"])
 
 
-def describe(settings_or_none: dict | None, n_known: int | None = None) -> str:
-    """The validation in words, for the pick rule."""
-    if not settings_or_none or not settings_or_none.get("per_config"):
-        return "no validation: the training success decides"
-    per, k = settings_or_none["per_config"], settings_or_none["candidates"]
-    worlds = f"{per * n_known} fresh worlds" if n_known else "fresh worlds"
-    return (f"the {k} with the highest training success are rolled out again in {worlds} ({per} from each known "
-            "start configuration, drawn apart from the training and evaluation worlds) and the highest success "
-            "there decides")
+def _count(v) -> bool:
+    """A JSON integer >= 0 (not a bool, not a float)."""
+    return isinstance(v, int) and not isinstance(v, bool) and v >= 0
 
 
 __all__ = ["FILE", "FORMAT", "Validation", "in_contention", "load_validation", "validate", "validate_rows", "validation_settings",

@@ -2,7 +2,8 @@
 
 Layout: ``mjxskill.training.runs``. ``experiment.yaml`` holds what the runs' ``config.yaml``
 files do not: how each repetition is evaluated (worlds per start configuration, random sets,
-the pick's force bound). The training settings are the runs' own: ``optimizer/config.yaml``
+the pick's force bound and its validation; the validation alone may be changed when the
+experiment is resumed, ``Experiment.set_validation``). The training settings are the runs' own: ``optimizer/config.yaml``
 and ``random_search/config.yaml`` are one configuration that differs only in ``optimizer``.
 ``state.json`` accumulates the wall time spent on each run and evaluation, over every session
 (a resumed experiment adds to it). Like a run, an experiment is created whole or not at all,

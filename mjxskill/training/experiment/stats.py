@@ -1,7 +1,8 @@
 """The numbers of an experiment's report, over its finished repetitions (plain data: report.json).
 
-A repetition is finished when its optimizer run and its random search reached the budget and
-the optimizer run's evaluation has the protocol's settings. Hypervolume: both runs of every
+A repetition is finished when its optimizer run and its random search reached the budget, the
+optimizer run's evaluation has the protocol's settings and, when the protocol validates the
+pick, its validation is current (``mjxskill.training.validation``). Hypervolume: both runs of every
 finished repetition are measured in one space, the objectives negated (minimized) and scaled
 per objective to [0, 1] by the minimum and maximum over every finite evaluation of every one of
 those runs; the reference point is 1 + ``HV_MARGIN`` in each objective (the worst value of all
@@ -239,7 +240,7 @@ def _picked(r: Repetition, config: RunConfig) -> dict:
                    validation_success=None if r.validation is None else r.validation.success_of(p.row),
                    known=float(ev.mean(True)[row]), unseen=_finite(ev.mean(False)[row]))
     if r.validation is not None:
-        out["validated"] = {str(row): rate for row, rate in zip(r.validation.rows, map(float, r.validation.success))}
+        out["validation_rates"] = {str(row): rate for row, rate in zip(r.validation.rows, map(float, r.validation.success))}
         out["validation_worlds"] = r.validation.worlds
     return out
 
