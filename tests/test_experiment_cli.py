@@ -162,7 +162,7 @@ BAD_INPUT = (
     (["experiment", "push", "--validation-candidates", "0"], "argument --validation-candidates: must be at least 1"),
     (["evaluate", "{exp}", "--validation-per-config", "2"], "drop --validation-per-config 2 (the experiment has 5)"),
     (["experiment", "push", "--resume", "{exp}", "--validation-per-config", "0", "--validation-candidates", "2"],
-     "--validation-candidates 2: {exp} picks without validation; give --validation-per-config N as well"),
+     "picks without validation; give --validation-per-config N as well"),
     (["experiment", "peg", "--resume", "{exp}", "--validation-per-config", "0"], "is a run of task 'push', not 'peg'"),
     (["experiment", "push", "--resume", "{run}"], "is not an experiment directory (no experiment.yaml)"),
     (["experiment", "peg", "--resume", "{exp}"], "is a run of task 'push', not 'peg'"),
