@@ -99,8 +99,8 @@ def _main(args: argparse.Namespace) -> int:
             exp.config()  # both runs' configurations agree
             exp.optimizer.check(config)
             exp.random_search.check(random_search_config(config))
-            _change_validation(args, exp, protocol)
             scn, task = load_run_task(exp.optimizer, config, scenario=args.task)
+            _change_validation(args, exp, protocol)  # after every check: a refused resume changes nothing
             return _run(args, exp, config, scn, task, started)
     scn, task = scenario_and_task(args.task, args.goal)
     if args.repeats is None:
