@@ -81,14 +81,15 @@ def test_a_killed_experiment_resumes_to_the_same_results(experiment, tmp_path):
     assert a["groups"] == b["groups"] and a["hypervolume"]["optimizer"] == b["hypervolume"]["optimizer"]
 
 
-def test_a_resumed_experiment_may_pick_without_validation_and_retrains_nothing(experiment, tmp_path):
+@pytest.mark.parametrize("how", [("experiment", "push", "--resume", "{copy}", "--quiet"), ("evaluate", "{copy}")])
+def test_a_finished_experiment_may_pick_without_validation_and_retrains_nothing(experiment, tmp_path, how):
     import shutil
 
     out, _ = experiment
     copy = tmp_path / "copy"
     shutil.copytree(out, copy)
     before = {n: (copy / n).read_text() for n in RESULTS}
-    done = run_cli("experiment", "push", "--resume", copy, "--validation-per-config", "0", "--quiet")
+    done = run_cli(*(a.format(copy=copy) for a in how), "--validation-per-config", "0")
     assert done.returncode == 0, done.stderr[-3000:]
     assert "the picks are now made by training success alone (no validation) (were after validating the 3 best " \
            "candidates in 5 worlds per known start configuration)" in done.stdout
@@ -160,7 +161,8 @@ BAD_INPUT = (
     (["experiment", "push", "--resume", "{exp}", "--per-config", "7"], "drop --per-config 7 (the experiment has 1)"),
     (["experiment", "push", "--validation-per-config", "-1"], "argument --validation-per-config: must be at least 0, got -1"),
     (["experiment", "push", "--validation-candidates", "0"], "argument --validation-candidates: must be at least 1"),
-    (["evaluate", "{exp}", "--validation-per-config", "2"], "drop --validation-per-config 2 (the experiment has 5)"),
+    (["evaluate", "{exp}", "--validation-per-config", "0", "--validation-candidates", "2"],
+     "picks without validation; give --validation-per-config N as well"),
     (["experiment", "push", "--resume", "{exp}", "--validation-per-config", "0", "--validation-candidates", "2"],
      "picks without validation; give --validation-per-config N as well"),
     (["experiment", "peg", "--resume", "{exp}", "--validation-per-config", "0"], "is a run of task 'push', not 'peg'"),

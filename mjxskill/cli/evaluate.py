@@ -11,7 +11,8 @@ when it is current (``mjxskill.training.evaluate_run``). A repeated run evaluate
 the worlds of seed ``--seed`` + i and pools them: one picked solution per run against the
 baselines (``mjxskill.training.pooled``; each pick validated as an experiment's is, unless
 ``--validation-per-config 0``), in ``DIR/evaluation/``. An experiment evaluates every
-repetition whose runs are finished with its own protocol and rewrites its report.
+repetition whose runs are finished with its own protocol (``--validation-per-config`` may change
+how its picks are validated) and rewrites its report.
 """
 
 from __future__ import annotations
@@ -42,8 +43,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "how a solution transfers between engines)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="force bound of each repeated "
                         "run's picked solution, N (default: the largest force an operator set commands)")
-    cli_args.add_validation_arguments(parser, "a repeated run, before each run's pick", "default 5; an experiment: "
-                                              "its own")
+    cli_args.add_validation_arguments(parser, "a repeated run or an experiment, before each run's pick", "default 5; an "
+                                              "experiment: its own, which this flag changes (the picks are made again)")
     return parser
 
 
@@ -166,15 +167,14 @@ def _experiment(args: argparse.Namespace) -> int:
     from mjxskill.training.experiment import Experiment, write_report
     from mjxskill.training.experiment.directory import is_done, repetition_settings
     from mjxskill.training.experiment.driver import evaluate_timed, validate_timed
+    from mjxskill.cli.experiment import change_validation
     from mjxskill.training.run_task import load_run_task
 
     exp = Experiment(args.run)
     config, protocol = exp.config(), exp.protocol()
     given = {"--per-config": (args.per_config, protocol.per_config), "--random": (args.random, protocol.random_sets),
              "--max-force": (args.max_force, protocol.max_force), "--episode-seconds": (args.episode_seconds, config.episode_seconds),
-             "--engine": (args.engine and resolve_engine(args.engine)[0], config.engine),
-             "--validation-per-config": (args.validation_per_config, protocol.validation_per_config),
-             "--validation-candidates": (args.validation_candidates, protocol.validation_candidates)}
+             "--engine": (args.engine and resolve_engine(args.engine)[0], config.engine)}
     conflicts = [f"{flag} {value} (the experiment has {own})" for flag, (value, own) in given.items()
                  if value is not None and value != own]
     if args.seed is not None:
@@ -188,6 +188,7 @@ def _experiment(args: argparse.Namespace) -> int:
         raise CommandError(f"{exp.path} has no finished repetition yet; continue it with python -m mjxskill.experiment "
                            f"{config.task} --resume {exp.path}")
     with exp.lock():
+        protocol = change_validation(args, exp, protocol)
         rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
         try:
             for seed, opt in ready:

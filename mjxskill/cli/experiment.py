@@ -60,18 +60,21 @@ def _protocol_conflicts(args: argparse.Namespace, protocol) -> list[str]:
             if getattr(args, k) is not None and getattr(args, k) != stored[k]]
 
 
-def _change_validation(args: argparse.Namespace, exp, protocol) -> None:
-    """A resumed experiment may validate its picks otherwise (experiment.yaml rewritten)."""
+def change_validation(args: argparse.Namespace, exp, protocol):
+    """An existing experiment may validate its picks otherwise (``--validation-per-config`` /
+    ``--validation-candidates`` of experiment --resume and evaluate: experiment.yaml rewritten,
+    nothing retrained or evaluated again). Returns the protocol in force."""
     wanted = {field: getattr(protocol, field) if getattr(args, field) is None else getattr(args, field)
               for field in VALIDATION}
     if all(wanted[field] == getattr(protocol, field) for field in VALIDATION):
-        return
+        return protocol
     if not wanted["validation_per_config"] and args.validation_candidates is not None:
         raise CommandError(f"--validation-candidates {args.validation_candidates}: {exp.path} picks without validation; "
                            "give --validation-per-config N as well")
     new = exp.set_validation(wanted["validation_per_config"], wanted["validation_candidates"])
     print(f"{exp.path}: the picks are now made {_validation_words(new)} (were {_validation_words(protocol)}); the runs "
           "and evaluations are kept", flush=True)
+    return new
 
 
 def _validation_words(protocol) -> str:
@@ -100,7 +103,7 @@ def _main(args: argparse.Namespace) -> int:
             exp.optimizer.check(config)
             exp.random_search.check(random_search_config(config))
             scn, task = load_run_task(exp.optimizer, config, scenario=args.task)
-            _change_validation(args, exp, protocol)  # after every check: a refused resume changes nothing
+            change_validation(args, exp, protocol)  # after every check: a refused resume changes nothing
             return _run(args, exp, config, scn, task, started)
     scn, task = scenario_and_task(args.task, args.goal)
     if args.repeats is None:
