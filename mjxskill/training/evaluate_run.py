@@ -32,6 +32,7 @@ import numpy as np
 
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
+from mjxskill.training.atomic_write import write_json
 from mjxskill.training.evaluation import (
     CHUNK_FIELDS,
     Candidates,
@@ -110,7 +111,7 @@ def evaluate_run(run: Run, config: RunConfig, rollout, task, settings: dict, pro
     write_csv(ev, config.parameter_names, folder / "evaluation.csv")
     tests = plot_boxes(ev, folder / "success.png", _title(config))
     # evaluation.json last: its presence says the evaluation is complete
-    _write_json(folder / RESULT, {"format": FORMAT, "settings": settings, "parameter_names": list(config.parameter_names),
+    write_json(folder / RESULT, {"format": FORMAT, "settings": settings, "parameter_names": list(config.parameter_names),
                                   **_document(ev)})
     chunk_path.unlink(missing_ok=True)
     return ev, tests, False
@@ -172,12 +173,6 @@ def _document(ev: Evaluation) -> dict:
             "config_names": list(ev.config_names), "known": [bool(k) for k in ev.known], "success": _plain(ev.success),
             **{k: None if getattr(ev, k) is None else _plain(getattr(ev, k))
                for k in CHUNK_FIELDS if k != "success"}}
-
-
-def _write_json(path: Path, doc: dict) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n")
-    os.replace(tmp, path)
 
 
 def _read_chunks(path: Path, settings: dict, candidates: Candidates) -> dict:

@@ -21,6 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from mjxskill.errors import RunError
+from mjxskill.training.atomic_write import write_text
 
 
 # The force columns after success_rate, N, each the mean over the worlds of a per-world value:
@@ -90,9 +91,7 @@ def format_rows(ev: Evaluations) -> str:
 
 def write_csv(path: Path, columns: list[str], ev: Evaluations) -> None:
     """Writes a whole CSV atomically (temporary file + rename)."""
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(",".join(columns) + "\n" + format_rows(ev))
-    os.replace(tmp, path)
+    write_text(path, ",".join(columns) + "\n" + format_rows(ev))
 
 
 def append_rows(path: Path, ev: Evaluations) -> None:

@@ -39,6 +39,7 @@ import numpy as np
 
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
+from mjxskill.training.atomic_write import write_text
 from mjxskill.training.evaluations_csv import (  # noqa: F401  (re-exported: the run's CSV format)
     Batches,
     Evaluations,
@@ -168,9 +169,7 @@ class Run:
         return state
 
     def write_run_state(self, state: dict) -> None:
-        tmp = self.path / (RUN_STATE + ".tmp")
-        tmp.write_text(json.dumps(state, indent=1))
-        os.replace(tmp, self.path / RUN_STATE)
+        write_text(self.path / RUN_STATE, json.dumps(state, indent=1))
 
     def sub_runs(self, config: RunConfig) -> list["Run"]:
         return [Run(self.path / f"seed-{config.seed + i}") for i in range(config.repeats)]

@@ -24,13 +24,13 @@ whole. With no solution within the bound there is nothing to validate and no fil
 from __future__ import annotations
 
 import json
-import os
 from typing import NamedTuple, Sequence
 
 import numpy as np
 
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
+from mjxskill.training.atomic_write import write_json
 from mjxskill.training.evaluate_run import FOLDER
 from mjxskill.training.evaluation import evaluate_chunk
 from mjxskill.training.run_dir import Evaluations, Run
@@ -104,11 +104,8 @@ def validate(run: Run, front: Evaluations, rows: Sequence[int], rollout, setting
     result = Validation(rows, success, settings["per_config"] * n_known, settings["candidates"])
     doc = {"format": FORMAT, "settings": settings, "worlds": result.worlds, "rows": list(rows),
            "params": front.params[list(rows)].tolist(), "success": success.tolist()}
-    folder = run.path / FOLDER
-    folder.mkdir(exist_ok=True)
-    tmp = folder / (FILE + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n")
-    os.replace(tmp, folder / FILE)
+    (run.path / FOLDER).mkdir(exist_ok=True)
+    write_json(run.path / FOLDER / FILE, doc)
     return result, False
 
 

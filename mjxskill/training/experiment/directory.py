@@ -20,6 +20,7 @@ from pathlib import Path
 
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import compose_text, read_text
+from mjxskill.training.atomic_write import write_json, write_text
 from mjxskill.training.evaluate_run import evaluation_settings
 from mjxskill.training.run_dir import Run, RunConfig, created_whole
 from mjxskill.training.run_lock import RunLock, lock_run
@@ -109,9 +110,7 @@ class Experiment:
         a resumed experiment may change: the runs and evaluations do not depend on it, the picks
         are made again from them); returns the new protocol."""
         protocol = replace(self.protocol(), validation_per_config=per_config, validation_candidates=candidates)
-        tmp = self.path / (EXPERIMENT + ".tmp")
-        tmp.write_text(protocol.to_yaml(self.config().task))
-        os.replace(tmp, self.path / EXPERIMENT)
+        write_text(self.path / EXPERIMENT, protocol.to_yaml(self.config().task))
         return protocol
 
     def config(self) -> RunConfig:
@@ -159,9 +158,7 @@ class Experiment:
         self._write_state(state)
 
     def _write_state(self, state: dict) -> None:
-        tmp = self.path / (STATE + ".tmp")
-        tmp.write_text(json.dumps(state, indent=1) + "\n")
-        os.replace(tmp, self.path / STATE)
+        write_json(self.path / STATE, state)
 
 
 def repetition_settings(config: RunConfig, protocol: Protocol, seed: int) -> dict:

@@ -16,9 +16,8 @@ commanded force, and ``success_time_s``); ``hypervolume`` (``optimizer``,
 
 from __future__ import annotations
 
-import json
-import os
 
+from mjxskill.training.atomic_write import write_json, write_text
 from mjxskill.training.evaluation import stars_of
 from mjxskill.training.experiment.directory import Experiment
 from mjxskill.training.experiment.figures import FRONTS, HYPERVOLUME, SUCCESS, plot_fronts, plot_hypervolume
@@ -40,16 +39,10 @@ def write_report(exp: Experiment) -> str:
         samples = pooled_samples([r.evaluation for r in reps], [r.pick for r in reps])
         plot_pooled(samples, exp.path / SUCCESS, f"{config.task}: success rate per start configuration, "
                                                  f"{len(reps)} repetitions")
-    _write(exp.path / "report.json", json.dumps(summary, indent=1) + "\n")
-    _write(exp.path / "report.md", markdown(summary, figures=bool(reps)))
+    write_json(exp.path / "report.json", summary)
+    write_text(exp.path / "report.md", markdown(summary, figures=bool(reps)))
     s = summary["status"]
     return f"report of {s['repetitions_done']} of {s['repetitions']} repetitions: {exp.path / 'report.md'}"
-
-
-def _write(path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
 
 
 def _pct(v) -> str:

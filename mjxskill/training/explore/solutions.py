@@ -31,6 +31,7 @@ from typing import Callable
 import numpy as np
 
 from mjxskill.errors import CommandError, UserError
+from mjxskill.training.atomic_write import write_json
 from mjxskill.training.explore.data import RunEntry, number, numbers
 
 FORMAT = "mjxskill.explore/1"
@@ -70,9 +71,7 @@ class Job:
 
 def _write_json(path: Path, doc: dict) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(doc, indent=1) + "\n")
-    os.replace(tmp, path)
+    write_json(path, doc)
 
 
 def read_cached(path: Path, params: np.ndarray, **settings) -> dict | None:
