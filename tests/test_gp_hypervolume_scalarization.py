@@ -107,6 +107,30 @@ def test_log_ei_of_draws_matches_numpy_monte_carlo_and_keeps_a_gradient():
         assert np.all(np.isfinite(g)) and np.all(g <= 0) and np.any(g < 0)
 
 
+def test_per_direction_draws_estimate_the_average_over_directions_of_each_directions_ei():
+    # Several directions, each with its own incumbent: the estimate with each direction's own
+    # block of draws ((k, s, m), draw_pairing="per_direction") against an independent numpy
+    # Monte Carlo of the mean over directions of E[max(s_lambda(f) - best_lambda, 0)].
+    rng = np.random.default_rng(1)
+    mean = rng.uniform(0.2, 0.9, (3, 2))
+    var = np.full((3, 2), 0.1**2)
+    angles = np.linspace(0.2, 1.3, 8)
+    lam = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    best = np.linspace(0.1, 0.4, 8)
+    f = mean[:, None, None] + np.sqrt(var)[:, None, None] * rng.standard_normal((3, 1, 100_000, 2))
+    t = np.min((1 - f) / lam[None, :, None], axis=-1)  # (b, k, s)
+    s = np.where(t > 0, np.maximum(t, 0) ** 2, t)
+    ei = np.maximum(s - best[None, :, None], 0.0).mean(axis=(1, 2))
+    with jax.enable_x64(True):
+        draws = jnp.asarray(normal_draws(8 * 1024, 2)).reshape(8, 1024, 2)
+        got = hvs.log_ei_hv_draws(jnp.asarray(mean), jnp.asarray(var), jnp.asarray(lam), draws, jnp.asarray(best),
+                                  tau=1e-6)
+        shared = hvs.log_ei_hv_draws(jnp.asarray(mean), jnp.asarray(var), jnp.asarray(lam),
+                                     jnp.asarray(normal_draws(8192, 2)), jnp.asarray(best), tau=1e-6)
+    np.testing.assert_allclose(np.exp(np.asarray(got)), ei, rtol=5e-2, atol=1e-4)
+    np.testing.assert_allclose(np.exp(np.asarray(shared)), ei, rtol=5e-2, atol=1e-4)
+
+
 def test_reference_units_put_the_ideal_at_0_and_the_reference_at_1():
     y = np.array([[0.0, 2.0], [1.0, 1.0], [3.0, 0.5], [9.0, 9.0], [5.0, 5.0]])
     mask = np.array([True, True, True, True, False])

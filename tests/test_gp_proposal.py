@@ -101,13 +101,15 @@ def test_pending_values_take_away_the_improvement_a_pending_point_already_offers
     assert got["values"] < np.log(1e-5)  # none left once the pending point counts at its believed value
 
 
-def test_hypervolume_scalarization_proposes_distinct_points_in_bounds():
+@pytest.mark.parametrize("draw_pairing", ["shared", "per_direction"])
+def test_hypervolume_scalarization_proposes_distinct_points_in_bounds(draw_pairing):
     cfg = MOBOConfig(bounds=[[0.0, 0.0], [1.0, 1.0]], n_objectives=2, batch_size=3, n_init=6, seed=1,
                      acquisition=AcquisitionSettings(bucket=16, n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1,
                                                      fit_steps=5, scalarization="hypervolume", model="per_objective",
                                                      n_directions=2, pending="values", variance="deflated",
                                                      directions="quasi_random", single_direction_share=0.34,
-                                                     single_direction_reference="front", incumbent="posterior_mean"),
+                                                     single_direction_reference="front", incumbent="posterior_mean",
+                                                     draw_pairing=draw_pairing),
                      ref_point=(1.2, 2.2))
     x = np.random.default_rng(0).random((6, 2))
     state = tell(init(cfg), x, np.stack([x[:, 0], 1 - x[:, 0] + x[:, 1] ** 2], 1))

@@ -155,7 +155,8 @@ def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.nda
       direction: (m,) the element's lambda, or (k, m) several, whose improvements are averaged
         (with ``best`` (k,)): c_m times that average is a k-direction Monte Carlo estimate of
         the expected hypervolume improvement.
-      draws: (s, m) standard normal draws.
+      draws: (s, m) standard normal draws shared by the directions, or (k, s, m) each
+        direction its own.
       best: the incumbent, max of ``scalarize`` over the observations (per direction).
       tau: softplus width of the max (as in ``log_ei_draws``), keeping a gradient where no
         draw improves.
@@ -164,7 +165,12 @@ def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.nda
     """
     lam = jnp.atleast_2d(direction)  # (k, m)
     best = jnp.broadcast_to(best, lam.shape[:1])
-    f = mean[:, None, :] + jnp.sqrt(jnp.maximum(variance, 0.0))[:, None, :] * draws[None]  # (b, s, m)
+    sd = jnp.sqrt(jnp.maximum(variance, 0.0))
+    if draws.ndim == 3:  # (k, s, m): each direction its own draws
+        f = mean[:, None, None, :] + sd[:, None, None, :] * draws[None]  # (b, k, s, m)
+        s = scalarize(f, lam[:, None, :])  # (b, k, s)
+        return log_mean_softplus((s - best[:, None]) / tau, axis=(-2, -1)) + jnp.log(tau)
+    f = mean[:, None, :] + sd[:, None, :] * draws[None]  # (b, s, m)
     s = jax.vmap(lambda d: scalarize(f, d), out_axes=-1)(lam)  # (b, s, k)
     return log_mean_softplus((s - best) / tau, axis=(-2, -1)) + jnp.log(tau)
 
