@@ -166,6 +166,8 @@ def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.nda
     lam = jnp.atleast_2d(direction)  # (k, m)
     best = jnp.broadcast_to(best, lam.shape[:1])
     sd = jnp.sqrt(jnp.maximum(variance, 0.0))
+    # Shared draws are not broadcast to (k, s, m): their f is one (b, s, m) for every direction,
+    # and that form ran three times faster on CPU (benchmarks/RESULTS.md).
     if draws.ndim == 3:  # (k, s, m): each direction its own draws
         f = mean[:, None, None, :] + sd[:, None, None, :] * draws[None]  # (b, k, s, m)
         s = scalarize(f, lam[:, None, :])  # (b, k, s)

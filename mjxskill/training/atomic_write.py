@@ -6,12 +6,18 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+from typing import Callable
+
+
+def replace_whole(path: Path, write: Callable[[Path], None]) -> None:
+    """``write(tmp)`` fills ``NAME.tmp`` beside ``path``, which then replaces ``path``."""
+    tmp = path.with_name(path.name + ".tmp")
+    write(tmp)
+    os.replace(tmp, path)
 
 
 def write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    replace_whole(path, lambda tmp: tmp.write_text(text))
 
 
 def write_json(path: Path, doc) -> None:
@@ -19,4 +25,4 @@ def write_json(path: Path, doc) -> None:
     write_text(path, json.dumps(doc, indent=1) + "\n")
 
 
-__all__ = ["write_json", "write_text"]
+__all__ = ["replace_whole", "write_json", "write_text"]

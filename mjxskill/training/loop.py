@@ -13,6 +13,7 @@ from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
+from mjxskill.training.atomic_write import replace_whole
 from mjxskill.training.front import pareto_mask_of, reference_from
 from mjxskill.training.evaluations_csv import FORCE_COLUMNS
 from mjxskill.training.resume import resume_batches
@@ -131,8 +132,4 @@ def propose(gp, state, config: RunConfig, size: int) -> np.ndarray:
 
 def _save_state(gp, state, path) -> None:
     """The optimizer state, replaced in one step (a kill mid-write leaves the previous one)."""
-    import os
-
-    tmp = path.with_name(path.name + ".tmp")
-    gp.save_state(state, tmp)
-    os.replace(tmp, path)
+    replace_whole(path, lambda tmp: gp.save_state(state, tmp))

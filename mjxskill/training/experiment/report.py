@@ -16,7 +16,6 @@ commanded force, and ``success_time_s``); ``hypervolume`` (``optimizer``,
 
 from __future__ import annotations
 
-
 from mjxskill.training.atomic_write import write_json, write_text
 from mjxskill.training.evaluation import stars_of
 from mjxskill.training.experiment.directory import Experiment
