@@ -29,6 +29,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 import mjxskill  # noqa: E402,F401
 
 from mjxskill.gp import hypervolume, minimize  # noqa: E402
+from mjxskill.gp.hypervolume_scalarization import warmup_reference  # noqa: E402
 
 N_INIT, BATCH, N_BATCHES = 6, 4, 20
 BUDGET = N_INIT + BATCH * N_BATCHES
@@ -79,12 +80,12 @@ def run_ours(problem, seed, given_ref=False, **options):
     # prior) would land on minimize's parameter prior
     res = minimize(problem["f"], bounds, budget=BUDGET, batch_size=BATCH, n_init=N_INIT, seed=seed,
                    ref_point=problem["ref"] if given_ref else None, acquisition=options)
-    return hypervolume(res.Y, problem["ref"])
+    return res.Y
 
 
 def run_random(problem, seed):
     x = np.random.default_rng(10_000 + seed).random((BUDGET, problem["d"]))
-    return hypervolume(problem["f"](x), problem["ref"])
+    return problem["f"](x)
 
 
 def _botorch_model(x, y):
@@ -131,7 +132,7 @@ def run_botorch(problem, seed, method="qLogNEHVI"):
             cand, _ = optimize_acqf_list(acqs, **opts)
         x = torch.cat([x, cand])
         y = torch.cat([y, f(cand)])
-    return hypervolume(-y.numpy(), problem["ref"])
+    return -y.numpy()
 
 
 def summarize(values):
@@ -173,8 +174,9 @@ def main(argv=None):
     ap.add_argument("--torch-threads", type=int, default=1,
                     help="torch intra-op threads for the BoTorch columns (1: leaves the other core to the machine's other jobs)")
     ap.add_argument("--write", help="append the table to this markdown file")
-    ap.add_argument("--save", help="append one JSON line per run (problem, column, seed, hv, seconds) to this file")
-    ap.add_argument("--problems", nargs="*", default=list(PROBLEMS))
+    ap.add_argument("--save", help="append one JSON line per run (problem, column, seed, hv, hv_warmup_ref: against the run's own warm-up reference, seconds) to this file")
+    ap.add_argument("--problems", nargs="*", default=list(PROBLEMS), choices=list(PROBLEMS), metavar="PROBLEM",
+                    help=f"any of: {', '.join(PROBLEMS)} (default: all)")
     ap.add_argument("--option", action="append", default=[], help="acquisition setting KEY=VALUE of mjxskill.gp")
     ap.add_argument("--given-ref", action="store_true",
                     help="give mjxskill.gp the problem's reference point (MOBOConfig.ref_point), as qLogNEHVI has it")
@@ -206,15 +208,20 @@ def main(argv=None):
                 if col.startswith("qLog") and seed >= args.first_seed + args.botorch_seeds:
                     continue
                 t = time.perf_counter()
-                hv = runners[col](problem, seed)
+                y = runners[col](problem, seed)  # (BUDGET, m) every objective value of the run
                 dt = time.perf_counter() - t
+                hv = hypervolume(y, problem["ref"])
+                # Against the run's own reference, as mjxskill.train reports a run (the worst warm-up
+                # value plus 10 % of the warm-up range); the warm-up is the same for every method
+                # of a seed only where they draw it alike (mjxskill.gp's and random's differ).
+                hv_own = hypervolume(y, warmup_reference(y[:N_INIT]))
                 cols[col].append(hv)
                 times[col].append(dt)
                 load = os.getloadavg()[0]
                 loads.append(load)
                 if args.save:
                     with open(args.save, "a") as fh:
-                        fh.write(json.dumps(dict(problem=name, column=col, seed=seed, hv=hv, seconds=dt, load1=load,
+                        fh.write(json.dumps(dict(problem=name, column=col, seed=seed, hv=hv, hv_warmup_ref=hv_own, seconds=dt, load1=load,
                                                  options={**options, "given_ref": args.given_ref} if col == "mjxskill.gp" else {})) + "\n")
             print(name, seed, {k: round(v[-1], 3) for k, v in cols.items() if v}, f"load {os.getloadavg()[0]:.1f}",
                   flush=True)

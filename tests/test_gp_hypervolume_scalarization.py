@@ -159,10 +159,11 @@ def test_warmup_reference_is_the_worst_value_plus_a_margin_of_the_range():
     assert got[0] == pytest.approx(1.0 + 1e-10) and np.isnan(got[1])
 
 
+@pytest.mark.parametrize("paired_draws", [False, True])
 @pytest.mark.parametrize("m", [2, 3, 4])
-def test_quasi_random_directions_are_uniform_and_cover_the_sphere_evenly(m):
+def test_quasi_random_directions_are_uniform_and_cover_the_sphere_evenly(m, paired_draws):
     with jax.enable_x64(True):
-        groups = np.asarray(hvs.quasi_random_directions(jax.random.PRNGKey(m), 400, 64, m))
+        groups = np.asarray(hvs.quasi_random_directions(jax.random.PRNGKey(m), 400, 64, m, paired_draws))
     lam = groups.reshape(-1, m)
     np.testing.assert_allclose(np.linalg.norm(lam, axis=1), 1.0, atol=1e-12)
     assert np.all(lam >= 0)
@@ -188,6 +189,27 @@ def test_quasi_random_directions_are_uniform_and_cover_the_sphere_evenly(m):
     assert abs(qmc_est.mean() - exact) < 5 * qmc_est.std() / np.sqrt(400) + 1e-12  # unbiased
     if m <= 3:  # area-preserving maps; above, the normal quantile's map keeps only the uniformity
         assert qmc_est.std() < 0.5 * iid_est.std()
+
+
+@pytest.mark.parametrize("m", [2, 3])
+@pytest.mark.parametrize("per_direction", [1, 2])
+def test_paired_draws_are_standard_normal_and_independent_of_their_directions(m, per_direction):
+    # Each direction's own draws must not depend on the direction: a correlation between the
+    # two biases the Monte Carlo estimate towards whatever the correlated pairs score. Sobol
+    # sets for each alone, scrambled alike, correlated at 0.5-0.6 after the random shift.
+    k = 2048
+    draws = hvs.paired_normal_draws(k, per_direction, m)
+    assert draws.shape == (k, per_direction, m)
+    flat = draws.reshape(-1, m)
+    np.testing.assert_allclose(flat.mean(0), 0.0, atol=1e-12)
+    np.testing.assert_allclose(flat.std(0), 1.0, atol=0.02)
+    assert np.all(np.abs(np.corrcoef(flat.T)[np.triu_indices(m, 1)]) < 0.02)
+    for seed in range(4):
+        with jax.enable_x64(True):
+            lam = np.asarray(hvs.quasi_random_directions(jax.random.PRNGKey(seed), 1, k, m, paired_draws=True))[0]
+        for t in range(per_direction):
+            cross = np.corrcoef(np.c_[lam, draws[:, t]].T)[:m, m:]
+            assert np.all(np.abs(cross) < 0.03), (seed, t, cross)
 
 
 @settings(deadline=None, max_examples=60)

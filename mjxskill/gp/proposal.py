@@ -23,10 +23,12 @@ Two models of the scalarization, combined by ``settings.model``:
   greedy sequence (the default with Chebyshev scalarizations: on BraninCurrin it raised the
   median final hypervolume to 56.1 from 54.5-54.7 and 53.8-54.6).
 
-With the hypervolume defaults the median final hypervolume over 10 seeds is BoTorch
-qLogNEHVI's on ZDT1, above it on DTLZ2 and 0.2 below on BraninCurrin; with 1024 directions,
-each with its own posterior draw (``draw_pairing="per_direction"``), 0.04 below on
-BraninCurrin and above on ZDT1, for 2.2 times the proposal time (benchmarks/RESULTS.md).
+With the hypervolume defaults (64 directions sharing 16 draws) and the problem's reference
+point given, the median final hypervolume over 10 seeds is BoTorch qLogNEHVI's on ZDT1, above
+it on DTLZ2 and 0.2 below on BraninCurrin; with the reference point given the defaults take 2048 directions per averaging element, each with its own posterior
+draw (``draw_pairing="per_direction"``, the pairs from one joint Sobol set;
+``settings.GIVEN_REFERENCE_DEFAULTS``), and reach qLogNEHVI's median on BraninCurrin too
+(benchmarks/RESULTS.md).
 The per-objective model gets trapped on one edge of BraninCurrin far less often once its
 incumbent and variance stop rewarding re-evaluations and the pending points count at their
 believed values (1 seed of 10, where the generation-1 per-objective model lost 5).
@@ -181,13 +183,14 @@ def _scalarization(y_norm, mask, ref, key, q: int, settings: AcquisitionSettings
             return log_ei(s_mean, s_var, b)
 
         return Scalarization(y_norm, targets, incumbents, log_ei_of, weights, jnp.ones((q, m), y_norm.dtype))
-    if settings.draw_pairing == "per_direction":  # static: (k, n_draws, m), one block per direction
-        draws = draws.reshape(k, settings.n_draws, m)
+    paired = settings.draw_pairing == "per_direction"
+    if paired:  # static: (k, n_draws, m), one block per direction
+        draws = jnp.asarray(hvs.paired_normal_draws(k, settings.n_draws, m))
     u = hvs.to_reference_units(y_norm, mask, ref)
     if settings.beyond_reference == "log":  # static
         u = hvs.compress_beyond_reference(u)
     if settings.directions == "quasi_random":  # static
-        directions = hvs.quasi_random_directions(key, q, k, m)
+        directions = hvs.quasi_random_directions(key, q, k, m, paired_draws=paired)
     else:
         directions = hvs.sample_directions(key, q * k, m).reshape(q, k, m)
     n_single = round(settings.single_direction_share * q)
