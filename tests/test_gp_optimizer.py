@@ -2,6 +2,8 @@
 
 import mjxskill  # noqa: F401  (XLA flags before jax runs)
 
+import dataclasses
+
 import chex
 import jax
 import numpy as np
@@ -129,6 +131,26 @@ def test_acquisition_settings_from_flat_options_parse_strings_and_name_bad_keys(
         acquisition_settings({"n_raw": "many"})
     with pytest.raises(ValueError, match="acquisition setting model: expected one of"):
         acquisition_settings({"model": 3})
+
+
+def test_a_given_reference_point_takes_more_directions_unless_the_settings_say_otherwise(tmp_path):
+    from mjxskill.gp.settings import GIVEN_REFERENCE_DEFAULTS, acquisition_defaults
+
+    inferred = MOBOConfig(BOUNDS, 2).acquisition
+    given = MOBOConfig(BOUNDS, 2, ref_point=(4.0, 4.0)).acquisition
+    assert (inferred.n_directions, inferred.n_draws, inferred.draw_pairing) == (64, 16, "shared")
+    assert (given.n_directions, given.n_draws, given.draw_pairing) == (2048, 1, "per_direction")
+    assert given == acquisition_defaults(reference_given=True)
+    assert dataclasses.replace(given, **{k: getattr(inferred, k) for k in GIVEN_REFERENCE_DEFAULTS}) == inferred
+    # A mapping changes what it names over those defaults; settings given whole are kept whole.
+    named = MOBOConfig(BOUNDS, 2, ref_point=(4.0, 4.0), acquisition={"n_directions": 256}).acquisition
+    assert (named.n_directions, named.n_draws, named.draw_pairing) == (256, 1, "per_direction")
+    assert MOBOConfig(BOUNDS, 2, ref_point=(4.0, 4.0), acquisition=AcquisitionSettings()).acquisition == inferred
+    assert acquisition_defaults(1, reference_given=True) == acquisition_defaults(1)  # generation 1 had no directions
+    # A saved state reads back the settings it ran with.
+    state = init(MOBOConfig(BOUNDS, 2, ref_point=(4.0, 4.0), acquisition=CHEAP))
+    save_state(state, tmp_path / "s.npz")
+    assert load_state(tmp_path / "s.npz").config == state.config
 
 
 def test_repeated_asks_with_growing_data_do_not_retrace_within_a_bucket(monkeypatch):

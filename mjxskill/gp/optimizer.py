@@ -37,7 +37,7 @@ from mjxskill.gp.hypervolume_scalarization import reference_point, warmup_refere
 from mjxskill.gp.pareto import pareto_mask
 from mjxskill.gp.prior import Prior, pibo_weight, prior_of, prior_rows, sample_unit, unit_prior
 from mjxskill.gp.proposal import propose_batch
-from mjxskill.gp.settings import AcquisitionSettings, acquisition_settings
+from mjxskill.gp.settings import AcquisitionSettings, acquisition_defaults, acquisition_settings
 
 _STATE_FORMAT = "mjxskill.gp.MOBOState/2"
 _OLD_FORMAT = "mjxskill.gp.MOBOState/1"  # flat config: acquisition settings beside the problem
@@ -49,10 +49,12 @@ class MOBOConfig:
 
     bounds: (2, d) lower and upper bounds (any nested sequence; stored as tuples).
     acquisition: the model and acquisition settings (validated by their own class); a
-    mapping is accepted and read by :func:`acquisition_settings`.
+    mapping is accepted and read by :func:`acquisition_settings` over the defaults; None:
+    the defaults, ``acquisition_defaults(reference_given=ref_point is not None)`` (a given
+    reference point takes more hypervolume directions: settings.GIVEN_REFERENCE_DEFAULTS).
     ref_point: (m,) reference point of the hypervolume scalarizations in objective units
-    (minimized), e.g. the one the run's hypervolume is reported against; None infers it from
-    the observed front at each proposal.
+    (minimized), e.g. the one the run's hypervolume is reported against; None infers it
+    (``acquisition.reference``: from the warm-up, or the observed front at each proposal).
     prior: where good parameter values are believed to lie (``Prior``, or its ``to_dict``
     mapping), checked against the bounds; None: no prior (uniform warm-up, plain acquisition).
     """
@@ -62,7 +64,7 @@ class MOBOConfig:
     batch_size: int = 8
     n_init: int = 40
     seed: int = 0
-    acquisition: AcquisitionSettings = AcquisitionSettings()
+    acquisition: AcquisitionSettings | None = None
     ref_point: tuple | None = None
     prior: Prior | None = None
 
@@ -85,15 +87,18 @@ class MOBOConfig:
                 raise ValueError(f"MOBOConfig.{name}: expected a positive integer, got {v!r}")
         if not isinstance(self.n_init, (int, np.integer)) or self.n_init < 2:
             raise ValueError(f"MOBOConfig.n_init: need at least 2 warm-up points, got {self.n_init!r}")
-        if isinstance(self.acquisition, Mapping):
-            object.__setattr__(self, "acquisition", acquisition_settings(self.acquisition))
-        elif not isinstance(self.acquisition, AcquisitionSettings):
-            raise ValueError(f"MOBOConfig.acquisition: expected AcquisitionSettings or a mapping, got {self.acquisition!r}")
         if self.ref_point is not None:
             r = np.asarray(self.ref_point, dtype=np.float64)
             if r.shape != (self.n_objectives,) or not np.all(np.isfinite(r)):
                 raise ValueError(f"MOBOConfig.ref_point: expected {self.n_objectives} finite numbers, got {self.ref_point!r}")
             object.__setattr__(self, "ref_point", tuple(float(v) for v in r))
+        defaults = acquisition_defaults(reference_given=self.ref_point is not None)
+        if self.acquisition is None:
+            object.__setattr__(self, "acquisition", defaults)
+        elif isinstance(self.acquisition, Mapping):
+            object.__setattr__(self, "acquisition", acquisition_settings(self.acquisition, defaults))
+        elif not isinstance(self.acquisition, AcquisitionSettings):
+            raise ValueError(f"MOBOConfig.acquisition: expected AcquisitionSettings or a mapping, got {self.acquisition!r}")
         try:
             object.__setattr__(self, "prior", prior_of(self.prior))
             if self.prior is not None:
@@ -329,7 +334,8 @@ def minimize(
       f: maps (q, d) points to (q, m) objective values; called once per batch.
       bounds: (2, d) lower and upper bounds.
       budget: total number of evaluations (the last batch is cut to fit).
-      acquisition: the acquisition settings (default ``AcquisitionSettings()``).
+      acquisition: the acquisition settings, or a mapping of some over the defaults (default:
+        the defaults; with ``ref_point`` those of a given reference point, MOBOConfig's rule).
       ref_point: (m,) reference point of the hypervolume scalarizations (MOBOConfig.ref_point).
       prior: where good values are believed to lie (``Prior``; MOBOConfig.prior).
       options: acquisition settings by name, applied over ``acquisition`` (as
@@ -345,8 +351,9 @@ def minimize(
         return y
 
     # The number of objectives is learned from the first warm-up batch.
-    if isinstance(acquisition, Mapping):
-        acquisition = acquisition_settings(acquisition)
+    defaults = acquisition_defaults(reference_given=ref_point is not None)
+    if acquisition is None or isinstance(acquisition, Mapping):
+        acquisition = acquisition_settings(acquisition, base=defaults)
     settings = acquisition_settings(options, base=acquisition)
     probe = MOBOConfig(bounds=bounds, n_objectives=1, batch_size=batch_size, n_init=n_init, seed=seed,
                        acquisition=settings, prior=prior)
