@@ -38,10 +38,9 @@ from functools import lru_cache
 import jax
 import jax.numpy as jnp
 import numpy as np
-from scipy.special import ndtri
 from scipy.stats import qmc
 
-from mjxskill.gp.scalarized_posterior import log_mean_softplus
+from mjxskill.gp.scalarized_posterior import centred_normal_quantiles, log_mean_softplus
 
 
 def hypervolume_constant(m: int) -> float:
@@ -117,8 +116,7 @@ def paired_normal_draws(num: int, per_direction: int, m: int) -> np.ndarray:
     """
     dim = _direction_dims(m)
     u = np.stack([_sobol_points(num, dim + m, seed)[:, dim:] for seed in range(per_direction)], axis=1)
-    z = ndtri(np.clip(u, 1e-12, 1.0 - 1e-12))
-    return z - z.mean(axis=(0, 1))
+    return centred_normal_quantiles(u)
 
 
 def anchored_chebyshev(u: jnp.ndarray, direction: jnp.ndarray) -> jnp.ndarray:

@@ -25,8 +25,9 @@ Two models of the scalarization, combined by ``settings.model``:
 
 With the hypervolume defaults (64 directions sharing 16 draws) and the problem's reference
 point given, the median final hypervolume over 10 seeds is BoTorch qLogNEHVI's on ZDT1, above
-it on DTLZ2 and 0.2 below on BraninCurrin; with the reference point given the defaults take 2048 directions per averaging element, each with its own posterior
-draw (``draw_pairing="per_direction"``, the pairs from one joint Sobol set;
+it on DTLZ2 and 0.2 below on BraninCurrin. With the reference point given the defaults take
+2048 directions per averaging element, each with its own posterior draw
+(``draw_pairing="per_direction"``, the pairs from one joint Sobol set;
 ``settings.GIVEN_REFERENCE_DEFAULTS``), and reach qLogNEHVI's median on BraninCurrin too
 (benchmarks/RESULTS.md).
 The per-objective model gets trapped on one edge of BraninCurrin far less often once its
@@ -163,10 +164,10 @@ def _scalarization(y_norm, mask, ref, key, q: int, settings: AcquisitionSettings
     hypervolume scalarizations on uniform directions (``hypervolume_scalarization.py``)."""
     m = y_norm.shape[1]
     k = settings.n_directions
-    # Per-direction pairing: n_directions x n_draws distinct draws (Chebyshev: all of its one weight).
-    n_samples = settings.n_draws * (k if settings.draw_pairing == "per_direction" else 1)
-    draws = jnp.asarray(normal_draws(n_samples, m))
+    paired = settings.draw_pairing == "per_direction"
     if settings.scalarization == "chebyshev":  # static
+        # Per-direction pairing: n_directions x n_draws distinct draws, all for its one weight.
+        draws = jnp.asarray(normal_draws(settings.n_draws * (k if paired else 1), m))
         weights = sample_simplex(key, q, m)
         targets = jax.vmap(lambda w: chebyshev(y_norm, w, settings.alpha))(weights)
 
@@ -183,9 +184,8 @@ def _scalarization(y_norm, mask, ref, key, q: int, settings: AcquisitionSettings
             return log_ei(s_mean, s_var, b)
 
         return Scalarization(y_norm, targets, incumbents, log_ei_of, weights, jnp.ones((q, m), y_norm.dtype))
-    paired = settings.draw_pairing == "per_direction"
-    if paired:  # static: (k, n_draws, m), one block per direction
-        draws = jnp.asarray(hvs.paired_normal_draws(k, settings.n_draws, m))
+    # (k, n_draws, m), a block per direction, or (n_draws, m) shared by all (static).
+    draws = jnp.asarray(hvs.paired_normal_draws(k, settings.n_draws, m) if paired else normal_draws(settings.n_draws, m))
     u = hvs.to_reference_units(y_norm, mask, ref)
     if settings.beyond_reference == "log":  # static
         u = hvs.compress_beyond_reference(u)

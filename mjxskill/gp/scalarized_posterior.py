@@ -37,9 +37,14 @@ def normal_draws(num: int, m: int, seed: int = 0) -> np.ndarray:
 
     Centring removes the draws' sample-mean error, so E[s] is exact whenever s is linear.
     """
-    u = qmc.Sobol(m, scramble=True, seed=seed).random(num)
+    return centred_normal_quantiles(qmc.Sobol(m, scramble=True, seed=seed).random(num))
+
+
+def centred_normal_quantiles(u: np.ndarray) -> np.ndarray:
+    """Standard normal quantiles of points u (..., m) in [0, 1)^m, centred per column over
+    all of them (quasi-random draws from a Sobol set's points)."""
     z = ndtri(np.clip(u, 1e-12, 1.0 - 1e-12))
-    return z - z.mean(axis=0, keepdims=True)
+    return z - z.reshape(-1, z.shape[-1]).mean(axis=0)
 
 
 def chebyshev_moments(mean: jnp.ndarray, variance: jnp.ndarray, weights: jnp.ndarray, alpha: float,

@@ -183,7 +183,7 @@ GENERATION = max(DEFAULTS_BY_GENERATION)
 # reference given, the hypervolume the acquisition estimates is the one the run is judged by,
 # and more directions resolve the front's gaps better: BraninCurrin's median final hypervolume
 # rose from 58.50 to 58.73 (every seed of 10 higher; BoTorch qLogNEHVI 58.73), ZDT1 and DTLZ2
-# level (RESULTS.md, "Generation 2 with a given reference point"). About a reference inferred
+# level (RESULTS.md, "A given reference point"). About a reference inferred
 # from the warm-up (every robot run) the same settings lost 0.34 on BraninCurrin (9 seeds of
 # 10 lower), so there the defaults stay.
 GIVEN_REFERENCE_DEFAULTS = {"n_directions": 2048, "n_draws": 1, "draw_pairing": "per_direction"}
