@@ -133,6 +133,12 @@ def test_acquisition_settings_from_flat_options_parse_strings_and_name_bad_keys(
         acquisition_settings({"model": 3})
 
 
+def test_minimize_names_the_acquisition_setting_when_prior_is_a_hyperparameter_prior_name():
+    # minimize(prior=...) is the parameter prior; "gamma" is the acquisition setting of that name
+    with pytest.raises(ValueError, match=r"prior='gamma' is not a parameter prior.*acquisition=\{'prior': 'gamma'\}"):
+        minimize(lambda x: x, BOUNDS, budget=8, n_init=4, prior="gamma")
+
+
 def test_a_given_reference_point_takes_more_directions_unless_the_settings_say_otherwise(tmp_path):
     from mjxskill.gp.settings import GIVEN_REFERENCE_DEFAULTS, acquisition_defaults
 

@@ -343,6 +343,11 @@ def minimize(
     """
     if budget < n_init:
         raise ValueError(f"minimize: budget ({budget}) is smaller than n_init ({n_init})")
+    if isinstance(prior, str):
+        # "prior" is also the acquisition setting of the GP's hyperparameter prior ("gamma",
+        # "lognormal"); as a keyword of minimize it is the parameter prior.
+        raise ValueError(f"minimize: prior={prior!r} is not a parameter prior (a Prior or {{'mean': ..., 'std': ...}}); "
+                         f"for the GP's hyperparameter prior pass acquisition={{'prior': {prior!r}}}")
 
     def evaluate(x):
         y = np.asarray(f(x), dtype=np.float64)
