@@ -210,15 +210,16 @@ def test_the_command_serves_the_run_on_loopback(push_run):
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
     proc = subprocess.Popen([sys.executable, "-m", "mjxskill.explore", str(push_run.path), "--port", "0"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-    try:
-        line = proc.stdout.readline()
-        match = re.fullmatch(rf"exploring {re.escape(str(push_run.path))} at (http://127\.0\.0\.1:\d+)/ \(Ctrl-C stops\)\n", line)
-        assert match, (line, proc.stderr.read() if proc.poll() is not None else "")
-        status, doc = get_json(match.group(1), "/api/front")
-        assert status == 200 and len(doc["rows"]) == len(push_run.pareto())
-    finally:
-        proc.terminate()
-        proc.wait(timeout=30)
+    with proc:  # closes its pipes after the wait below
+        try:
+            line = proc.stdout.readline()
+            match = re.fullmatch(rf"exploring {re.escape(str(push_run.path))} at (http://127\.0\.0\.1:\d+)/ \(Ctrl-C stops\)\n", line)
+            assert match, (line, proc.stderr.read() if proc.poll() is not None else "")
+            status, doc = get_json(match.group(1), "/api/front")
+            assert status == 200 and len(doc["rows"]) == len(push_run.pareto())
+        finally:
+            proc.terminate()
+            proc.wait(timeout=30)
 
 
 # -- the on-demand rollout ------------------------------------------------------------------------

@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -235,7 +236,7 @@ def importing(pid, stdout):
     """numpy is being loaded (the command module's imports, after the handler is installed) and
     nothing is planned yet."""
     try:
-        maps = open(f"/proc/{pid}/maps").read()
+        maps = Path(f"/proc/{pid}/maps").read_text()
     except OSError:
         return False
     return "_multiarray_umath" in maps and "task:" not in stdout

@@ -39,7 +39,8 @@ def rollouts(push_rollout):
     params = np.array([[-0.05, -0.15, 0.07, -0.10], plan_task(scn).defaults], np.float32)
     worlds = rollout.sample_worlds(jax.random.key(2), 2)
     compiled = jax.tree.map(np.asarray, rollout.run_worlds(params, worlds))
-    native = native_like(rollout).run_worlds(params, worlds)
+    with native_like(rollout) as engine:
+        native = engine.run_worlds(params, worlds)
     return compiled, native
 
 

@@ -23,6 +23,7 @@ import struct
 import subprocess
 import sys
 import tempfile
+import weakref
 from pathlib import Path
 
 import mujoco
@@ -75,17 +76,35 @@ def recipe(engine, model_path: Path) -> dict:
     }
 
 
+def _stop_workers(procs: list, directory: tempfile.TemporaryDirectory) -> None:
+    """Kills and reaps the workers still running, closes their pipes, removes the model file."""
+    for proc in procs:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
+        for stream in (proc.stdin, proc.stdout):
+            try:
+                stream.close()
+            except OSError:
+                pass
+    procs.clear()
+    directory.cleanup()
+
+
 class WorkerPool:
-    """``n`` worker processes for ``engine``; ``run`` splits episodes over them."""
+    """``n`` worker processes for ``engine``; ``run`` splits episodes over them. ``close`` stops
+    them; so does the pool's garbage collection or the interpreter's exit, for an engine
+    dropped without ``close`` (a finalizer, as ``tempfile.TemporaryDirectory`` has)."""
 
     def __init__(self, engine, n: int):
         self.n = n
         self._dir = tempfile.TemporaryDirectory(prefix="mjxskill-native-")
+        self.procs = []
+        self._stop = weakref.finalize(self, _stop_workers, self.procs, self._dir)
         model_path = Path(self._dir.name) / "model.mjb"
         mujoco.mj_saveModel(engine.model, str(model_path), None)
         message = json.dumps(recipe(engine, model_path)).encode()
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-        self.procs = []
         try:
             for _ in range(n):
                 proc = subprocess.Popen([sys.executable, "-m", "mjxskill.native.worker"], stdin=subprocess.PIPE,
@@ -126,14 +145,4 @@ class WorkerPool:
         return results
 
     def close(self) -> None:
-        for proc in self.procs:
-            if proc.poll() is None:
-                proc.kill()
-            proc.wait()
-            for stream in (proc.stdin, proc.stdout):
-                try:
-                    stream.close()
-                except OSError:
-                    pass
-        self.procs = []
-        self._dir.cleanup()
+        self._stop()  # runs _stop_workers once, however often close is called
