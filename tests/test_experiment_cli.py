@@ -172,6 +172,9 @@ BAD_INPUT = (
     (["evaluate", "{exp}", "--seed", "3"], "each repetition is evaluated in the worlds of its own seed"),
     (["evaluate", "{exp}", "--per-config", "2"], "drop --per-config 2 (the experiment has 1)"),
     (["select", "{exp}", "--pick", "99"], "--pick 99: the fronts have rows 0-"),
+    (["evaluate", "{exp}/optimizer"], "belongs to the experiment"),
+    (["evaluate", "{run}", "--per-config", "2"], "belongs to the experiment"),
+    (["evaluate", "{exp}/random_search/seed-1"], "copy"),
 )
 
 

@@ -6,7 +6,8 @@
     python -m mjxskill.evaluate runs/peg-exp                  # an experiment: its protocol, then its report
 
 DIR is a run, a repeated run (``train --repeats``) or an experiment directory
-(``mjxskill.training.runs``). A run's evaluation goes to ``RUN_DIR/evaluation/`` and is reused
+(``mjxskill.training.runs``); a run or repeated run inside an experiment is evaluated through
+the experiment only (its evaluations follow the experiment's protocol). A run's evaluation goes to ``RUN_DIR/evaluation/`` and is reused
 when it is current (``mjxskill.training.evaluate_run``). A repeated run evaluates sub-run i in
 the worlds of seed ``--seed`` + i and pools them: one picked solution per run against the
 baselines (``mjxskill.training.pooled``; each pick validated as an experiment's is, unless
@@ -74,11 +75,18 @@ def _progress(done: int, total: int) -> None:
 
 
 def _main(args: argparse.Namespace) -> int:
-    from mjxskill.training.runs import directory_kind
+    from mjxskill.training.runs import directory_kind, experiment_holding
 
     kind = directory_kind(args.run)
     if kind == "experiment":
         return _experiment(args)
+    exp = experiment_holding(args.run)
+    if exp is not None:
+        # Its runs' evaluation/ folders are the experiment's, made in its protocol's worlds: an
+        # evaluation of the member alone (other seeds, worlds or engine) would replace them.
+        raise CommandError(f"{args.run} belongs to the experiment {exp}: evaluate that (python -m mjxskill.evaluate {exp}), "
+                           f"whose protocol its runs' evaluations follow; to evaluate them otherwise, copy {args.run} "
+                           "out of the experiment first (evaluating it here would replace the evaluations its report is built on)")
     return _runs(args, repeated=kind == "repeated")
 
 

@@ -56,6 +56,16 @@ def directory_kind(path: Path | str) -> str:
     raise RunError(f"{path} is not a run directory (no {CONFIG}) nor an experiment (no {EXPERIMENT})")
 
 
+def experiment_holding(path: Path | str) -> Path | None:
+    """The experiment directory that ``path`` (EXP/optimizer, EXP/random_search or one of their
+    seed-<s> runs) belongs to; None for a run or repeated run of its own (or an experiment)."""
+    path = Path(path).resolve()
+    for member in (path, path.parent):  # the repeated run, or the run inside it
+        if member.name in (OPTIMIZER_RUNS, RANDOM_RUNS) and (member.parent / EXPERIMENT).is_file():
+            return member.parent
+    return None
+
+
 def runs_in(path: Path | str) -> list[RunRef]:
     """Every run ``path`` holds, in seed order (an experiment: its optimizer runs, then its
     random searches). RunError when ``path`` is no run, repeated run or experiment."""
@@ -73,4 +83,4 @@ def runs_in(path: Path | str) -> list[RunRef]:
     return refs
 
 
-__all__ = ["EXPERIMENT", "KINDS", "OPTIMIZER_RUNS", "RANDOM_RUNS", "RunRef", "directory_kind", "runs_in"]
+__all__ = ["EXPERIMENT", "KINDS", "OPTIMIZER_RUNS", "RANDOM_RUNS", "RunRef", "directory_kind", "experiment_holding", "runs_in"]
