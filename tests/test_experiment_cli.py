@@ -138,6 +138,37 @@ def test_evaluate_and_select_take_the_experiment(experiment, capsys, tmp_path):
     assert doc["run"] == str(out / "optimizer" / "seed-0") and doc["pareto_index"] == 0
 
 
+def test_select_takes_the_validated_solution_first(experiment, tmp_path, capsys):
+    import shutil
+
+    out, _ = experiment
+    copy = tmp_path / "exp"
+    shutil.copytree(out, copy)
+    # the validations say: only seed 1's first contender succeeds in fresh worlds
+    for seed in (0, 1):
+        path = copy / "optimizer" / f"seed-{seed}" / "evaluation" / "validation.json"
+        doc = json.loads(path.read_text())
+        doc["success"] = [1.0 if (seed, i) == (1, 0) else 0.0 for i in range(len(doc["rows"]))]
+        path.write_text(json.dumps(doc))
+        if seed == 1:
+            expected_row = doc["rows"][0]
+    from mjxskill.select import main
+
+    code = main([str(copy), "--min-success", "0", "--no-render", "--out", str(tmp_path / "sel")])
+    printed = capsys.readouterr()
+    assert code == 0, printed.err
+    header = next(line for line in printed.out.splitlines() if line.startswith("run "))
+    assert header.rstrip().endswith("validated") and "(validated success 100%)" in printed.out
+    doc = json.loads((tmp_path / "sel" / "parameters.json").read_text())
+    assert doc["run"] == str(copy / "optimizer" / "seed-1") and doc["pareto_index"] == expected_row
+    # the explore page's "select the best meeting them" follows the same rule
+    from mjxskill.training.explore.data import choose_document, runs_in as page_runs
+
+    entries = page_runs(copy)
+    assert entries[1].run.path == copy / "optimizer" / "seed-1"
+    assert choose_document(entries, None, 0.0) == {"run": 1, "k": expected_row}
+
+
 def test_evaluate_pools_a_repeated_run(experiment, tmp_path, capsys):
     import shutil
 

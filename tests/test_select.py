@@ -42,6 +42,30 @@ def test_choose_by_constraint(max_force, min_success, expected):
         assert choose(FRONT, max_force, min_success) == expected
 
 
+# Rows 1 and 3 validated: row 3's training 100 % fell to 40 % in fresh worlds, row 1 held 90 %.
+VALIDATED = np.array([np.nan, 0.9, np.nan, 0.4])
+
+
+@pytest.mark.parametrize(
+    "max_force, min_success, expected",
+    [
+        (None, None, 1),  # a validated row first, by its validation success
+        (10.0, None, 1),  # row 2 (unvalidated, training 60 %) within 10 N as well: row 1 is validated
+        (4.9, None, 0),  # no validated row within the limit: training success decides, as without
+        (None, 0.95, None),  # row 3's 100 % is training; validated at 40 % it falls short
+        (None, 0.5, 1),
+    ],
+)
+def test_a_validated_solution_goes_first_by_its_validation_success(max_force, min_success, expected):
+    if expected is None:
+        with pytest.raises(CommandError, match="no Pareto solution meets --min-success 0.95"):
+            choose(FRONT, max_force, min_success, VALIDATED)
+    else:
+        assert choose(FRONT, max_force, min_success, VALIDATED) == expected
+    if max_force is None and min_success is None:
+        assert choose(FRONT, validated=np.full(4, np.nan)) == choose(FRONT) == 3  # none validated: as before
+
+
 def test_export_names_every_parameter_with_its_unit(tmp_path):
     doc = export_document(make_config(), FRONT, 2, tmp_path)
     assert doc["parameters"] == {"S.x": {"value": 0.3, "unit": "m"}, "S.y": {"value": -0.5, "unit": "N"}}

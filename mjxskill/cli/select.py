@@ -9,7 +9,9 @@
 DIR may be a repeated run or an experiment (``mjxskill.training.runs``): the fronts of all its
 runs are listed in one table (# numbers every row, ``run`` names the run and its row), ``--pick``
 and the constraints choose from all of them, and the export goes to
-``DIR/selected-<kind>-<seed>-<row>/``.
+``DIR/selected-<kind>-<seed>-<row>/``. Where the runs' picks were validated
+(``evaluation/validation.json``), the table has their validation success and a pick by
+constraint takes a validated solution first.
 
 The rule of a pick by constraint and the export format: ``mjxskill.training.selection``.
 """
@@ -17,6 +19,7 @@ The rule of a pick by constraint and the export format: ``mjxskill.training.sele
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -71,23 +74,28 @@ def _main(args: argparse.Namespace) -> int:
     from mjxskill.training.report import front_table
     from mjxskill.training.run_dir import concat_all
     from mjxskill.training.selection import choose, export_document, write_export
+    from mjxskill.training.validation import validated_union
 
     fronts, several = _fronts(args.run)
     if args.min_success is not None and args.min_success > 1:
         raise CommandError(f"--min-success is a rate between 0 and 1, got {args.min_success}")
     _, run, config, _ = fronts[0]
     union = concat_all([f for *_, f in fronts], len(config.parameter_names), len(config.objective_names))
+    validated, worlds = validated_union((run, front) for _, run, _, front in fronts)
     owner = [(ref, sub, c, k) for ref, sub, c, f in fronts for k in range(len(f))]  # union row -> its run and row
     if several:
         print(f"Pareto fronts of the {len(fronts)} trained runs in {args.run} ({len(union)} solutions; # numbers them all, "
               f"'run' names the run and its row of pareto.csv):")
         labels = [f"{ref.kind} seed {ref.seed} row {k}" for ref, _, _, k in owner]
-        table = front_table(config, union).splitlines()
+        table = front_table(config, union, validated).splitlines()
         width = max(len(label) for label in labels)
         print("\n".join([f"{'run'.ljust(width)}  {table[0]}", *(f"{label.ljust(width)}  {line}" for label, line in zip(labels, table[1:]))]))
     else:
         print(f"Pareto front of {run.path} ({len(union)} solutions):")
-        print(front_table(config, union))
+        print(front_table(config, union, validated))
+    if validated is not None:
+        print(f"validated: the success rate of the picks' contenders in fresh worlds ({' or '.join(map(str, worlds))} per solution; "
+              "evaluation/validation.json); a pick by constraint takes a validated solution first")
     if args.pick is None and args.max_force is None and args.min_success is None:
         print("pick one with --pick K or a constraint (--max-force N, --min-success RATE)")
         return 0
@@ -96,7 +104,7 @@ def _main(args: argparse.Namespace) -> int:
             raise CommandError(f"--pick {args.pick}: the front{'s have' if several else ' has'} rows 0-{len(union) - 1}")
         i = args.pick
     else:
-        i = choose(union, args.max_force, args.min_success)
+        i = choose(union, args.max_force, args.min_success, validated)
     ref, run, config, k = owner[i]
     front = fronts[[f[0] for f in fronts].index(ref)][3]
     folder = args.out or Path(args.run) / (f"selected-{ref.kind}-{ref.seed}-{k}" if several else f"selected-{k}")
@@ -104,7 +112,8 @@ def _main(args: argparse.Namespace) -> int:
     for path in write_export(doc, folder):
         print(f"wrote {path}")
     print(f"chose Pareto solution {k}{f' of {run.path}' if several else ''}: "
-          + ", ".join(f"{n} = {v['value']:.4g} {v['unit']}" for n, v in doc["parameters"].items()))
+          + ", ".join(f"{n} = {v['value']:.4g} {v['unit']}" for n, v in doc["parameters"].items())
+          + ("" if validated is None or math.isnan(validated[i]) else f" (validated success {validated[i]:.0%})"))
     if args.no_render:
         return 0
 

@@ -78,15 +78,18 @@ def write_run_figures(run: Run, config: RunConfig, ev: Evaluations) -> None:
         plot_hypervolume(done, hv, config, run.path / "hypervolume.png", config.n_init)
 
 
-def front_table(config: RunConfig, front: Evaluations) -> str:
+def front_table(config: RunConfig, front: Evaluations, validated=None) -> str:
     """The Pareto solutions as a text table (index = the row of pareto.csv, used by select): the
-    measured contact force's peak and mean and the commanded force, N (means over the worlds)."""
+    measured contact force's peak and mean and the commanded force, N (means over the worlds);
+    with ``validated`` ((len(front),), NaN: none) a column of validation success rates."""
     names = [n.split(".")[-1] for n in config.parameter_names]
     head = ["#", *names, *(f"obj {o}" for o in config.objective_names), "success", "contact F peak/mean [N]",
-            "cmd F [N]"]
+            "cmd F [N]", *(["validated"] if validated is not None else [])]
     rows = [[str(k), *(f"{v:.4f}" for v in front.params[k]), *(f"{v:.2f}" for v in front.objectives[k]),
              f"{front.success_rate[k]:.0%}", f"{front.peak_contact_force[k]:.1f} / {front.mean_contact_force[k]:.1f}",
-             f"{front.peak_commanded_force[k]:.1f}"] for k in range(len(front))]
+             f"{front.peak_commanded_force[k]:.1f}",
+             *([] if validated is None else ["-" if np.isnan(validated[k]) else f"{validated[k]:.0%}"])]
+            for k in range(len(front))]
     widths = [max(len(r[c]) for r in [head, *rows]) for c in range(len(head))]
     fmt = lambda r: "  ".join(x.rjust(w) for x, w in zip(r, widths))  # noqa: E731
     return "\n".join([fmt(head), *map(fmt, rows)])

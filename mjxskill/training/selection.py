@@ -3,7 +3,11 @@
 A pick by constraint keeps the Pareto solutions within every given limit (``--max-force``: the
 peak of the measured contact force between the tool and the world in an episode, N, mean over
 the worlds; ``--min-success``) and takes the one with the highest success rate, ties broken by
-the first objective. A run written before contact forces were measured has none: ``--max-force``
+the first objective. Where the runs' picks were validated (``evaluate`` of a repeated run, an
+experiment: ``RUN_DIR/evaluation/validation.json``), a validated solution within the limits is
+taken before any other, by its validation success (fresh worlds; a training success comes from
+the few worlds of one batch and flatters a knife-edge set), and ``--min-success`` reads the
+validation success of a validated solution. A run written before contact forces were measured has none: ``--max-force``
 is refused for it (its commanded force is no measure of what the tool did to the world). The choice is written to
 ``RUN_DIR/selected-<k>/parameters.yaml`` and ``parameters.json`` (parameter name -> value and
 unit, ready for a controller) and rendered there (PNG frames, or an MP4 with ffmpeg).
@@ -19,9 +23,15 @@ import numpy as np
 from mjxskill.errors import CommandError
 
 
-def choose(front, max_force: float | None = None, min_success: float | None = None) -> int:
+def choose(front, max_force: float | None = None, min_success: float | None = None, validated=None) -> int:
     """Row of ``front`` (Evaluations) meeting the limits with the best success rate, ties by
-    the first objective. Raises CommandError when no row meets them."""
+    the first objective. ``validated``: (len(front),) validation success rates, NaN where a row
+    has none; a validated row meeting the limits goes first, by that rate (then the training
+    success, the first objective), and is held to ``min_success`` by it. Raises CommandError when
+    no row meets them."""
+    validated = np.full(len(front), np.nan) if validated is None else np.asarray(validated, np.float64)
+    has_validation = ~np.isnan(validated)
+    success = np.where(has_validation, validated, front.success_rate)
     ok = np.ones(len(front), bool)
     # A NaN (a diverged world) meets no limit: it is not known to be within it.
     if max_force is not None:
@@ -31,15 +41,16 @@ def choose(front, max_force: float | None = None, min_success: float | None = No
                                "peak_commanded_force); pick with --pick K or --min-success, or train it again")
         ok &= front.peak_contact_force <= max_force
     if min_success is not None:
-        ok &= front.success_rate >= min_success
+        ok &= success >= min_success
     if not ok.any():
         limits = ", ".join(f"{name} {value:g}" for name, value in (("--max-force", max_force), ("--min-success", min_success))
                            if value is not None)
         raise CommandError(f"no Pareto solution meets {limits or 'the limits'}: the front's {len(front)} rows have "
                            f"peak contact forces {_span(front.peak_contact_force, '{:.1f}', ' N')} and success rates "
-                           f"{_span(front.success_rate, '{:.0%}', '')}")
-    rows = np.flatnonzero(ok)
-    order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows]))
+                           f"{_span(success, '{:.0%}', '')}"
+                           + (" (the validation's where a row has one)" if has_validation.any() else ""))
+    rows = np.flatnonzero(ok & has_validation) if (ok & has_validation).any() else np.flatnonzero(ok)
+    order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows], -np.nan_to_num(validated[rows], nan=0.0)))
     return int(rows[order[0]])
 
 

@@ -115,6 +115,49 @@ def load_validation(run: Run, front: Evaluations, rows: Sequence[int], settings:
     validation, no file needed. RunError when the file is damaged."""
     if not len(rows):
         return Validation((), np.zeros(0), 0, settings["candidates"])
+    stored = _read(run)
+    if stored is None:
+        return None
+    doc, stored_rows, worlds, params, success = stored
+    if not _same(doc["settings"], settings) or not set(rows) <= set(stored_rows):
+        return None
+    index = [stored_rows.index(r) for r in rows]
+    if any(r >= len(front) for r in rows) or not np.array_equal(params[index], front.params[list(rows)]):
+        return None
+    return Validation(tuple(rows), success[index], worlds, settings["candidates"])
+
+
+def validated_success(run: Run, front: Evaluations) -> tuple[np.ndarray, int] | None:
+    """What ``run``'s validation.json says of its current ``front``, whatever its settings (what
+    ``select`` shows): (len(front),) success rates, NaN for a row it did not validate or whose
+    parameters changed since, and its world count; None when the run has no validation. RunError
+    when the file is damaged."""
+    stored = _read(run)
+    if stored is None:
+        return None
+    _, stored_rows, worlds, params, success = stored
+    out = np.full(len(front), np.nan)
+    for i, r in enumerate(stored_rows):
+        if r < len(front) and np.array_equal(params[i], front.params[r]):
+            out[r] = success[i]
+    return out, worlds
+
+
+def validated_union(runs_and_fronts) -> tuple[np.ndarray | None, tuple[int, ...]]:
+    """:func:`validated_success` over several (run, front) pairs, the fronts concatenated in
+    order (as ``select`` lists them): (their rates, NaN where none; the world counts found), or
+    (None, ()) when no run has a validation."""
+    pairs = list(runs_and_fronts)
+    found = [validated_success(run, front) for run, front in pairs]
+    if all(v is None for v in found):
+        return None, ()
+    rates = [np.full(len(front), np.nan) if v is None else v[0] for v, (_, front) in zip(found, pairs)]
+    return np.concatenate(rates), tuple(sorted({v[1] for v in found if v is not None}))
+
+
+def _read(run: Run):
+    """(document, rows, worlds, params, success) of ``run``'s validation.json, checked; None
+    when there is none. RunError when it is damaged."""
     path = run.path / FOLDER / FILE
     if not path.is_file():
         return None
@@ -133,12 +176,7 @@ def load_validation(run: Run, front: Evaluations, rows: Sequence[int], settings:
             raise ValueError("success rates in [0, 1] expected")
     except (KeyError, TypeError, ValueError, OverflowError, RecursionError) as err:
         raise RunError(f"{path} is not a readable validation ({err}); delete it (it is made again in a minute)") from None
-    if not _same(doc["settings"], settings) or not set(rows) <= set(stored_rows):
-        return None
-    index = [stored_rows.index(r) for r in rows]
-    if any(r >= len(front) for r in rows) or not np.array_equal(params[index], front.params[list(rows)]):
-        return None
-    return Validation(tuple(rows), success[index], worlds, settings["candidates"])
+    return doc, stored_rows, worlds, params, success
 
 
 def _count(v) -> bool:
@@ -146,5 +184,5 @@ def _count(v) -> bool:
     return isinstance(v, int) and not isinstance(v, bool) and v >= 0
 
 
-__all__ = ["FILE", "FORMAT", "Validation", "in_contention", "load_validation", "validate", "validate_rows", "validation_settings",
-           "validation_worlds"]
+__all__ = ["FILE", "FORMAT", "Validation", "in_contention", "load_validation", "validate", "validate_rows", "validated_success",
+           "validated_union", "validation_settings", "validation_worlds"]

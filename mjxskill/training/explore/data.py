@@ -152,8 +152,10 @@ def point(entries: list[RunEntry], run: int, index: int) -> tuple[RunEntry, Eval
 
 
 def choose_document(entries: list[RunEntry], max_force: float | None, min_success: float | None) -> dict:
-    """The Pareto solution ``select`` picks for these limits among every run's front."""
+    """The Pareto solution ``select`` picks for these limits among every run's front (a
+    validated one first where the runs' picks were validated)."""
     from mjxskill.training.selection import choose
+    from mjxskill.training.validation import validated_union
 
     fronts = [e.front() for e in entries]
     owners = np.concatenate([np.full(len(f), r) for r, f in enumerate(fronts)])
@@ -162,6 +164,7 @@ def choose_document(entries: list[RunEntry], max_force: float | None, min_succes
         union = union.concat(f)
     if len(union) == 0:
         raise CommandError("the Pareto front is empty (no evaluations yet)")
-    j = choose(union, max_force, min_success)
+    rates, _ = validated_union((e.run, f) for e, f in zip(entries, fronts))  # as select reads them
+    j = choose(union, max_force, min_success, rates)
     run = int(owners[j])
     return {"run": run, "k": int(j - np.flatnonzero(owners == run)[0])}
