@@ -169,6 +169,36 @@ def test_select_takes_the_validated_solution_first(experiment, tmp_path, capsys)
     assert choose_document(entries, None, 0.0) == {"run": 1, "k": expected_row}
 
 
+def test_select_lists_without_a_damaged_or_stale_validation(experiment, tmp_path, capsys):
+    import shutil
+
+    import numpy as np
+
+    from mjxskill.select import main
+    from mjxskill.training.run_dir import Run
+    from mjxskill.training.validation import validated_success
+
+    out, _ = experiment
+    copy = tmp_path / "exp"
+    shutil.copytree(out, copy)
+    seed0 = copy / "optimizer" / "seed-0" / "evaluation" / "validation.json"
+    seed1 = copy / "optimizer" / "seed-1" / "evaluation" / "validation.json"
+    # seed 1's first validated row no longer has the parameters it was validated with
+    doc = json.loads(seed1.read_text())
+    doc["params"][0] = [v + 1.0 for v in doc["params"][0]]
+    seed1.write_text(json.dumps(doc))
+    run = Run(copy / "optimizer" / "seed-1")
+    rates, worlds = validated_success(run, run.front(run.config()))
+    assert np.isnan(rates[doc["rows"][0]]) and worlds == doc["worlds"]
+    assert all(not np.isnan(rates[r]) for r in doc["rows"][1:])
+    seed0.write_text("{not json")
+    code = main([str(copy), "--no-render"])
+    printed = capsys.readouterr()
+    assert code == 0 and "Traceback" not in printed.err
+    assert f"warning: {seed0} is not a readable validation" in printed.err and "listed without its validation" in printed.err
+    assert "Pareto fronts of the" in printed.out
+
+
 def test_evaluate_pools_a_repeated_run(experiment, tmp_path, capsys):
     import shutil
 

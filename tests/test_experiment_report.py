@@ -3,6 +3,7 @@ place of the physics: which runs it holds, which repetitions are finished, the p
 groups and tests, the normalized hypervolume and front sizes, report.json and report.md."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -185,7 +186,15 @@ def test_select_lists_the_runs_trained_so_far(experiment, capsys, tmp_path):
     assert main([str(exp.path), "--min-success", "0", "--no-render", "--out", str(tmp_path / "sel")]) == 0
     out = capsys.readouterr().out
     assert "Pareto fronts of the 3 trained runs in" in out and "random_search seed 5" not in out
-    assert json.loads((tmp_path / "sel" / "parameters.json").read_text())["success_rate"] == 1.0
+    # a validated solution goes first: the pick has the highest validation success of every run's
+    # validation.json (the solution with 100 % training success is not it)
+    doc = json.loads((tmp_path / "sel" / "parameters.json").read_text())
+    validations = {p.parents[1]: json.loads(p.read_text()) for p in exp.path.glob("*/seed-*/evaluation/validation.json")}
+    assert validations
+    best = max(max(v["success"]) for v in validations.values())
+    own = validations[Path(doc["run"])]
+    assert own["success"][own["rows"].index(doc["pareto_index"])] == best
+    assert "(validated success" in out
 
 
 def test_report_json_holds_the_fields_the_issue_names_as_plain_data(experiment):
@@ -362,3 +371,29 @@ def test_bad_flags_are_one_error_line_before_anything_runs(tmp_path, capsys, arg
     code, stderr = invoke(capsys, "experiment", *(a.format(tmp=tmp_path) for a in args))
     error_line(code, stderr, "experiment", message)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_experiment_holding_knows_the_members_as_written_and_through_links(tmp_path):
+    from mjxskill.training.runs import EXPERIMENT, experiment_holding
+
+    exp = tmp_path / "exp"
+    (exp / "optimizer" / "seed-0").mkdir(parents=True)
+    (exp / "random_search").mkdir()
+    (exp / EXPERIMENT).write_text("per_config: 1\n")
+    assert experiment_holding(exp / "optimizer").resolve() == exp.resolve()
+    assert experiment_holding(exp / "optimizer" / "seed-0").resolve() == exp.resolve()
+    assert experiment_holding(exp / "random_search").resolve() == exp.resolve()
+    assert experiment_holding(exp) is None  # the experiment itself is evaluated as one
+    # a link to a member, and a member that is a link to storage elsewhere
+    (tmp_path / "shortcut").symlink_to(exp / "optimizer" / "seed-0")
+    assert experiment_holding(tmp_path / "shortcut").resolve() == exp.resolve()
+    elsewhere = tmp_path / "storage" / "opt"
+    (elsewhere / "seed-0").mkdir(parents=True)
+    other = tmp_path / "exp2"
+    other.mkdir()
+    (other / EXPERIMENT).write_text("per_config: 1\n")
+    (other / "optimizer").symlink_to(elsewhere)
+    assert experiment_holding(other / "optimizer" / "seed-0") is not None
+    # a run of one's own named like a member, with no experiment beside it
+    (tmp_path / "mine" / "optimizer").mkdir(parents=True)
+    assert experiment_holding(tmp_path / "mine" / "optimizer") is None

@@ -66,6 +66,23 @@ def test_a_validated_solution_goes_first_by_its_validation_success(max_force, mi
         assert choose(FRONT, validated=np.full(4, np.nan)) == choose(FRONT) == 3  # none validated: as before
 
 
+def test_select_names_the_best_unvalidated_row_beside_a_validated_pick():
+    from mjxskill.training.selection import best_unvalidated
+
+    assert best_unvalidated(FRONT, None, None, VALIDATED) == 2  # rows 0 and 2 unvalidated: 60 % beats 20 %
+    assert best_unvalidated(FRONT, 4.9, None, VALIDATED) == 0
+    assert best_unvalidated(FRONT, None, 0.7, VALIDATED) is None
+    assert best_unvalidated(FRONT, None, None, np.ones(4)) is None
+
+
+def test_among_validated_rows_the_validation_decides_not_the_training():
+    # rows 1-3 validated in the reverse order of their training success (0.6, 0.6, 1.0)
+    validated = np.array([np.nan, 0.8, 0.7, 0.5])
+    assert choose(FRONT, None, None, validated) == 1
+    assert choose(FRONT, 10.0, None, validated) == 1  # row 3 is beyond 10 N anyway
+    assert choose(FRONT, None, None, np.array([np.nan, 0.7, 0.7, 0.5])) == 2  # a tie: the first objective (7.5 > 7)
+
+
 def test_export_names_every_parameter_with_its_unit(tmp_path):
     doc = export_document(make_config(), FRONT, 2, tmp_path)
     assert doc["parameters"] == {"S.x": {"value": 0.3, "unit": "m"}, "S.y": {"value": -0.5, "unit": "N"}}

@@ -67,13 +67,29 @@ def _fronts(path: Path):
     return out, len(refs) > 1
 
 
+def _say_what_decided(union, i: int, validated, other: int | None, owner) -> None:
+    """What a pick by constraint rested on, where some solutions were validated: a validated
+    pick beside an unvalidated solution that did better in training, or a pick by training
+    success because no validated solution met the limits."""
+    def name(j: int) -> str:
+        ref, _, _, k = owner[j]
+        return f"# {j} ({ref.kind} seed {ref.seed} row {k})"
+
+    if math.isnan(validated[i]):
+        print(f"no validated solution meets the limits: {name(i)} is picked by its training success "
+              f"{union.success_rate[i]:.0%} alone (the few worlds of its batch)")
+    elif other is not None and union.success_rate[other] > validated[i]:
+        print(f"validated first: {name(i)} succeeded in {validated[i]:.0%} of its validation worlds; {name(other)} "
+              f"reached {union.success_rate[other]:.0%} in training but was not validated (--pick {other} takes it)")
+
+
 def _main(args: argparse.Namespace) -> int:
     from mjxskill.training.render import default_gl
 
     default_gl()  # before anything imports mujoco
     from mjxskill.training.report import front_table
     from mjxskill.training.run_dir import concat_all
-    from mjxskill.training.selection import choose, export_document, write_export
+    from mjxskill.training.selection import best_unvalidated, choose, export_document, write_export
     from mjxskill.training.validation import validated_union
 
     fronts, several = _fronts(args.run)
@@ -81,7 +97,9 @@ def _main(args: argparse.Namespace) -> int:
         raise CommandError(f"--min-success is a rate between 0 and 1, got {args.min_success}")
     _, run, config, _ = fronts[0]
     union = concat_all([f for *_, f in fronts], len(config.parameter_names), len(config.objective_names))
-    validated, worlds = validated_union((run, front) for _, run, _, front in fronts)
+    validated, worlds = validated_union(((run, front) for _, run, _, front in fronts),
+                                        damaged=lambda message: print(f"{build_parser().prog}: warning: {message}; "
+                                                                      "listed without its validation", file=sys.stderr))
     owner = [(ref, sub, c, k) for ref, sub, c, f in fronts for k in range(len(f))]  # union row -> its run and row
     if several:
         print(f"Pareto fronts of the {len(fronts)} trained runs in {args.run} ({len(union)} solutions; # numbers them all, "
@@ -105,6 +123,8 @@ def _main(args: argparse.Namespace) -> int:
         i = args.pick
     else:
         i = choose(union, args.max_force, args.min_success, validated)
+        if validated is not None:
+            _say_what_decided(union, i, validated, best_unvalidated(union, args.max_force, args.min_success, validated), owner)
     ref, run, config, k = owner[i]
     front = fronts[[f[0] for f in fronts].index(ref)][3]
     folder = args.out or Path(args.run) / (f"selected-{ref.kind}-{ref.seed}-{k}" if several else f"selected-{k}")

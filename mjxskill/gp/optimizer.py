@@ -37,7 +37,7 @@ from mjxskill.gp.hypervolume_scalarization import reference_point, warmup_refere
 from mjxskill.gp.pareto import pareto_mask
 from mjxskill.gp.prior import Prior, pibo_weight, prior_of, prior_rows, sample_unit, unit_prior
 from mjxskill.gp.proposal import propose_batch
-from mjxskill.gp.settings import AcquisitionSettings, acquisition_defaults, acquisition_settings
+from mjxskill.gp.settings import CHOICES, AcquisitionSettings, acquisition_defaults, acquisition_settings
 
 _STATE_FORMAT = "mjxskill.gp.MOBOState/2"
 _OLD_FORMAT = "mjxskill.gp.MOBOState/1"  # flat config: acquisition settings beside the problem
@@ -346,8 +346,9 @@ def minimize(
     if isinstance(prior, str):
         # "prior" is also the acquisition setting of the GP's hyperparameter prior ("gamma",
         # "lognormal"); as a keyword of minimize it is the parameter prior.
-        raise ValueError(f"minimize: prior={prior!r} is not a parameter prior (a Prior or {{'mean': ..., 'std': ...}}); "
-                         f"for the GP's hyperparameter prior pass acquisition={{'prior': {prior!r}}}")
+        hint = (f"; for the GP's hyperparameter prior pass acquisition={{'prior': {prior!r}}}" if prior in CHOICES["prior"]
+                else "")
+        raise ValueError(f"minimize: prior={prior!r} is not a parameter prior (a Prior or {{'mean': ..., 'std': ...}}){hint}")
 
     def evaluate(x):
         y = np.asarray(f(x), dtype=np.float64)

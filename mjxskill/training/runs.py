@@ -26,6 +26,7 @@ optimizer, "random": uniform random search), never the folder's name.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import NamedTuple
 
@@ -59,10 +60,12 @@ def directory_kind(path: Path | str) -> str:
 def experiment_holding(path: Path | str) -> Path | None:
     """The experiment directory that ``path`` (EXP/optimizer, EXP/random_search or one of their
     seed-<s> runs) belongs to; None for a run or repeated run of its own (or an experiment)."""
-    path = Path(path).resolve()
-    for member in (path, path.parent):  # the repeated run, or the run inside it
-        if member.name in (OPTIMIZER_RUNS, RANDOM_RUNS) and (member.parent / EXPERIMENT).is_file():
-            return member.parent
+    # As written (EXP/optimizer may be a link to storage elsewhere) and with links resolved (a
+    # link to EXP/optimizer/seed-0).
+    for where in (Path(os.path.abspath(path)), Path(path).resolve()):
+        for member in (where, where.parent):  # the repeated run, or the run inside it
+            if member.name in (OPTIMIZER_RUNS, RANDOM_RUNS) and (member.parent / EXPERIMENT).is_file():
+                return member.parent
     return None
 
 

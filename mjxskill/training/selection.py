@@ -7,7 +7,9 @@ the first objective. Where the runs' picks were validated (``evaluate`` of a rep
 experiment: ``RUN_DIR/evaluation/validation.json``), a validated solution within the limits is
 taken before any other, by its validation success (fresh worlds; a training success comes from
 the few worlds of one batch and flatters a knife-edge set), and ``--min-success`` reads the
-validation success of a validated solution. A run written before contact forces were measured has none: ``--max-force``
+validation success of a validated solution. An experiment validates its optimizer runs' picks
+only, so over an experiment its random searches' solutions come after those; ``select`` names
+the best unvalidated solution when it did better in training than the validated pick. A run written before contact forces were measured has none: ``--max-force``
 is refused for it (its commanded force is no measure of what the tool did to the world). The choice is written to
 ``RUN_DIR/selected-<k>/parameters.yaml`` and ``parameters.json`` (parameter name -> value and
 unit, ready for a controller) and rendered there (PNG frames, or an MP4 with ffmpeg).
@@ -52,6 +54,19 @@ def choose(front, max_force: float | None = None, min_success: float | None = No
     rows = np.flatnonzero(ok & has_validation) if (ok & has_validation).any() else np.flatnonzero(ok)
     order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows], -np.nan_to_num(validated[rows], nan=0.0)))
     return int(rows[order[0]])
+
+
+def best_unvalidated(front, max_force: float | None, min_success: float | None, validated) -> int | None:
+    """The row :func:`choose` would take among the rows without a validation (training success
+    alone), or None when none meets the limits: what ``select`` names beside a validated pick
+    whose validation success is below that row's training success."""
+    rows = np.flatnonzero(np.isnan(np.asarray(validated, np.float64)))
+    if not len(rows):
+        return None
+    try:
+        return int(rows[choose(front.take(rows), max_force, min_success)])
+    except CommandError:
+        return None
 
 
 def _span(values: np.ndarray, fmt: str, unit: str) -> str:

@@ -143,12 +143,22 @@ def validated_success(run: Run, front: Evaluations) -> tuple[np.ndarray, int] | 
     return out, worlds
 
 
-def validated_union(runs_and_fronts) -> tuple[np.ndarray | None, tuple[int, ...]]:
+def validated_union(runs_and_fronts, damaged=None) -> tuple[np.ndarray | None, tuple[int, ...]]:
     """:func:`validated_success` over several (run, front) pairs, the fronts concatenated in
     order (as ``select`` lists them): (their rates, NaN where none; the world counts found), or
-    (None, ()) when no run has a validation."""
+    (None, ()) when no run has a validation. A damaged validation.json counts as none and its
+    RunError's message goes to ``damaged`` (None: ignored): a listing is still of use without it."""
     pairs = list(runs_and_fronts)
-    found = [validated_success(run, front) for run, front in pairs]
+
+    def read(run, front):
+        try:
+            return validated_success(run, front)
+        except RunError as err:
+            if damaged is not None:
+                damaged(str(err))
+            return None
+
+    found = [read(run, front) for run, front in pairs]
     if all(v is None for v in found):
         return None, ()
     rates = [np.full(len(front), np.nan) if v is None else v[0] for v, (_, front) in zip(found, pairs)]

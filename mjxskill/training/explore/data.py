@@ -109,12 +109,18 @@ def evaluation_rows(ev: Evaluations, front: Evaluations) -> np.ndarray:
 
 
 def front_document(entries: list[RunEntry]) -> dict:
-    """The rows of every run's pareto.csv with their values (``/api/front``)."""
+    """The rows of every run's pareto.csv with their values (``/api/front``) and their validation
+    success (``validated``: None where the row was not validated, as select lists it)."""
+    from mjxskill.training.validation import validated_union
+
     rows = []
-    for r, entry in enumerate(entries):
-        front = entry.front()
+    fronts = [entry.front() for entry in entries]
+    for r, (entry, front) in enumerate(zip(entries, fronts)):
         index = evaluation_rows(entry.evaluations(), front)
         rows += [{"run": r, "k": k, "index": int(index[k]), **_row(front, k)} for k in range(len(front))]
+    rates = validated_union((e.run, f) for e, f in zip(entries, fronts))[0]
+    for i, row in enumerate(rows):
+        row["validated"] = None if rates is None or np.isnan(rates[i]) else float(rates[i])
     return {"columns": entries[0].config.columns(), "rows": rows}
 
 

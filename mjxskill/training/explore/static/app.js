@@ -46,7 +46,9 @@ function filtering() {
 function meets(row) {
   const { minSuccess, maxForce } = limits();
   if (!filtering()) return null;
-  return (minSuccess === null || (row.success_rate !== null && row.success_rate >= minSuccess))
+  // a validated row is held to its validation success, as select does
+  const success = row.validated !== null && row.validated !== undefined ? row.validated : row.success_rate;
+  return (minSuccess === null || (success !== null && success >= minSuccess))
     && (maxForce === null || (row.peak_contact_force !== null && row.peak_contact_force <= maxForce));
 }
 
@@ -64,16 +66,21 @@ function redraw() {
     : `${S.front.length} Pareto solutions, no filter`;
 }
 
+function anyValidated() {
+  return S.front.some((r) => r.validated !== null && r.validated !== undefined);
+}
+
 function frontTable() {
   const head = [...(isMulti() ? ["run"] : []), "k", ...S.run.parameters.map((p) => `${shortName(p.name)} [${p.unit}]`),
-    ...S.run.objectives.map((o) => `obj ${o}`), "success", "max F"];
+    ...S.run.objectives.map((o) => `obj ${o}`), "success", "max F", ...(anyValidated() ? ["validated"] : [])];
   table($("front-table"), head, S.front.map((r) => {
     const m = meets(r);
     const chosen = S.selected && S.selected.run === r.run && S.selected.index === r.index;
     const tr = element("tr", { class: `${m === null ? "" : m ? "meets" : "fails"}${chosen ? " selected" : ""}`, "data-run": r.run, "data-k": r.k },
       ...(isMulti() ? [element("td", {}, S.run.runs[r.run].label)] : []), element("td", {}, String(r.k)),
       ...r.params.map((v) => element("td", {}, fmt(v))), ...r.objectives.map((v) => element("td", {}, fmt(v, 5))),
-      element("td", {}, pct(r.success_rate)), element("td", {}, newtons(r.peak_contact_force)));
+      element("td", {}, pct(r.success_rate)), element("td", {}, newtons(r.peak_contact_force)),
+      ...(anyValidated() ? [element("td", {}, r.validated === null ? "-" : pct(r.validated))] : []));
     tr.addEventListener("click", () => select(r.run, r.index));
     return tr;
   }));
