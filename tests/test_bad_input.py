@@ -183,6 +183,7 @@ def test_a_second_writer_is_refused_naming_the_holder(tmp_path, capsys):
     finally:
         holder.kill()
         holder.wait()
+        holder.stdout.close()
     with run.lock():  # the holder's end released it, however it ended
         pass
 
