@@ -151,7 +151,7 @@ def test_select_takes_the_validated_solution_first(experiment, tmp_path, capsys)
         doc["success"] = [1.0 if (seed, i) == (1, 0) else 0.0 for i in range(len(doc["rows"]))]
         path.write_text(json.dumps(doc))
         if seed == 1:
-            expected_row = doc["rows"][0]
+            expected_row, worlds = doc["rows"][0], doc["worlds"]
     from mjxskill.select import main
 
     code = main([str(copy), "--min-success", "0", "--no-render", "--out", str(tmp_path / "sel")])
@@ -161,6 +161,7 @@ def test_select_takes_the_validated_solution_first(experiment, tmp_path, capsys)
     assert header.rstrip().endswith("validated") and "(validated success 100%)" in printed.out
     doc = json.loads((tmp_path / "sel" / "parameters.json").read_text())
     assert doc["run"] == str(copy / "optimizer" / "seed-1") and doc["pareto_index"] == expected_row
+    assert doc["validation_success_rate"] == 1.0 and doc["validated_in"].startswith(f"{worlds} fresh worlds")
     # the explore page's "select the best meeting them" follows the same rule
     from mjxskill.training.explore.data import choose_document, runs_in as page_runs
 

@@ -89,6 +89,9 @@ def test_export_names_every_parameter_with_its_unit(tmp_path):
     assert doc["objectives"] == {"reach": 7.5, "force": -3.0}
     assert doc["success_rate"] == 0.6 and doc["pareto_index"] == 2
     assert (doc["peak_contact_force_N"], doc["mean_contact_force_N"], doc["peak_commanded_force_N"]) == (8.0, 2.0, 7.0)
+    assert "validation_success_rate" not in doc  # not validated: nothing claimed
+    validated = export_document(make_config(), FRONT, 2, tmp_path, (0.9, 20))
+    assert validated["validation_success_rate"] == 0.9 and validated["validated_in"].startswith("20 fresh worlds")
 
 
 def frames_or_skip(*args, **kwargs):

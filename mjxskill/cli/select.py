@@ -90,7 +90,7 @@ def _main(args: argparse.Namespace) -> int:
     from mjxskill.training.report import front_table
     from mjxskill.training.run_dir import concat_all
     from mjxskill.training.selection import best_unvalidated, choose, export_document, write_export
-    from mjxskill.training.validation import validated_union
+    from mjxskill.training.validation import validated_union, validation_of
 
     fronts, several = _fronts(args.run)
     if args.min_success is not None and args.min_success > 1:
@@ -128,7 +128,7 @@ def _main(args: argparse.Namespace) -> int:
     ref, run, config, k = owner[i]
     front = fronts[[f[0] for f in fronts].index(ref)][3]
     folder = args.out or Path(args.run) / (f"selected-{ref.kind}-{ref.seed}-{k}" if several else f"selected-{k}")
-    doc = export_document(config, front, k, run.path)
+    doc = export_document(config, front, k, run.path, validation_of(run, front, k))
     for path in write_export(doc, folder):
         print(f"wrote {path}")
     print(f"chose Pareto solution {k}{f' of {run.path}' if several else ''}: "

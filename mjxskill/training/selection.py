@@ -76,8 +76,12 @@ def _span(values: np.ndarray, fmt: str, unit: str) -> str:
     return text + (f" ({missing} not a number: a diverged world)" if missing else "")
 
 
-def export_document(config, front, k: int, run_path: Path) -> dict:
-    """The chosen solution as plain data (YAML/JSON)."""
+def export_document(config, front, k: int, run_path: Path, validation: tuple[float, int] | None = None) -> dict:
+    """The chosen solution as plain data (YAML/JSON); ``validation``: its (success rate, worlds)
+    in the pick's validation (``mjxskill.training.validation.validation_of``), when it had one."""
+    validated = {} if validation is None else {
+        "validation_success_rate": float(validation[0]),
+        "validated_in": f"{int(validation[1])} fresh worlds from the known start configurations (evaluation/validation.json)"}
     return {
         "task": config.task,
         "goal": config.goal,
@@ -93,6 +97,7 @@ def export_document(config, front, k: int, run_path: Path) -> dict:
         "mean_contact_force_N": float(front.mean_contact_force[k]),
         "peak_commanded_force_N": float(front.peak_commanded_force[k]),
         "evaluated_in": f"{config.worlds} randomized worlds, {config.episode_seconds:g} s episodes",
+        **validated,
     }
 
 

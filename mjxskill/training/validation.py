@@ -143,6 +143,18 @@ def validated_success(run: Run, front: Evaluations) -> tuple[np.ndarray, int] | 
     return out, worlds
 
 
+def validation_of(run: Run, front: Evaluations, k: int) -> tuple[float, int] | None:
+    """(validation success, worlds) of Pareto row ``k`` of ``run``'s ``front`` (what an export
+    records), or None when it was not validated or the file is damaged (``select`` has warned)."""
+    try:
+        found = validated_success(run, front)
+    except RunError:
+        return None
+    if found is None or np.isnan(found[0][k]):
+        return None
+    return float(found[0][k]), int(found[1])
+
+
 def validated_union(runs_and_fronts, damaged=None) -> tuple[np.ndarray | None, tuple[int, ...]]:
     """:func:`validated_success` over several (run, front) pairs, the fronts concatenated in
     order (as ``select`` lists them): (their rates, NaN where none; the world counts found), or
@@ -195,4 +207,4 @@ def _count(v) -> bool:
 
 
 __all__ = ["FILE", "FORMAT", "Validation", "in_contention", "load_validation", "validate", "validate_rows", "validated_success",
-           "validated_union", "validation_settings", "validation_worlds"]
+           "validated_union", "validation_of", "validation_settings", "validation_worlds"]
