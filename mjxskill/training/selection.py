@@ -9,7 +9,8 @@ taken before any other, by its validation success (fresh worlds; a training succ
 the few worlds of one batch and flatters a knife-edge set), and ``--min-success`` reads the
 validation success of a validated solution. An experiment validates its optimizer runs' picks
 only, so over an experiment its random searches' solutions come after those; ``select`` names
-the best unvalidated solution when it did better in training than the validated pick. A run written before contact forces were measured has none: ``--max-force``
+the best unvalidated solution when it did better in training than the validated pick. A run
+written before contact forces were measured has none: ``--max-force``
 is refused for it (its commanded force is no measure of what the tool did to the world). The choice is written to
 ``RUN_DIR/selected-<k>/parameters.yaml`` and ``parameters.json`` (parameter name -> value and
 unit, ready for a controller) and rendered there (PNG frames, or an MP4 with ffmpeg).
