@@ -74,24 +74,22 @@ def dtlz2(x: np.ndarray, m: int = 3) -> np.ndarray:
     return np.stack(out, axis=1)
 
 
+def _non_dominated_2d(y: np.ndarray) -> np.ndarray:
+    """Indices of the non-dominated rows of (k, 2) points (minimization), by increasing f1, in
+    O(k log k): a row is kept when its f2 is below every f2 before it."""
+    order = np.lexsort((y[:, 1], y[:, 0]))
+    f2 = y[order, 1]
+    return order[np.r_[True, f2[1:] < np.minimum.accumulate(f2)[:-1]]]
+
+
 def _staircase_hypervolume(front: np.ndarray, ref: np.ndarray) -> float:
     """Exact 2-objective hypervolume of (k, 2) points about ref (minimization), in O(k log k):
     ``mjxskill.gp.hypervolume`` is exact too but slices per point, too slow for 10^5 points."""
     p = front[np.all(front < ref, axis=1)]
     if not len(p):
         return 0.0
-    p = p[np.lexsort((p[:, 1], p[:, 0]))]
-    best_f2 = np.minimum.accumulate(p[:, 1])
-    steps = np.r_[True, p[1:, 1] < best_f2[:-1]]  # the non-dominated points, by increasing f1
-    p = p[steps]
+    p = p[_non_dominated_2d(p)]
     return float(np.sum(np.diff(np.r_[p[:, 0], ref[0]]) * (ref[1] - p[:, 1])))
-
-
-def _non_dominated_2d(x: np.ndarray, y: np.ndarray):
-    p = np.lexsort((y[:, 1], y[:, 0]))
-    x, y = x[p], y[p]
-    keep = np.r_[True, y[1:, 1] < np.minimum.accumulate(y[:, 1])[:-1]]
-    return x[keep], y[keep]
 
 
 @functools.lru_cache(maxsize=1)
@@ -104,12 +102,16 @@ def branin_currin_front(n: int = 1000, rounds: int = 3, sub: int = 9) -> np.ndar
     figure earlier tables quote) is below what these evaluated points reach."""
     a, b = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
     x = np.c_[a.ravel(), b.ravel()]
-    x, y = _non_dominated_2d(x, branin_currin(x))
+    y = branin_currin(x)
+    keep = _non_dominated_2d(y)
+    x, y = x[keep], y[keep]
     h = 1.0 / (n - 1)
     for _ in range(rounds):
         o1, o2 = np.meshgrid(np.linspace(-h, h, sub), np.linspace(-h, h, sub))
         around = np.clip((x[:, None, :] + np.c_[o1.ravel(), o2.ravel()][None]).reshape(-1, 2), 0.0, 1.0)
-        x, y = _non_dominated_2d(np.r_[x, around], np.r_[y, branin_currin(around)])
+        x, y = np.r_[x, around], np.r_[y, branin_currin(around)]
+        keep = _non_dominated_2d(y)
+        x, y = x[keep], y[keep]
         h /= sub // 2
     return y
 

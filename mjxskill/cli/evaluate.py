@@ -7,8 +7,8 @@
 
 DIR is a run, a repeated run (``train --repeats``) or an experiment directory
 (``mjxskill.training.runs``); a run or repeated run inside an experiment is evaluated through
-the experiment only (its evaluations follow the experiment's protocol). A run's evaluation goes to ``RUN_DIR/evaluation/`` and is reused
-when it is current (``mjxskill.training.evaluate_run``). A repeated run evaluates sub-run i in
+the experiment only (its evaluations follow the experiment's protocol). A run's evaluation goes
+to ``RUN_DIR/evaluation/`` and is reused when it is current (``mjxskill.training.evaluate_run``). A repeated run evaluates sub-run i in
 the worlds of seed ``--seed`` + i and pools them: one picked solution per run against the
 baselines (``mjxskill.training.pooled``; each pick validated as an experiment's is, unless
 ``--validation-per-config 0``), in ``DIR/evaluation/``. An experiment evaluates every

@@ -90,7 +90,7 @@ def _main(args: argparse.Namespace) -> int:
     from mjxskill.training.report import front_table
     from mjxskill.training.run_dir import concat_all
     from mjxskill.training.selection import best_unvalidated, choose, export_document, write_export
-    from mjxskill.training.validation import validated_union, validation_of
+    from mjxskill.training.validation import row_validation, validated_union
 
     fronts, several = _fronts(args.run)
     if args.min_success is not None and args.min_success > 1:
@@ -112,7 +112,7 @@ def _main(args: argparse.Namespace) -> int:
         print(f"Pareto front of {run.path} ({len(union)} solutions):")
         print(front_table(config, union, validated))
     if validated is not None:
-        print(f"validated: the success rate of the picks' contenders in fresh worlds ({' or '.join(map(str, worlds))} per solution; "
+        print(f"validated: the success rate of the picks' contenders in fresh worlds ({' or '.join(map(str, sorted(set(worlds[worlds > 0]))))} per solution; "
               "evaluation/validation.json); a pick by constraint takes a validated solution first")
     if args.pick is None and args.max_force is None and args.min_success is None:
         print("pick one with --pick K or a constraint (--max-force N, --min-success RATE)")
@@ -128,7 +128,7 @@ def _main(args: argparse.Namespace) -> int:
     ref, run, config, k = owner[i]
     front = fronts[[f[0] for f in fronts].index(ref)][3]
     folder = args.out or Path(args.run) / (f"selected-{ref.kind}-{ref.seed}-{k}" if several else f"selected-{k}")
-    doc = export_document(config, front, k, run.path, validation_of(run, front, k))
+    doc = export_document(config, front, k, run.path, row_validation(validated, worlds, i))
     for path in write_export(doc, folder):
         print(f"wrote {path}")
     print(f"chose Pareto solution {k}{f' of {run.path}' if several else ''}: "

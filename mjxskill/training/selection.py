@@ -52,7 +52,8 @@ def choose(front, max_force: float | None = None, min_success: float | None = No
                            f"peak contact forces {_span(front.peak_contact_force, '{:.1f}', ' N')} and success rates "
                            f"{_span(success, '{:.0%}', '')}"
                            + (" (the validation's where a row has one)" if has_validation.any() else ""))
-    rows = np.flatnonzero(ok & has_validation) if (ok & has_validation).any() else np.flatnonzero(ok)
+    validated_ok = ok & has_validation
+    rows = np.flatnonzero(validated_ok if validated_ok.any() else ok)
     order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows], -np.nan_to_num(validated[rows], nan=0.0)))
     return int(rows[order[0]])
 
@@ -79,7 +80,7 @@ def _span(values: np.ndarray, fmt: str, unit: str) -> str:
 
 def export_document(config, front, k: int, run_path: Path, validation: tuple[float, int] | None = None) -> dict:
     """The chosen solution as plain data (YAML/JSON); ``validation``: its (success rate, worlds)
-    in the pick's validation (``mjxskill.training.validation.validation_of``), when it had one."""
+    in the pick's validation (``mjxskill.training.validation.row_validation``), when it had one."""
     validated = {} if validation is None else {
         "validation_success_rate": float(validation[0]),
         "validated_in": f"{int(validation[1])} fresh worlds from the known start configurations (evaluation/validation.json)"}

@@ -143,23 +143,12 @@ def validated_success(run: Run, front: Evaluations) -> tuple[np.ndarray, int] | 
     return out, worlds
 
 
-def validation_of(run: Run, front: Evaluations, k: int) -> tuple[float, int] | None:
-    """(validation success, worlds) of Pareto row ``k`` of ``run``'s ``front`` (what an export
-    records), or None when it was not validated or the file is damaged (``select`` has warned)."""
-    try:
-        found = validated_success(run, front)
-    except RunError:
-        return None
-    if found is None or np.isnan(found[0][k]):
-        return None
-    return float(found[0][k]), int(found[1])
-
-
-def validated_union(runs_and_fronts, damaged=None) -> tuple[np.ndarray | None, tuple[int, ...]]:
+def validated_union(runs_and_fronts, damaged=None) -> tuple[np.ndarray | None, np.ndarray | None]:
     """:func:`validated_success` over several (run, front) pairs, the fronts concatenated in
-    order (as ``select`` lists them): (their rates, NaN where none; the world counts found), or
-    (None, ()) when no run has a validation. A damaged validation.json counts as none and its
-    RunError's message goes to ``damaged`` (None: ignored): a listing is still of use without it."""
+    order (as ``select`` lists them): (their rates, NaN where none; each row's validation world
+    count, 0 where none), or (None, None) when no run has a validation. A damaged
+    validation.json counts as none and its RunError's message goes to ``damaged`` (None:
+    ignored): a listing is still of use without it."""
     pairs = list(runs_and_fronts)
 
     def read(run, front):
@@ -172,9 +161,19 @@ def validated_union(runs_and_fronts, damaged=None) -> tuple[np.ndarray | None, t
 
     found = [read(run, front) for run, front in pairs]
     if all(v is None for v in found):
-        return None, ()
-    rates = [np.full(len(front), np.nan) if v is None else v[0] for v, (_, front) in zip(found, pairs)]
-    return np.concatenate(rates), tuple(sorted({v[1] for v in found if v is not None}))
+        return None, None
+    rates = np.concatenate([np.full(len(front), np.nan) if v is None else v[0] for v, (_, front) in zip(found, pairs)])
+    worlds = np.concatenate([np.zeros(len(front), int) if v is None else np.full(len(front), v[1])
+                             for v, (_, front) in zip(found, pairs)])
+    return rates, np.where(np.isnan(rates), 0, worlds)
+
+
+def row_validation(rates: np.ndarray | None, worlds: np.ndarray | None, i: int) -> tuple[float, int] | None:
+    """(validation success, worlds) of row ``i`` of :func:`validated_union`'s arrays (what an
+    export records), or None when that row was not validated."""
+    if rates is None or np.isnan(rates[i]):
+        return None
+    return float(rates[i]), int(worlds[i])
 
 
 def _read(run: Run):
@@ -207,4 +206,4 @@ def _count(v) -> bool:
 
 
 __all__ = ["FILE", "FORMAT", "Validation", "in_contention", "load_validation", "validate", "validate_rows", "validated_success",
-           "validated_union", "validation_of", "validation_settings", "validation_worlds"]
+           "validated_union", "row_validation", "validation_settings", "validation_worlds"]

@@ -22,13 +22,13 @@ from mjxskill.training.explore.solutions import Solutions
 def export_solution(entry: RunEntry, k: int, solutions: Solutions | None = None) -> dict:
     """Writes ``selected-<k>/`` of ``entry``'s Pareto row ``k``; returns the paths written."""
     from mjxskill.training.selection import export_document, export_texts, write_export
-    from mjxskill.training.validation import validation_of
+    from mjxskill.training.validation import row_validation, validated_union
 
     front = entry.front()
     if not 0 <= k < len(front):
         raise CommandError(f"Pareto row {k}: {entry.run.path} has rows 0-{len(front) - 1}" if len(front)
                            else f"{entry.run.path} has an empty Pareto front")
-    doc = export_document(entry.config, front, k, entry.run.path, validation_of(entry.run, front, k))
+    doc = export_document(entry.config, front, k, entry.run.path, row_validation(*validated_union([(entry.run, front)]), k))
     folder = entry.run.path / f"selected-{k}"
     for name, text in export_texts(doc).items():
         path = folder / name

@@ -47,7 +47,7 @@ function meets(row) {
   const { minSuccess, maxForce } = limits();
   if (!filtering()) return null;
   // a validated row is held to its validation success, as select does
-  const success = row.validated !== null && row.validated !== undefined ? row.validated : row.success_rate;
+  const success = row.validated !== null ? row.validated : row.success_rate;
   return (minSuccess === null || (success !== null && success >= minSuccess))
     && (maxForce === null || (row.peak_contact_force !== null && row.peak_contact_force <= maxForce));
 }
@@ -66,13 +66,10 @@ function redraw() {
     : `${S.front.length} Pareto solutions, no filter`;
 }
 
-function anyValidated() {
-  return S.front.some((r) => r.validated !== null && r.validated !== undefined);
-}
-
 function frontTable() {
+  const validated = S.front.some((r) => r.validated !== null);
   const head = [...(isMulti() ? ["run"] : []), "k", ...S.run.parameters.map((p) => `${shortName(p.name)} [${p.unit}]`),
-    ...S.run.objectives.map((o) => `obj ${o}`), "success", "max F", ...(anyValidated() ? ["validated"] : [])];
+    ...S.run.objectives.map((o) => `obj ${o}`), "success", "max F", ...(validated ? ["validated"] : [])];
   table($("front-table"), head, S.front.map((r) => {
     const m = meets(r);
     const chosen = S.selected && S.selected.run === r.run && S.selected.index === r.index;
@@ -80,7 +77,7 @@ function frontTable() {
       ...(isMulti() ? [element("td", {}, S.run.runs[r.run].label)] : []), element("td", {}, String(r.k)),
       ...r.params.map((v) => element("td", {}, fmt(v))), ...r.objectives.map((v) => element("td", {}, fmt(v, 5))),
       element("td", {}, pct(r.success_rate)), element("td", {}, newtons(r.peak_contact_force)),
-      ...(anyValidated() ? [element("td", {}, r.validated === null ? "-" : pct(r.validated))] : []));
+      ...(validated ? [element("td", {}, r.validated === null ? "-" : pct(r.validated))] : []));
     tr.addEventListener("click", () => select(r.run, r.index));
     return tr;
   }));
