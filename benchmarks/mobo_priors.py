@@ -28,8 +28,17 @@ The priors, per problem, each one Gaussian per dimension with a standard deviati
 The reference point is inferred from the warm-up (as a robot run has it) unless
 ``--given-ref`` gives the optimizer the problem's.
 
+The report (printed at the end, or with ``--report`` from saved files, several merged by
+seed) gives per setting and checkpoint the hypervolume about the problem's reference point and
+the regret a run without a prior would report: the share (%) of the whole front's
+hypervolume missed about the reference point that the same seed's no-prior run infers from
+its warm-up (``mobo_quality.py``'s own-reference regret, here one reference for every setting
+of a seed, so that the settings compare), or about the problem's reference with ``--given-ref``. Each setting is compared with no prior by a
+two-sided Mann-Whitney U test on the regret (push: on the hypervolume).
+
     python benchmarks/mobo_priors.py --seeds 10 --save prior-runs.json
     python benchmarks/mobo_priors.py --seeds 5 --push --push-only --push-worlds 3 --push-budget 36
+    python benchmarks/mobo_priors.py --report prior-runs.json more-seeds.json
 """
 
 from __future__ import annotations
@@ -50,6 +59,7 @@ sys.path.insert(0, os.path.dirname(__file__))
 import mjxskill  # noqa: E402,F401
 
 from mjxskill.gp import Prior, hypervolume, minimize  # noqa: E402
+from mjxskill.gp.hypervolume_scalarization import warmup_reference  # noqa: E402
 from mjxskill.training.priors import PRIOR_FROM_STD_FRACTION  # noqa: E402
 from mobo_quality import PROBLEMS, branin_currin, parse_options  # noqa: E402
 
@@ -61,6 +71,21 @@ TRANSFER_COMPONENTS = 8  # Pareto solutions an earlier run hands on (a run's fro
 # of 20-40 episodes can explore.
 GP_PROBLEMS_BY_NAME = {**PROBLEMS, "ZDT1 (d=30)": dict(PROBLEMS["ZDT1 (d=6)"], d=30)}
 GP_PROBLEMS = ("BraninCurrin", "ZDT1 (d=6)", "ZDT1 (d=30)")
+
+
+def code_version() -> str:
+    """The commit the runs come from (with " + changes" where the tree differs from it), or
+    "unknown" outside a git checkout: results of different code must not be taken for one."""
+    import subprocess
+
+    here = os.path.dirname(os.path.abspath(__file__))
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here, capture_output=True,
+                               text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return commit + (" + changes" if dirty else "")
 
 
 def nearest_ideal(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -123,9 +148,9 @@ def hv_at(y: np.ndarray, ref, checkpoints) -> list:
     return [float(hypervolume(y[:c], ref)) for c in checkpoints]
 
 
-def quartiles(values) -> str:
+def quartiles(values, digits: int = 2) -> str:
     q1, med, q3 = np.percentile(values, [25, 50, 75])
-    return f"{med:.2f} [{q1:.2f}, {q3:.2f}]"
+    return f"{med:,.{digits}f} [{q1:,.{digits}f}, {q3:,.{digits}f}]"
 
 
 # -- the push task ----------------------------------------------------------------------------
@@ -162,6 +187,7 @@ def run_push(rollout, task, scn, prior, seed, args, options) -> np.ndarray:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--first-seed", type=int, default=0, help="seeds first-seed .. first-seed + seeds - 1 (to add seeds to an earlier run)")
     ap.add_argument("--budget", type=int, default=60)
     ap.add_argument("--batch", type=int, default=5)
     ap.add_argument("--init", type=int, default=10)
@@ -180,7 +206,17 @@ def main(argv=None):
     ap.add_argument("--push-init", type=int, default=12)
     ap.add_argument("--push-seconds", type=float, default=12.0, help="episode length (12: the scenario's full episodes)")
     ap.add_argument("--save", help="write the raw results (objective values of every run) as JSON")
+    ap.add_argument("--report", nargs="+", metavar="FILE",
+                    help="run nothing: print the report of runs saved with --save (several files merged by seed)")
     args = ap.parse_args(argv)
+    if args.report:
+        try:
+            raw = load_saved(args.report)
+        except (OSError, ValueError) as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 2
+        report(raw)
+        return 0
     options = parse_options(args.option)
     settings = [s for s in args.settings.split(",") if s]
     checkpoints = sorted({c for c in (20, 40, args.budget) if c <= args.budget})
@@ -189,8 +225,8 @@ def main(argv=None):
     print(f"priors: one truncated Gaussian per dimension, std {args.std_fraction:g} x range; acquisition options "
           f"{options or 'defaults'} (pibo_beta 2, prior_share 0.5 unless set)")
     if not args.push_only:
-        print(f"GP problems: budget {args.budget} = {args.init} warm-up + batches of {args.batch}; seeds 0..{args.seeds - 1}")
-    raw = {"args": vars(args), "checkpoints": checkpoints, "problems": {}}
+        print(f"GP problems: budget {args.budget} = {args.init} warm-up + batches of {args.batch}; seeds {args.first_seed}..{args.first_seed + args.seeds - 1}")
+    raw = {"args": vars(args), "checkpoints": checkpoints, "code": code_version(), "problems": {}}
     for name in [] if args.push_only else args.problems:
         problem = GP_PROBLEMS_BY_NAME[name]
         priors = gp_priors(name, problem["d"], args.std_fraction)
@@ -203,7 +239,7 @@ def main(argv=None):
         entry = raw["problems"][name] = {"ref": problem["ref"], "max_hv": problem["max_hv"], "runs": {}}
         for kind in settings:
             hvs, secs = [], []
-            for seed in range(args.seeds):
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
                 t0 = time.monotonic()
                 y = run_gp(problem, priors[kind], seed, args, options)
                 secs.append(time.monotonic() - t0)
@@ -219,6 +255,8 @@ def main(argv=None):
     if args.save:
         with open(args.save, "w") as fh:
             json.dump(raw, fh)
+    report(raw)
+    return 0
 
 
 def _push(args, options, settings, raw) -> None:
@@ -232,13 +270,13 @@ def _push(args, options, settings, raw) -> None:
     seeds = args.seeds if args.push_seeds is None else args.push_seeds
     checkpoints = sorted({c for c in (20, args.push_budget) if c <= args.push_budget})
     print(f"\npush: native engine, {args.push_worlds} worlds, {args.push_seconds:g} s episodes, budget {args.push_budget} "
-          f"= {args.push_init} warm-up + batches of {args.push_batch}, seeds 0..{seeds - 1}; good prior: operator_a "
+          f"= {args.push_init} warm-up + batches of {args.push_batch}, seeds {args.first_seed}..{args.first_seed + seeds - 1}; good prior: operator_a "
           f"{np.round(priors['good']['mean'][0], 3).tolist()}, misleading: offsets +0.25 m")
     rollout = build_rollout(scn, task, "native", worlds=args.push_worlds, episode_seconds=args.push_seconds)
     runs = {}
     try:
         for kind in [k for k in settings if k in priors]:  # no earlier push run to transfer from
-            for seed in range(seeds):
+            for seed in range(args.first_seed, args.first_seed + seeds):
                 t0 = time.monotonic()
                 y = run_push(rollout, task, scn, priors[kind], seed, args, options)
                 runs.setdefault(kind, []).append({"seed": seed, "y": y.tolist(), "seconds": time.monotonic() - t0})
@@ -258,5 +296,136 @@ def _push(args, options, settings, raw) -> None:
     raw["problems"]["push"] = {"ref_rewards": (-ref).tolist(), "runs": runs}
 
 
+# -- the report -------------------------------------------------------------------------------
+# Arguments that must agree for runs from several files to be merged: they set what a run is.
+_SAME_GP = ("budget", "batch", "init", "std_fraction", "given_ref", "option")
+_SAME_PUSH = ("push_worlds", "push_budget", "push_batch", "push_init", "push_seconds", "std_fraction", "option")
+
+
+def load_saved(paths) -> dict:
+    """Merge files written by ``--save`` into one raw result: the runs of each problem and
+    setting, by seed (a seed saved twice with the same values is kept once). ValueError
+    (naming the file and what is wrong) for a file that is not such a result, for settings
+    that differ between files, or for a seed saved twice with different values."""
+    merged: dict = {"problems": {}}
+    first: dict = {}
+    for path in paths:
+        try:
+            with open(path) as fh:
+                raw = json.load(fh)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"{path}: not JSON ({e})") from None
+        if not isinstance(raw, dict) or not isinstance(raw.get("args"), dict) or not isinstance(raw.get("problems"), dict):
+            raise ValueError(f"{path}: not a result of mobo_priors.py --save (expected keys 'args' and 'problems')")
+        for name, entry in raw["problems"].items():
+            if name != "push" and name not in GP_PROBLEMS_BY_NAME:
+                raise ValueError(f"{path}: unknown problem {name!r} (known: {', '.join(GP_PROBLEMS_BY_NAME)}, push)")
+            if not isinstance(entry, dict) or not isinstance(entry.get("runs"), dict):
+                raise ValueError(f"{path}: problem {name!r} has no 'runs'")
+            keys = _SAME_PUSH if name == "push" else _SAME_GP
+            here = {k: raw["args"].get(k) for k in keys}
+            there = first.setdefault(name, (path, here))
+            for k in keys:
+                if here[k] != there[1][k]:
+                    raise ValueError(f"{path}: problem {name!r} was run with {k} = {here[k]!r}, "
+                                     f"but {there[0]} with {there[1][k]!r}; runs of different settings do not merge")
+            target = merged["problems"].setdefault(name, {"args": here, "runs": {}, "code": []})
+            code = raw.get("code", "not recorded")
+            if code not in target["code"]:
+                target["code"].append(code)
+            for kind, runs in entry["runs"].items():
+                have = target["runs"].setdefault(kind, [])
+                seeds = {r["seed"]: r["y"] for r in have}
+                for i, r in enumerate(runs):
+                    if not isinstance(r, dict) or not isinstance(r.get("seed"), int) or not isinstance(r.get("y"), list):
+                        raise ValueError(f"{path}: {name} / {kind}, run {i}: expected 'seed' (an integer) and 'y' (a list)")
+                    y = np.asarray(r["y"], np.float64)
+                    if y.ndim != 2 or len(y) == 0:
+                        raise ValueError(f"{path}: {name} / {kind}, seed {r['seed']}: 'y' is not an (n, m) table")
+                    if r["seed"] in seeds:  # a run reproduced (they are deterministic per seed) is kept once
+                        if not np.array_equal(seeds[r["seed"]], y):
+                            raise ValueError(f"{path}: {name} / {kind}, seed {r['seed']} is saved twice, with different values")
+                        continue
+                    seeds[r["seed"]] = y
+                    have.append({"seed": r["seed"], "y": y})
+    return merged
+
+
+def mann_whitney(a, b) -> float:
+    from scipy.stats import mannwhitneyu
+
+    return float(mannwhitneyu(a, b, alternative="two-sided").pvalue)
+
+
+def report(raw) -> dict:
+    """Print, per problem and setting, the hypervolume and (GP problems) the regret at each
+    checkpoint, median [q1, q3], and Mann-Whitney p against no prior (module docstring).
+    Returns {problem: {setting: {"seeds", "hv" (seeds, checkpoints), "regret" (GP problems,
+    seeds with a no-prior run)}}}."""
+    out = {}
+    for name, entry in raw["problems"].items():
+        args = entry.get("args") or raw["args"]
+        runs = {kind: sorted(({"seed": r["seed"], "y": np.asarray(r["y"], np.float64)} for r in rs), key=lambda r: r["seed"])
+                for kind, rs in entry["runs"].items()}
+        codes = entry.get("code", [raw.get("code", "not recorded")])
+        if len(codes) > 1:
+            print(f"\n{name}: note: these runs come from different code ({'; '.join(codes)})")
+        out[name] = (_report_push if name == "push" else _report_gp)(name, args, runs)
+    return out
+
+
+def _report_gp(name, args, runs) -> None:
+    problem = GP_PROBLEMS_BY_NAME[name]
+    checkpoints = sorted({c for c in (20, 40, args["budget"]) if c <= args["budget"]})
+    # The regret's reference: the one the runs report against, the problem's where it was given
+    # to them, else the one the same seed's no-prior run inferred from its warm-up.
+    own_ref = {r["seed"]: np.asarray(problem["ref"], np.float64) if args["given_ref"] else warmup_reference(r["y"][: args["init"]])
+               for r in runs.get("none", [])}
+    front = {seed: problem["front_hv"](ref) for seed, ref in own_ref.items()}
+    print(f"\n{name}: hypervolume about {problem['ref']} (max {problem['max_hv']}), and regret (%) about "
+          + ("that reference, given to the optimizer" if args["given_ref"] else "the reference the same seed's no-prior run infers"))
+    regret, out = {}, {}
+    for kind, rs in runs.items():
+        hv = np.asarray([hv_at(r["y"], problem["ref"], checkpoints) for r in rs])
+        rows = [r for r in rs if r["seed"] in own_ref]
+        regret[kind] = {r["seed"]: [100.0 * (1.0 - hypervolume(r["y"][:c], own_ref[r["seed"]]) / front[r["seed"]])
+                                    for c in checkpoints] for r in rows}
+        print(f"  {kind:<10} ({len(rs)} seeds) hypervolume at "
+              + ", ".join(f"{c}: {quartiles(hv[:, i])}" for i, c in enumerate(checkpoints)))
+        out[kind] = {"seeds": [r["seed"] for r in rs], "hv": hv, "regret": np.asarray(list(regret[kind].values()))}
+        if regret[kind]:
+            table = out[kind]["regret"]
+            cells = []
+            for i, c in enumerate(checkpoints):
+                cell = f"{c}: {quartiles(table[:, i])}"
+                if kind != "none":
+                    cell += f" (p {mann_whitney(table[:, i], [v[i] for v in regret['none'].values()]):.3g})"
+                cells.append(cell)
+            print(f"  {'':<10} regret at " + ", ".join(cells))
+    if "none" not in runs:
+        print("  (no regret: the file holds no run without a prior to take the reference from)")
+    return out
+
+
+def _report_push(name, args, runs) -> None:
+    checkpoints = sorted({c for c in (20, args["push_budget"]) if c <= args["push_budget"]})
+    # One reference for every run (objectives are maximized): the worst value of each objective
+    # over all runs' evaluations, so the hypervolumes of the settings compare.
+    ref = (-np.concatenate([r["y"] for rs in runs.values() for r in rs])).max(axis=0)
+    hv = {kind: np.asarray([hv_at(-r["y"], ref, checkpoints) for r in rs]) for kind, rs in runs.items()}
+    best = max(float(h.max()) for h in hv.values())
+    print(f"\npush: hypervolume in rewards about {np.round(-ref, 3).tolist()} (the worst of every run); the best "
+          f"any run reached {best:,.0f}")
+    for kind, h in hv.items():
+        cells = []
+        for i, c in enumerate(checkpoints):
+            cell = f"{c}: {quartiles(h[:, i], 0)}, gap {best - np.median(h[:, i]):,.0f}"
+            if kind != "none" and "none" in hv:
+                cell += f" (p {mann_whitney(h[:, i], hv['none'][:, i]):.3g})"
+            cells.append(cell)
+        print(f"  {kind:<10} ({len(h)} seeds) " + "; ".join(cells))
+    return {kind: {"seeds": [r["seed"] for r in runs[kind]], "hv": h} for kind, h in hv.items()}
+
+
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
