@@ -33,8 +33,9 @@ seed) gives per setting and checkpoint the hypervolume about the problem's refer
 the regret a run without a prior would report: the share (%) of the whole front's
 hypervolume missed about the reference point that the same seed's no-prior run infers from
 its warm-up (``mobo_quality.py``'s own-reference regret, here one reference for every setting
-of a seed, so that the settings compare), or about the problem's reference with ``--given-ref``. Each setting is compared with no prior by a
-two-sided Mann-Whitney U test on the regret (push: on the hypervolume).
+of a seed, so that the settings compare), or about the problem's reference with
+``--given-ref``. Each setting is compared with no prior by a two-sided Mann-Whitney U test on
+the regret (push: on the hypervolume).
 
     python benchmarks/mobo_priors.py --seeds 10 --save prior-runs.json
     python benchmarks/mobo_priors.py --seeds 5 --push --push-only --push-worlds 3 --push-budget 36
@@ -187,7 +188,8 @@ def run_push(rollout, task, scn, prior, seed, args, options) -> np.ndarray:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=10)
-    ap.add_argument("--first-seed", type=int, default=0, help="seeds first-seed .. first-seed + seeds - 1 (to add seeds to an earlier run)")
+    ap.add_argument("--first-seed", type=int, default=0,
+                    help="seeds first-seed .. first-seed + seeds - 1 (to add seeds to an earlier run)")
     ap.add_argument("--budget", type=int, default=60)
     ap.add_argument("--batch", type=int, default=5)
     ap.add_argument("--init", type=int, default=10)
