@@ -145,6 +145,11 @@ def run_gp(problem, prior, seed, args, options) -> np.ndarray:
     return res.Y
 
 
+def checkpoints_of(budget: int, marks=(20, 40)) -> list:
+    """The evaluation counts a report reads: the marks within the budget, and the budget."""
+    return sorted({c for c in (*marks, budget) if c <= budget})
+
+
 def hv_at(y: np.ndarray, ref, checkpoints) -> list:
     return [float(hypervolume(y[:c], ref)) for c in checkpoints]
 
@@ -221,7 +226,7 @@ def main(argv=None):
         return 0
     options = parse_options(args.option)
     settings = [s for s in args.settings.split(",") if s]
-    checkpoints = sorted({c for c in (20, 40, args.budget) if c <= args.budget})
+    checkpoints = checkpoints_of(args.budget)
     started = time.monotonic()
     print(f"load average at start: {' '.join(f'{v:.2f}' for v in os.getloadavg())} ({os.cpu_count()} cores)")
     print(f"priors: one truncated Gaussian per dimension, std {args.std_fraction:g} x range; acquisition options "
@@ -270,7 +275,7 @@ def _push(args, options, settings, raw) -> None:
     task = plan_task(scn)
     priors = push_priors(task, args.std_fraction)
     seeds = args.seeds if args.push_seeds is None else args.push_seeds
-    checkpoints = sorted({c for c in (20, args.push_budget) if c <= args.push_budget})
+    checkpoints = checkpoints_of(args.push_budget, marks=(20,))
     print(f"\npush: native engine, {args.push_worlds} worlds, {args.push_seconds:g} s episodes, budget {args.push_budget} "
           f"= {args.push_init} warm-up + batches of {args.push_batch}, seeds {args.first_seed}..{args.first_seed + seeds - 1}; good prior: operator_a "
           f"{np.round(priors['good']['mean'][0], 3).tolist()}, misleading: offsets +0.25 m")
@@ -285,16 +290,10 @@ def _push(args, options, settings, raw) -> None:
                 print(f"  {kind} seed {seed}: {time.monotonic() - t0:.0f} s", flush=True)
     finally:
         getattr(rollout, "close", lambda: None)()
-    # One reference for every run (objectives are maximized): the worst value of each objective
-    # over all runs' evaluations, so the hypervolumes of the settings compare.
-    everything = np.concatenate([np.asarray(r["y"]) for rs in runs.values() for r in rs])
-    ref = (-everything).max(axis=0)
-    for kind, rs in runs.items():
-        hv = np.asarray([hv_at(-np.asarray(r["y"]), ref, checkpoints) for r in rs])
-        for r, h in zip(rs, hv):
+    ref, hv = push_hypervolumes(runs, checkpoints)
+    for kind, rs in runs.items():  # kept in the file beside the runs (the report at the end prints them)
+        for r, h in zip(rs, hv[kind]):
             r["hv"] = h.tolist()
-        cells = ", ".join(f"{c}: {quartiles(hv[:, i])}" for i, c in enumerate(checkpoints))
-        print(f"  {kind:<10} hypervolume (ref {np.round(-ref, 3).tolist()} in rewards) median [q1, q3] at {cells}")
     raw["problems"]["push"] = {"ref_rewards": (-ref).tolist(), "runs": runs}
 
 
@@ -376,9 +375,9 @@ def report(raw) -> dict:
     return out
 
 
-def _report_gp(name, args, runs) -> None:
+def _report_gp(name, args, runs) -> dict:
     problem = GP_PROBLEMS_BY_NAME[name]
-    checkpoints = sorted({c for c in (20, 40, args["budget"]) if c <= args["budget"]})
+    checkpoints = checkpoints_of(args["budget"])
     # The regret's reference: the one the runs report against, the problem's where it was given
     # to them, else the one the same seed's no-prior run inferred from its warm-up.
     own_ref = {r["seed"]: np.asarray(problem["ref"], np.float64) if args["given_ref"] else warmup_reference(r["y"][: args["init"]])
@@ -386,22 +385,20 @@ def _report_gp(name, args, runs) -> None:
     front = {seed: problem["front_hv"](ref) for seed, ref in own_ref.items()}
     print(f"\n{name}: hypervolume about {problem['ref']} (max {problem['max_hv']}), and regret (%) about "
           + ("that reference, given to the optimizer" if args["given_ref"] else "the reference the same seed's no-prior run infers"))
-    regret, out = {}, {}
-    for kind, rs in runs.items():
-        hv = np.asarray([hv_at(r["y"], problem["ref"], checkpoints) for r in rs])
-        rows = [r for r in rs if r["seed"] in own_ref]
-        regret[kind] = {r["seed"]: [100.0 * (1.0 - hypervolume(r["y"][:c], own_ref[r["seed"]]) / front[r["seed"]])
-                                    for c in checkpoints] for r in rows}
-        print(f"  {kind:<10} ({len(rs)} seeds) hypervolume at "
-              + ", ".join(f"{c}: {quartiles(hv[:, i])}" for i, c in enumerate(checkpoints)))
-        out[kind] = {"seeds": [r["seed"] for r in rs], "hv": hv, "regret": np.asarray(list(regret[kind].values()))}
-        if regret[kind]:
-            table = out[kind]["regret"]
+    out = {kind: {"seeds": [r["seed"] for r in rs],
+                  "hv": np.asarray([hv_at(r["y"], problem["ref"], checkpoints) for r in rs]),
+                  "regret": np.asarray([[100.0 * (1.0 - hypervolume(r["y"][:c], own_ref[r["seed"]]) / front[r["seed"]])
+                                         for c in checkpoints] for r in rs if r["seed"] in own_ref])}
+           for kind, rs in runs.items()}
+    for kind, o in out.items():
+        print(f"  {kind:<10} ({len(o['seeds'])} seeds) hypervolume at "
+              + ", ".join(f"{c}: {quartiles(o['hv'][:, i])}" for i, c in enumerate(checkpoints)))
+        if len(o["regret"]):
             cells = []
             for i, c in enumerate(checkpoints):
-                cell = f"{c}: {quartiles(table[:, i])}"
+                cell = f"{c}: {quartiles(o['regret'][:, i])}"
                 if kind != "none":
-                    cell += f" (p {mann_whitney(table[:, i], [v[i] for v in regret['none'].values()]):.3g})"
+                    cell += f" (p {mann_whitney(o['regret'][:, i], out['none']['regret'][:, i]):.3g})"
                 cells.append(cell)
             print(f"  {'':<10} regret at " + ", ".join(cells))
     if "none" not in runs:
@@ -409,12 +406,18 @@ def _report_gp(name, args, runs) -> None:
     return out
 
 
-def _report_push(name, args, runs) -> None:
-    checkpoints = sorted({c for c in (20, args["push_budget"]) if c <= args["push_budget"]})
-    # One reference for every run (objectives are maximized): the worst value of each objective
-    # over all runs' evaluations, so the hypervolumes of the settings compare.
-    ref = (-np.concatenate([r["y"] for rs in runs.values() for r in rs])).max(axis=0)
-    hv = {kind: np.asarray([hv_at(-r["y"], ref, checkpoints) for r in rs]) for kind, rs in runs.items()}
+def push_hypervolumes(runs, checkpoints) -> tuple[np.ndarray, dict]:
+    """One reference for every run (objectives are maximized, negated here): the worst value of
+    each objective over all runs' evaluations, so the hypervolumes of the settings compare.
+    Returns (ref, {setting: (seeds, checkpoints) hypervolumes})."""
+    ys = {kind: [-np.asarray(r["y"], np.float64) for r in rs] for kind, rs in runs.items()}
+    ref = np.concatenate([y for y_kind in ys.values() for y in y_kind]).max(axis=0)
+    return ref, {kind: np.asarray([hv_at(y, ref, checkpoints) for y in y_kind]) for kind, y_kind in ys.items()}
+
+
+def _report_push(name, args, runs) -> dict:
+    checkpoints = checkpoints_of(args["push_budget"], marks=(20,))
+    ref, hv = push_hypervolumes(runs, checkpoints)
     best = max(float(h.max()) for h in hv.values())
     print(f"\npush: hypervolume in rewards about {np.round(-ref, 3).tolist()} (the worst of every run); the best "
           f"any run reached {best:,.0f}")

@@ -86,3 +86,14 @@ def test_a_bad_file_exits_2_from_the_command_line_without_a_traceback(tmp_path):
                           capture_output=True, text=True)
     assert done.returncode == 2, done.stderr
     assert "d.json: not JSON" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_a_setting_saved_before_the_no_prior_runs_is_compared_with_them(tmp_path):
+    # The file's order of settings is the command line's (--settings good,none): the p value
+    # against no prior must not depend on it.
+    none = [{"seed": s, "y": ENDS + [[0.5, 5.0]]} for s in range(3)]
+    good = [{"seed": s, "y": ENDS + [[0.25, 0.5]]} for s in range(3)]
+    first = mp.report(mp.load_saved([save(tmp_path / "a.json", {"good": good, "none": none})]))["ZDT1 (d=6)"]
+    second = mp.report(mp.load_saved([save(tmp_path / "b.json", {"none": none, "good": good})]))["ZDT1 (d=6)"]
+    np.testing.assert_array_equal(first["good"]["regret"], second["good"]["regret"])
+    assert (first["good"]["regret"] < first["none"]["regret"]).all()
