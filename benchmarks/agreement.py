@@ -46,8 +46,8 @@ def parameter_sets(scn, task, runs: list[Path], n_random: int = 5) -> dict:
     for i, row in enumerate(rng.uniform(*task.bounds, size=(n_random, len(task.parameter_names)))):
         sets[f"random-{i}"] = row
     for run in runs:
-        from mjxskill.training.run_dir import Run
-        from mjxskill.training.selection import choose
+        from mjxskill.runs.run_dir import Run
+        from mjxskill.evaluation.selection import choose
 
         config = Run(run).config()
         if tuple(config.parameter_names) != tuple(task.parameter_names):
@@ -78,7 +78,7 @@ def main(argv=None) -> dict:
     import numpy as np
 
     from mjxskill import compile_rollout, load_scenario, plan_task
-    from mjxskill.native.rollout import NativeRollout
+    from mjxskill.engine.native.rollout import NativeRollout
 
     scn = load_scenario(args.task)
     task = plan_task(scn)

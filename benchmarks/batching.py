@@ -27,9 +27,9 @@ import numpy as np  # noqa: E402
 from mujoco import mjx  # noqa: E402
 
 from mjxskill.sim import load_scene, postures  # noqa: E402
-from mjxskill.sim.batching import STRATEGIES, control_step, over_worlds, put_worlds  # noqa: E402
-from mjxskill.sim.controller import ControllerConfig, init_controller_state, make_command  # noqa: E402
-from mjxskill.native.controller import native_rollout  # noqa: E402
+from mjxskill.engine.mjx.batching import STRATEGIES, control_step, over_worlds, put_worlds  # noqa: E402
+from mjxskill.engine.mjx.controller import ControllerConfig, init_controller_state, make_command  # noqa: E402
+from mjxskill.engine.native.controller import native_rollout  # noqa: E402
 
 
 def native_steps_per_second(model, cfg, qpos, command, n_steps):

@@ -32,7 +32,7 @@ def main(argv=None) -> dict:
 
     from mjxskill.gp import hypervolume
     from mjxskill.training.front import reference_from
-    from mjxskill.training.run_dir import Run
+    from mjxskill.runs.run_dir import Run
 
     def loaded(path: Path):
         run = Run(path)

@@ -173,7 +173,7 @@ def run_push(rollout, task, scn, prior, seed, args, options) -> np.ndarray:
     """One training run of the push task with the training loop's functions (a temporary run
     directory); returns the objectives (n, 2), larger is better, in evaluation order."""
     from mjxskill.training.loop import rollout_evaluator, train
-    from mjxskill.training.run_dir import Run, RunConfig
+    from mjxskill.runs.run_dir import Run, RunConfig
 
     config = RunConfig(task=scn.name, scenario="push", goal=task.goal, parameter_names=tuple(task.parameter_names),
                        parameter_units=tuple(task.parameter_units),
@@ -267,7 +267,7 @@ def main(argv=None):
 
 
 def _push(args, options, settings, raw) -> None:
-    from mjxskill.engines import build_rollout
+    from mjxskill.engine.build import build_rollout
     from mjxskill.scenario import load_scenario
     from mjxskill.task import plan_task
 

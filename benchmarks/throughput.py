@@ -62,7 +62,7 @@ def workload(task_name: str, seconds: float | None, sets: int, worlds: int | Non
     import numpy as np
 
     from mjxskill import load_scenario, plan_task
-    from mjxskill.native.rollout import NativeRollout
+    from mjxskill.engine.native.rollout import NativeRollout
 
     scn = load_scenario(task_name)
     task = plan_task(scn)
@@ -145,7 +145,7 @@ def native(scn, task, params, worlds, workers: int, seconds) -> dict:
     """The native engine with ``workers`` processes (their start-up timed apart)."""
     import numpy as np
 
-    from mjxskill.native.rollout import NativeRollout
+    from mjxskill.engine.native.rollout import NativeRollout
 
     engine = NativeRollout(scn, task, worlds=worlds.config_index.shape[1], episode_seconds=seconds, workers=workers)
     b, w = worlds.config_index.shape
@@ -167,7 +167,7 @@ def bare(engine, worlds, steps: int) -> dict:
     import mujoco
     import numpy as np
 
-    from mjxskill.native.episode import initial_data
+    from mjxskill.engine.native.episode import initial_data
 
     world = type(worlds)(*(np.asarray(x)[0, 0] for x in worlds))
     data = initial_data(engine, engine.model, world)
@@ -231,7 +231,7 @@ def main(argv=None) -> dict | None:
     import jax
     import mujoco
 
-    from mjxskill.native.rollout import default_workers
+    from mjxskill.engine.native.rollout import default_workers
 
     cores = default_workers()
     sets = int(args.batches.split(",")[0])

@@ -23,7 +23,7 @@ _EXPORTS = {
     "load_scenario": "mjxskill.scenario",
     "plan_task": "mjxskill.task",
     "build_model": "mjxskill.sim.model",
-    "compile_rollout": "mjxskill.rollout.compiled",
+    "compile_rollout": "mjxskill.engine.mjx.compiled",
 }
 
 __all__ = ["__version__", *_EXPORTS]

@@ -1,7 +1,7 @@
 """Goal -> PDDL -> plan -> eBT -> learnable parameters: ``plan_task(scn, goal=None)``.
 
 The pipeline's front end, between the world model (``mjxskill.scenario``) and everything that
-runs a plan (``mjxskill.rollout``, ``mjxskill.native``, ``mjxskill.training``). A loaded scenario
+runs a plan (``mjxskill.engine.mjx``, ``mjxskill.engine.native``, ``mjxskill.training``). A loaded scenario
 holds no plan; a ``PlannedTask`` is the plan of one goal in it.
 """
 

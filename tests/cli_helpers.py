@@ -29,7 +29,7 @@ def run_cli(module, *args, timeout=600, cwd=ROOT, **env):
 
 def invoke(capsys, module, *args):
     """The command's entry point in this process (what ``python -m`` runs): (exit code, stderr)."""
-    main = importlib.import_module(f"mjxskill.{module}").main
+    main = importlib.import_module(f"mjxskill.cli.{module}").main
     try:
         code = main([str(a) for a in args])
     except SystemExit as exit_:  # argparse's own errors
@@ -51,7 +51,7 @@ def error_line(code: int, stderr: str, prog: str, *fragments: str) -> str:
 
 def snapshot(folder: Path) -> dict:
     """Every file below ``folder`` (relative path -> bytes) but the writer's lock (which says
-    who last wrote, mjxskill.training.run_lock): to show that nothing was changed."""
+    who last wrote, mjxskill.runs.run_lock): to show that nothing was changed."""
     folder = Path(folder)
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
             if p.is_file() and p.name != ".lock"}

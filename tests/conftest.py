@@ -9,7 +9,7 @@ seconds).
 """
 
 import mjxskill  # noqa: F401  (side effect: XLA flags and compilation cache)
-from mjxskill.training.render import default_gl
+from mjxskill.evaluation.render import default_gl
 
 default_gl()  # MUJOCO_GL=egl when headless
 

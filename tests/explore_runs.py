@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from mjxskill.training.front import pareto_mask_of
-from mjxskill.training.run_dir import Evaluations, Run, RunConfig, batch_sizes
+from mjxskill.runs.run_dir import Evaluations, Run, RunConfig, batch_sizes
 
 BUDGET, BATCH, N_INIT = 30, 6, 12
 

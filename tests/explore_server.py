@@ -8,7 +8,8 @@ import http.client
 import json
 import threading
 
-from mjxskill.training.explore import Explorer, Solutions, make_explore_server
+from mjxskill.explore.server import Explorer, make_explore_server
+from mjxskill.explore.solutions import Solutions
 
 
 @contextlib.contextmanager

@@ -6,8 +6,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from mjxskill.rollout import Worlds
-from mjxskill.rollout.bindings import nominal_poses
+from mjxskill.engine.mjx import Worlds
+from mjxskill.engine.common.bindings import nominal_poses
 
 
 def params_of(task, *rows) -> np.ndarray:
@@ -23,7 +23,7 @@ def params_of(task, *rows) -> np.ndarray:
 
 def native_like(rollout):
     """The native engine with the compiled ``rollout``'s task and settings."""
-    from mjxskill.native import NativeRollout
+    from mjxskill.engine.native import NativeRollout
 
     return NativeRollout(rollout.scenario, rollout.task, worlds=rollout.worlds, episode_seconds=rollout.episode_seconds)
 

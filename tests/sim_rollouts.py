@@ -12,10 +12,10 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from mjxskill.sim.batching import control_step, put_worlds
-from mjxskill.sim.controller import ControllerConfig, init_controller_state, make_command, tool_pose
+from mjxskill.engine.mjx.batching import control_step, put_worlds
+from mjxskill.engine.mjx.controller import ControllerConfig, init_controller_state, make_command, tool_pose
 from mjxskill.sim.inverse_kinematics import inverse_kinematics, tool_down_quat
-from mjxskill.sim.motion import Pose, linear_trajectory
+from mjxskill.engine.mjx.motion import Pose, linear_trajectory
 from mjxskill.sim.postures import HOME
 from mjxskill.sim.scene import load_scene
 

@@ -15,7 +15,7 @@ import pytest
 from cli_helpers import ROOT, error_line, invoke, snapshot, subprocess_env
 from mjxskill.scenario import load_scenario
 from mjxskill.task import plan_task, planning_texts
-from mjxskill.training.run_dir import EVALUATIONS, PARETO, RUN_STATE, Evaluations, Run, RunConfig, write_csv
+from mjxskill.runs.run_dir import EVALUATIONS, PARETO, RUN_STATE, Evaluations, Run, RunConfig, write_csv
 from scenario_texts import library_text, shipped_text, write_library_copy
 
 PUSH = shipped_text("push")
@@ -163,7 +163,7 @@ def test_out_takes_an_empty_folder_and_refuses_a_run(tmp_path, capsys):
 # -- 6: one writer per run directory --------------------------------------------------------------
 HOLDER = """
 import sys, time
-from mjxskill.training.run_lock import lock_run
+from mjxskill.runs.run_lock import lock_run
 lock = lock_run(sys.argv[1])
 print("locked", flush=True)
 time.sleep(120)

@@ -12,7 +12,7 @@ import pytest
 
 from mjxskill import build_model, load_scenario
 from mjxskill.errors import ScenarioError
-from mjxskill.native import NativeRollout
+from mjxskill.engine.native import NativeRollout
 from mjxskill.sim.shapes import SHAPE_MODELS, Drawn, box_tensor, box_with_hole_parts, prism_tensor, prism_vertices
 from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.task import plan_task

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mjxskill import build_model, load_scenario
-from mjxskill.native import NativeRollout
+from mjxskill.engine.native import NativeRollout
 from mjxskill.sim.tool_force import tool_force_addresses
 from mjxskill.task import plan_task
 from scenario_texts import shipped_text, write_copy

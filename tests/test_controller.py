@@ -15,10 +15,10 @@ from hypothesis import strategies as st
 from mujoco import mjx
 
 from mjxskill.sim import load_scene
-from mjxskill.sim.controller import (
+from mjxskill.engine.mjx.controller import (
     COMMAND_SIZE, ControllerConfig, ControllerState, impedance_control, make_command, split_command)
-from mjxskill.native.controller import NativeControllerState, native_impedance_control
-from mjxskill.sim.rotations import quat_conj, quat_mul, quat_to_rotvec, rotvec_to_quat
+from mjxskill.engine.native.controller import NativeControllerState, native_impedance_control
+from mjxskill.engine.common.rotations import quat_conj, quat_mul, quat_to_rotvec, rotvec_to_quat
 
 N_STATES = 100
 
@@ -143,7 +143,7 @@ def test_quaternion_helpers_match_mujoco(a, b):
 @pytest.mark.parametrize("strategy,chunk", [("map", None), ("chunked", 2)])
 def test_batching_strategies_agree_with_vmap(strategy, chunk):
     """Every strategy maps the same per-world function; zero-size leaves like MJX's are kept."""
-    from mjxskill.sim.batching import over_worlds
+    from mjxskill.engine.mjx.batching import over_worlds
 
     def per_world(x, tree):
         return {"y": jnp.sin(x) * tree["a"].sum(), "empty": tree["empty"] + 1.0}

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from mjxskill.task import plan_task
-from mjxskill.training.evaluation import (
+from mjxskill.evaluation.baselines import (
     Candidates,
     build_candidates,
     evaluate_candidates,
@@ -104,14 +104,14 @@ def test_significance_stars_against_exact_mann_whitney():
 
 
 def test_stars_at_the_paper_levels():
-    from mjxskill.training.evaluation import stars_of
+    from mjxskill.evaluation.baselines import stars_of
 
     assert [stars_of(p) for p in (0.2, 0.1, 0.099, 0.05, 0.049, 0.01, 0.0099, 0.001, 0.0009)] == \
         ["ns", "ns", "*", "*", "**", "**", "***", "***", "****"]
 
 
 def test_csv_table_and_box_plot(tmp_path):
-    from mjxskill.training.evaluation import Evaluation
+    from mjxskill.evaluation.baselines import Evaluation
 
     names = ("pareto-0", "pareto-1", "planner", "random-0", "random-1", "operator_a")
     groups = ("pareto", "pareto", "planner", "random", "random", "manual")

@@ -11,7 +11,7 @@ import time
 import pytest
 
 from cli_helpers import ROOT, command, error_line, invoke, run_cli, snapshot, subprocess_env
-from mjxskill.training.runs import runs_in
+from mjxskill.runs.layout import runs_in
 from test_train_cli import QUICK_GP
 
 TINY = ["--repeats", "2", "--budget", "4", "--batch-size", "2", "--init", "2", "--worlds", "1", "--episode-seconds", "0.2",
@@ -163,7 +163,7 @@ def test_select_takes_the_validated_solution_first(experiment, tmp_path, capsys)
     assert doc["run"] == str(copy / "optimizer" / "seed-1") and doc["pareto_index"] == expected_row
     assert doc["validation_success_rate"] == 1.0 and doc["validated_in"].startswith(f"{worlds} fresh worlds")
     # the explore page's "select the best meeting them" follows the same rule
-    from mjxskill.training.explore.data import choose_document, runs_in as page_runs
+    from mjxskill.explore.data import choose_document, runs_in as page_runs
 
     entries = page_runs(copy)
     assert entries[1].run.path == copy / "optimizer" / "seed-1"
@@ -176,8 +176,8 @@ def test_select_lists_without_a_damaged_or_stale_validation(experiment, tmp_path
     import numpy as np
 
     from mjxskill.select import main
-    from mjxskill.training.run_dir import Run
-    from mjxskill.training.validation import validated_success
+    from mjxskill.runs.run_dir import Run
+    from mjxskill.evaluation.validation import validated_success
 
     out, _ = experiment
     copy = tmp_path / "exp"

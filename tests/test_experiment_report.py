@@ -14,14 +14,15 @@ from mjxskill.errors import RunError
 from mjxskill.gp import hypervolume
 from mjxskill.scenario import load_scenario
 from mjxskill.task import plan_task, planning_texts
-from mjxskill.training.evaluate_run import evaluate_run
-from mjxskill.training.experiment import Experiment, Protocol, write_report
-from mjxskill.training.experiment.directory import repetition_settings
-from mjxskill.training.experiment.driver import validate_timed
-from mjxskill.training.experiment.stats import normalization, normalized_curve
+from mjxskill.evaluation.evaluate_run import evaluate_run
+from mjxskill.experiment.directory import Experiment, Protocol
+from mjxskill.experiment.report import write_report
+from mjxskill.experiment.directory import repetition_settings
+from mjxskill.experiment.driver import validate_timed
+from mjxskill.experiment.stats import normalization, normalized_curve
 from mjxskill.training.front import pareto_mask_of
-from mjxskill.training.run_dir import Evaluations, RunConfig, batch_sizes
-from mjxskill.training.runs import directory_kind, runs_in
+from mjxskill.runs.run_dir import Evaluations, RunConfig, batch_sizes
+from mjxskill.runs.layout import directory_kind, runs_in
 from cli_helpers import error_line, invoke, snapshot
 from scripted import ScriptedRollout, expected
 
@@ -68,7 +69,7 @@ def experiment(tmp_path_factory):
 
 
 def test_the_explore_page_shows_an_experiments_runs_in_its_order(experiment):
-    from mjxskill.training.explore.data import runs_in as page_runs
+    from mjxskill.explore.data import runs_in as page_runs
 
     exp, _ = experiment
     entries = page_runs(exp.path)
@@ -147,7 +148,7 @@ def test_the_report_covers_the_finished_repetitions_with_the_stated_pick(experim
 
 
 def _random_sets(run):
-    from mjxskill.training.evaluate_run import load_evaluation
+    from mjxskill.evaluation.evaluate_run import load_evaluation
 
     ev, _ = load_evaluation(run)
     return ev.candidates.params[[g == "random" for g in ev.candidates.groups]]
@@ -257,8 +258,8 @@ def _band(p: float) -> str:
 
 
 def test_mann_whitney_stars_at_the_four_levels_agree_with_scipy(experiment, tmp_path):
-    from mjxskill.training.experiment.report import markdown
-    from mjxskill.training.pooled import POOLED_LABELS, plot_pooled, pooled_tests
+    from mjxskill.experiment.report import markdown
+    from mjxskill.evaluation.pooled import POOLED_LABELS, plot_pooled, pooled_tests
 
     samples = {"picked": (PICKED, PICKED)}
     for group in ("pareto", "planner", "random", "manual"):
@@ -289,7 +290,7 @@ def _rows(*batches) -> Evaluations:
 
 
 def test_hypervolume_of_repetitions_is_taken_in_the_space_of_their_union():
-    from mjxskill.training.experiment.stats import Repetition, hypervolumes
+    from mjxskill.experiment.stats import Repetition, hypervolumes
 
     # objective 0 spans [0, 3] and objective 1 [0, 4] over the four runs together (no single run
     # spans both): scaled minimized point s = ((3 - o0) / 3, (4 - o1) / 4), reference (1.1, 1.1)
@@ -337,7 +338,7 @@ DAMAGED = (  # (file, its text, what the one error line says)
 
 
 def test_an_experiment_written_before_validation_picks_by_training_success():
-    from mjxskill.training.experiment.stats import pick_rule
+    from mjxskill.experiment.stats import pick_rule
 
     old = Protocol.from_yaml(GOOD_PROTOCOL, "experiment.yaml")
     assert (old.validation_per_config, old.per_config, old.random_sets) == (0, 2, 3)
@@ -374,7 +375,7 @@ def test_bad_flags_are_one_error_line_before_anything_runs(tmp_path, capsys, arg
 
 
 def test_experiment_holding_knows_the_members_as_written_and_through_links(tmp_path):
-    from mjxskill.training.runs import EXPERIMENT, experiment_holding
+    from mjxskill.runs.layout import EXPERIMENT, experiment_holding
 
     exp = tmp_path / "exp"
     (exp / "optimizer" / "seed-0").mkdir(parents=True)

@@ -2,7 +2,7 @@
 command's errors, and the on-demand rollout (with the native engine standing in for the
 compiled one, so that no test waits for an MJX compile)."""
 
-from mjxskill.training.render import default_gl
+from mjxskill.evaluation.render import default_gl
 
 default_gl()  # MUJOCO_GL=egl when headless; must precede the first import of mujoco
 
@@ -20,9 +20,9 @@ import pytest  # noqa: E402
 from explore_runs import make_push_run, make_repeated_run  # noqa: E402
 from explore_server import get_json, request, serving  # noqa: E402
 from mjxskill.errors import RunError  # noqa: E402
-from mjxskill.training.explore import Solutions  # noqa: E402
-from mjxskill.training.explore.data import runs_in  # noqa: E402
-from mjxskill.training.selection import choose  # noqa: E402
+from mjxskill.explore.solutions import Solutions  # noqa: E402
+from mjxskill.explore.data import runs_in  # noqa: E402
+from mjxskill.evaluation.selection import choose  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -136,7 +136,7 @@ def test_paths_outside_the_run_and_the_static_folder_are_refused(tmp_path):
 
 
 def test_the_page_loads_nothing_from_other_hosts():
-    from mjxskill.training.explore.server import STATIC
+    from mjxskill.explore.server import STATIC
 
     for path in STATIC.iterdir():
         if path.suffix in (".html", ".css") or path.name in ("app.js", "plot.js"):
@@ -231,8 +231,8 @@ class NativeStandIn:
         self.gate, self.calls, self.built = gate, 0, None
 
     def __call__(self, entry):
-        from mjxskill.native import NativeRollout
-        from mjxskill.training.run_task import scenario_and_task
+        from mjxskill.engine.native import NativeRollout
+        from mjxskill.runs.run_task import scenario_and_task
 
         self.calls += 1
         if self.gate is not None:
@@ -253,7 +253,7 @@ def wait_for_job(base: str, path: str) -> dict:
 
 
 def test_a_point_is_rolled_out_on_demand_without_blocking_the_server(tmp_path):
-    from mjxskill.training.evaluation import evaluation_worlds
+    from mjxskill.evaluation.baselines import evaluation_worlds
 
     run = make_push_run(tmp_path / "push-0")
     gate = threading.Event()
@@ -333,8 +333,8 @@ sys.path.insert(0, sys.argv[1])
 import mjxskill
 from explore_runs import make_push_run
 from test_explore import NativeStandIn
-from mjxskill.training.explore import Solutions
-from mjxskill.training.explore.data import runs_in
+from mjxskill.explore.solutions import Solutions
+from mjxskill.explore.data import runs_in
 
 run = make_push_run(__import__("pathlib").Path(sys.argv[2]))
 entry, ev = runs_in(run.path)[0], run.evaluations()

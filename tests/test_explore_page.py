@@ -5,7 +5,7 @@ and the on-demand rollout with the native engine standing in for the compiled on
 Without Chromium or Playwright the tests are skipped here, and fail under CI (CI=true), where
 ``.ci/run`` installs both."""
 
-from mjxskill.training.render import default_gl
+from mjxskill.evaluation.render import default_gl
 
 default_gl()
 
@@ -17,7 +17,7 @@ import pytest  # noqa: E402
 
 from explore_runs import make_push_run, make_repeated_run  # noqa: E402
 from explore_server import serving  # noqa: E402
-from mjxskill.training.explore import Solutions  # noqa: E402
+from mjxskill.explore.solutions import Solutions  # noqa: E402
 from test_explore import NativeStandIn, select_export  # noqa: E402
 
 CHROMIUM = os.environ.get("MJXSKILL_CHROMIUM", "/usr/bin/chromium")
@@ -106,7 +106,7 @@ def test_filters_highlight_the_solutions_meeting_them(tmp_path, open_page):
         assert page.locator("#pareto circle.front.fails").count() == len(front) - meets.sum()
         assert page.locator("#filter-count").inner_text() == f"{meets.sum()} of {len(front)} Pareto solutions meet the filters"
         page.click("#pick-best")
-        from mjxskill.training.selection import choose
+        from mjxskill.evaluation.selection import choose
 
         page.wait_for_selector(f'#front-table tr.selected[data-k="{choose(front, 20, 0.5)}"]')
 

@@ -15,7 +15,7 @@ import pytest
 
 from cli_helpers import ROOT, command, subprocess_env
 from mjxskill.cli.interrupt import EXIT_INTERRUPTED
-from mjxskill.training.run_dir import EVALUATIONS, Run
+from mjxskill.runs.run_dir import EVALUATIONS, Run
 from test_train_cli import TINY
 
 GC_SCRIPT = """

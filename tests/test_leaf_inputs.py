@@ -14,9 +14,9 @@ from hypothesis import strategies as st
 import mjxskill  # noqa: F401
 from mjxskill.bt_compiled import compile_tree
 from mjxskill.ebt.nodes import action
-from mjxskill.native.leaves import NativeBlackboard, build_native_leaves
-from mjxskill.rollout.bindings import NOMINAL, ObjectSlot, SceneBindings
-from mjxskill.rollout.leaves import LeafWorld, build_leaf_programs, init_blackboard, reference_pose
+from mjxskill.engine.native.leaves import NativeBlackboard, build_native_leaves
+from mjxskill.engine.common.bindings import NOMINAL, ObjectSlot, SceneBindings
+from mjxskill.engine.mjx.leaves import LeafWorld, build_leaf_programs, init_blackboard, reference_pose
 from mjxskill.sim.inverse_kinematics import tool_down_quat
 
 STIFFNESS = (400.0, 400.0, 400.0, 50.0, 50.0, 50.0)

@@ -14,10 +14,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mjxskill.sim.motion import (
+from mjxskill.engine.mjx.motion import (
     MotionLimits, Pose, init_spiral, linear_trajectory, plane_basis, ramp, spiral_offset, spiral_step,
     trajectory_duration)
-from mjxskill.sim.rotations import quat_mul, rotvec_to_quat
+from mjxskill.engine.common.rotations import quat_mul, rotvec_to_quat
 
 LIMITS = MotionLimits()
 DT = 0.002
@@ -45,7 +45,7 @@ def _angle_from(quats, start):
     """Rotation angles (rad) from ``start`` (4,) to each of ``quats`` (N, 4), in float64 from the
     relative rotation's vector part: arccos of the dot product is ill-conditioned near zero, so
     the quaternions' float32 rounding showed as 3e-4 rad steps (0.15 rad/s over one 2 ms step);
-    ``quat_angle`` (mjxskill.sim.rotations, mjxskill.native.motion) is such an arccos."""
+    ``quat_angle`` (mjxskill.engine.common.rotations, mjxskill.engine.native.motion) is such an arccos."""
     q, s = np.asarray(quats, np.float64), np.asarray(start, np.float64)
     w = q @ s
     # vector part of conj(start) * q

@@ -14,7 +14,7 @@ import jax
 import numpy as np
 
 from mjxskill import compile_rollout, load_scenario, plan_task
-from mjxskill.native import NativeRollout
+from mjxskill.engine.native import NativeRollout
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "docs" / "examples" / "multihost.py"

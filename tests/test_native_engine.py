@@ -2,7 +2,7 @@
 process: the same episodes, the same numbers.
 
 The plain loop (``NativeRollout.run_episode``: one control step at a time, the scalar numpy
-controller) is the reference. The lockstep path (``mjxskill.native.lockstep``: the controller
+controller) is the reference. The lockstep path (``mjxskill.engine.native.lockstep``: the controller
 vectorized over episodes, the references of a tick at once) evaluates the same law in a
 different order of floating-point operations, so it may differ in the last bits; measured:
 4e-15 absolute on a reward total of ~28 (push, 3 s, 6 episodes). Worker processes run the
@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from mjxskill import load_scenario, plan_task
-from mjxskill.engines import ENGINES, build_rollout, resolve_engine
-from mjxskill.native import NativeRollout
+from mjxskill.engine.build import ENGINES, build_rollout, resolve_engine
+from mjxskill.engine.native import NativeRollout
 from scenario_texts import shipped_text
 
 HAND_FOUND = [-0.05, -0.15, 0.07, -0.10]  # the push into the goal corner (test_rollout_push.py)

@@ -1,4 +1,4 @@
-"""The native-MuJoCo baseline (mjxskill/native) against the compiled MJX rollout.
+"""The native-MuJoCo baseline (mjxskill/engine/native) against the compiled MJX rollout.
 
 The two are independent implementations of the same episode (numpy + reference BT interpreter +
 C MuJoCo in float64, versus JAX + compiled BT + MJX in float32), so agreement on the same worlds
@@ -27,10 +27,10 @@ from hypothesis import strategies as st
 
 from mjxskill import compile_rollout, load_scenario
 from rollout_inputs import native_like
-from mjxskill.native.leaves import tool_down_aligned
-from mjxskill.native.motion import LinearMotion, plane_basis, spiral_step
-from mjxskill.rollout.leaves import tool_down_aligned as jax_tool_down_aligned
-from mjxskill.sim import motion as jax_motion
+from mjxskill.engine.native.leaves import tool_down_aligned
+from mjxskill.engine.native.motion import LinearMotion, plane_basis, spiral_step
+from mjxskill.engine.mjx.leaves import tool_down_aligned as jax_tool_down_aligned
+from mjxskill.engine.mjx import motion as jax_motion
 from mjxskill.task import plan_task
 
 @pytest.fixture(scope="module")

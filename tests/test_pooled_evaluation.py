@@ -11,11 +11,11 @@ from scipy.stats import mannwhitneyu
 from mjxskill.errors import RunError
 from mjxskill.scenario import load_scenario
 from mjxskill.task import plan_task
-from mjxskill.training.evaluate_run import CHUNKS, FOLDER, RESULT, evaluate_run, evaluation_current, evaluation_settings, load_evaluation
-from mjxskill.training.evaluation import Candidates, Evaluation, mean_success_seconds
-from mjxskill.training.pooled import Pick, contenders, group_force_and_time, pick, pooled_samples, pooled_tests
-from mjxskill.training.run_dir import Evaluations
-from mjxskill.training.validation import Validation
+from mjxskill.evaluation.evaluate_run import CHUNKS, FOLDER, RESULT, evaluate_run, evaluation_current, evaluation_settings, load_evaluation
+from mjxskill.evaluation.baselines import Candidates, Evaluation, mean_success_seconds
+from mjxskill.evaluation.pooled import Pick, contenders, group_force_and_time, pick, pooled_samples, pooled_tests
+from mjxskill.runs.run_dir import Evaluations
+from mjxskill.evaluation.validation import Validation
 from scripted import ScriptedRollout, expected
 from test_bad_input import front_rows, push_run
 
@@ -100,7 +100,7 @@ def push_copy(run, tmp_path):
     import shutil
 
     shutil.copytree(run.path, tmp_path / "copy")
-    from mjxskill.training.run_dir import Run
+    from mjxskill.runs.run_dir import Run
 
     return Run(tmp_path / "copy")
 
@@ -156,7 +156,7 @@ def test_a_validated_pick_takes_the_contender_most_successful_in_the_validation_
 
 
 def test_the_validation_rolls_out_the_contenders_in_fresh_known_worlds_and_is_reused(run):
-    from mjxskill.training.validation import FILE, load_validation, validate, validation_settings
+    from mjxskill.evaluation.validation import FILE, load_validation, validate, validation_settings
 
     def vsettings(**changes):
         values = dict(per_config=2, candidates=2, seed=3, engine="native", episode_seconds=0.2)

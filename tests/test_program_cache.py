@@ -1,4 +1,4 @@
-"""The on-disk program cache (mjxskill/rollout/program_cache.py): a second process reads the
+"""The on-disk program cache (mjxskill/engine/mjx/program_cache.py): a second process reads the
 lowered rollout instead of tracing it and computes bit-identical results; a damaged file is
 traced again (on a tiny program); anything the program depends on changes its key. Asserted on
 the program's origin and the files, not on wall-clock (benchmarks/throughput.py --cache-check
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from mjxskill import compile_rollout, load_scenario
-from mjxskill.rollout.program_cache import program_key
+from mjxskill.engine.mjx.program_cache import program_key
 from scenario_texts import library_text, write_library_copy
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -93,8 +93,8 @@ def _tiny_program(cache: Path, monkeypatch):
     """load_or_trace of a two-line program (no MJX: the cache's bookkeeping, not a rollout)."""
     import mujoco
 
-    from mjxskill.rollout.program_cache import load_or_trace
-    from mjxskill.rollout.worlds import Worlds
+    from mjxskill.engine.mjx.program_cache import load_or_trace
+    from mjxskill.engine.common.worlds import Worlds
 
     monkeypatch.setenv("MJXSKILL_CACHE_DIR", str(cache))
     model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>")
@@ -112,7 +112,7 @@ def test_a_changed_or_misplaced_program_is_detected_traced_again_and_rewritten(t
     import warnings
 
     from mjxskill.errors import Notice
-    from mjxskill.rollout.program_cache import load_or_trace
+    from mjxskill.engine.mjx.program_cache import load_or_trace
 
     first, expected, (model, body, params, worlds) = _tiny_program(tmp_path, monkeypatch)
     stored = tmp_path / "programs" / f"{first.key}.stablehlo"

@@ -11,7 +11,7 @@ from scipy.stats import kstest
 from mjxskill import gp
 from mjxskill.cli.train import Progress
 from mjxskill.training.loop import train
-from mjxskill.training.run_dir import EVALUATIONS, RunConfig
+from mjxskill.runs.run_dir import EVALUATIONS, RunConfig
 from test_train_loop import CONFIG, Recorder, new_run, toy_objective
 
 RANDOM = replace(CONFIG, optimizer="random")

@@ -13,8 +13,8 @@ import pytest
 
 from mjxskill.errors import Notice
 from mjxskill.training.loop import train
-from mjxskill.training.resume import SET_ASIDE
-from mjxskill.training.run_dir import EVALUATIONS, PARETO, Run
+from mjxskill.runs.resume import SET_ASIDE
+from mjxskill.runs.run_dir import EVALUATIONS, PARETO, Run
 from test_train_loop import CONFIG, Recorder, new_run
 
 # CONFIG: batches of 4, 2, 4 (lines 2-5, 6-7 and 8-11 of the file, after the header on line 1)

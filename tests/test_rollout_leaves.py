@@ -11,10 +11,10 @@ from hypothesis import strategies as st
 import mjxskill  # noqa: F401
 from mjxskill.bt_compiled import compile_tree
 from mjxskill.ebt.nodes import Status, action, parallel_fs, sequence
-from mjxskill.rollout.bindings import NOMINAL, ObjectSlot, SceneBindings
-from mjxskill.rollout.leaves import LeafWorld, build_leaf_programs, init_blackboard, reference_pose, tool_down_aligned, tool_yaw
+from mjxskill.engine.common.bindings import NOMINAL, ObjectSlot, SceneBindings
+from mjxskill.engine.mjx.leaves import LeafWorld, build_leaf_programs, init_blackboard, reference_pose, tool_down_aligned, tool_yaw
 from mjxskill.sim.inverse_kinematics import tool_down_quat
-from mjxskill.sim.rotations import quat_mul
+from mjxskill.engine.common.rotations import quat_mul
 
 DEFAULT_STIFFNESS = (400.0, 400.0, 400.0, 50.0, 50.0, 50.0)
 YAW_30 = (math.cos(math.radians(15)), 0.0, 0.0, math.sin(math.radians(15)))

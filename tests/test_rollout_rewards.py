@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import mjxskill  # noqa: F401
-from mjxskill.rollout.rewards import Observation, _raw_term, build_terms, exp_reward
-from mjxskill.rollout.types import objective_matrix
+from mjxskill.engine.mjx.rewards import Observation, _raw_term, build_terms, exp_reward
+from mjxskill.engine.common.types import objective_matrix
 from mjxskill.scenario import load_scenario
 from mjxskill.scenario.schema import Reward
 

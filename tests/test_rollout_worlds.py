@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 import mjxskill  # noqa: F401
-from mjxskill.rollout.bindings import FREE, MOCAP, NOMINAL, bind_scene, referenced_objects
-from mjxskill.rollout.types import leaf_objects
+from mjxskill.engine.common.bindings import FREE, MOCAP, NOMINAL, bind_scene, referenced_objects
+from mjxskill.engine.common.types import leaf_objects
 from mjxskill.sim.model import build_model
-from mjxskill.rollout.worlds import make_sampler, sample_worlds, worlds_per_config
+from mjxskill.engine.common.worlds import make_sampler, sample_worlds, worlds_per_config
 from mjxskill.scenario import load_scenario
 from mjxskill.task import plan_task
 

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mjxskill.errors import RunError
-from mjxskill.training.run_dir import (
+from mjxskill.runs.run_dir import (
     EVALUATIONS,
     Evaluations,
     Run,
@@ -87,7 +87,7 @@ def test_csv_round_trips_float64_exactly(tmp_path_factory, values):
     v = np.array(values, np.float64)
     ev = Evaluations(np.arange(len(v)), v[:, :2], v[:, 2:4], v[:, 4], v[:, 5], v[:, 6], v[:, 7])
     cols = evaluation_columns(("a", "b"), ("o1", "o2"))
-    from mjxskill.training.run_dir import write_csv
+    from mjxskill.runs.run_dir import write_csv
 
     write_csv(path, cols, ev)
     back = read_csv(path, cols)
@@ -187,7 +187,7 @@ def test_a_run_resumes_with_the_optimizer_defaults_it_began_with(tmp_path):
     # A config.yaml written before issue 19 has no optimizer_defaults: its options were
     # relative to generation 1 (Chebyshev, hybrid), which it keeps; a new run records today's.
     from mjxskill.gp.settings import GENERATION, acquisition_defaults
-    from mjxskill.training.run_config import optimizer_config
+    from mjxskill.runs.run_config import optimizer_config
 
     config = make_config()
     assert config.optimizer_defaults == GENERATION

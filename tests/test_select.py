@@ -1,6 +1,6 @@
 """select: choosing a Pareto point by constraint, the export document, offscreen rendering."""
 
-from mjxskill.training.render import default_gl
+from mjxskill.evaluation.render import default_gl
 
 default_gl()  # MUJOCO_GL=egl when headless; must precede the first import of mujoco
 
@@ -8,8 +8,8 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from mjxskill.errors import CommandError  # noqa: E402
-from mjxskill.training.run_dir import Evaluations  # noqa: E402
-from mjxskill.training.selection import choose, export_document  # noqa: E402
+from mjxskill.runs.run_dir import Evaluations  # noqa: E402
+from mjxskill.evaluation.selection import choose, export_document  # noqa: E402
 from test_run_dir import make_config  # noqa: E402
 
 FRONT = Evaluations(
@@ -67,7 +67,7 @@ def test_a_validated_solution_goes_first_by_its_validation_success(max_force, mi
 
 
 def test_select_names_the_best_unvalidated_row_beside_a_validated_pick():
-    from mjxskill.training.selection import best_unvalidated
+    from mjxskill.evaluation.selection import best_unvalidated
 
     assert best_unvalidated(FRONT, None, None, VALIDATED) == 2  # rows 0 and 2 unvalidated: 60 % beats 20 %
     assert best_unvalidated(FRONT, 4.9, None, VALIDATED) == 0
@@ -99,7 +99,7 @@ def frames_or_skip(*args, **kwargs):
     sets MJXSKILL_REQUIRE_RENDER=1 after installing Mesa's EGL: .ci/run) a failure."""
     import os
 
-    from mjxskill.training.render import RenderUnavailable, frames
+    from mjxskill.evaluation.render import RenderUnavailable, frames
 
     try:
         return frames(*args, **kwargs)
@@ -144,8 +144,8 @@ def test_a_rendered_episode_shows_the_worlds_randomized_poses(tmp_path):
     import mujoco
 
     from mjxskill import load_scenario, plan_task
-    from mjxskill.native import NativeRollout
-    from mjxskill.training.render import render_episode
+    from mjxskill.engine.native import NativeRollout
+    from mjxskill.evaluation.render import render_episode
 
     scn = load_scenario("push")
     engine = NativeRollout(scn, plan_task(scn), worlds=1, episode_seconds=0.2, workers=1)

@@ -1,4 +1,4 @@
-"""The run settings table (mjxskill/training/settings.py): one check for the flags and for
+"""The run settings table (mjxskill/runs/settings.py): one check for the flags and for
 config.yaml, and a table that agrees with RunConfig and with train's options."""
 
 import argparse
@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 from mjxskill.cli.args import setting_type
 from mjxskill.cli.train import build_parser
 from mjxskill.errors import RunError
-from mjxskill.training.run_config import RunConfig
-from mjxskill.training.settings import SETTINGS, Setting
+from mjxskill.runs.run_config import RunConfig
+from mjxskill.runs.settings import SETTINGS, Setting
 from test_run_dir import make_config
 
 
@@ -106,7 +106,7 @@ def options_as_config_entry(body: str, older: bool = False):
 
 def test_every_acquisition_setting_is_an_option_of_both_sources_typed_by_gp(capsys):
     from mjxskill.gp import AcquisitionSettings
-    from mjxskill.training.run_config import optimizer_config
+    from mjxskill.runs.run_config import optimizer_config
 
     for f in dataclasses.fields(AcquisitionSettings):
         default = getattr(AcquisitionSettings(), f.name)
@@ -141,7 +141,7 @@ def test_the_optimizer_options_an_older_run_wrote_are_still_read():
     """Before the acquisition settings were one gp field, config.yaml held MOBOConfig's flat
     fields under optimizer_options; those are the same names, values and meanings."""
     from mjxskill.gp.settings import acquisition_defaults
-    from mjxskill.training.run_config import optimizer_config
+    from mjxskill.runs.run_config import optimizer_config
 
     old = {"alpha": 0.1, "bucket": 32, "n_raw": 256, "n_restarts": 4, "n_opt_steps": 50, "fit_starts": 1,
            "fit_steps": 20, "per_element_fit_max_rows": 64, "fit_max_rows": 64, "model": "scalarized", "n_draws": 64,

@@ -1,4 +1,4 @@
-"""Sharding of a batch over local devices (mjxskill/rollout/sharding.py).
+"""Sharding of a batch over local devices (mjxskill/engine/mjx/sharding.py).
 
 Run in fresh subprocesses: the host device count (``--xla_force_host_platform_device_count``)
 must be in XLA_FLAGS before jax starts (mjxskill appends its own CPU flag to them). The compiled
@@ -29,7 +29,7 @@ def _run(code: str, devices: int) -> str:
 # sizes that are not multiples of the device count (padding).
 SCRIPT = """
 import mjxskill, os, jax, jax.numpy as jnp, numpy as np
-from mjxskill.rollout.sharding import shard_batch, batch_mesh
+from mjxskill.engine.mjx.sharding import shard_batch, batch_mesh
 
 assert jax.local_device_count() == 2, jax.devices()
 assert "--xla_cpu_use_fusion_emitters=false" in os.environ["XLA_FLAGS"]
@@ -65,7 +65,7 @@ def test_one_device_leaves_the_function_alone():
     out = _run(
         """
         import mjxskill, jax
-        from mjxskill.rollout.sharding import shard_batch
+        from mjxskill.engine.mjx.sharding import shard_batch
         f = jax.vmap(lambda x: x * 2)
         print(shard_batch(f) is f)
         """,
@@ -78,7 +78,7 @@ def test_unequal_batch_sizes_are_rejected():
     out = _run(
         """
         import mjxskill, jax, jax.numpy as jnp
-        from mjxskill.rollout.sharding import shard_batch
+        from mjxskill.engine.mjx.sharding import shard_batch
         f = shard_batch(jax.vmap(lambda a, b: a + b))
         try:
             f(jnp.ones(3), jnp.ones(4))

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from mjxskill import build_model, load_scenario
-from mjxskill.native import NativeRollout
+from mjxskill.engine.native import NativeRollout
 from mjxskill.task import plan_task
 
 PACKAGE = Path(__file__).resolve().parents[1] / "mjxskill"

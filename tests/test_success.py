@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mjxskill.native.success import SUCCESS_TESTS as NATIVE
-from mjxskill.rollout.success import SUCCESS_TESTS as COMPILED
-from mjxskill.rollout.types import SuccessTest
+from mjxskill.engine.native.success import SUCCESS_TESTS as NATIVE
+from mjxskill.engine.mjx.success import SUCCESS_TESTS as COMPILED
+from mjxskill.engine.common.types import SuccessTest
 from mjxskill.scenario.vocabulary import SUCCESS_KINDS
 
 YAW_90 = (math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4))

@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from cli_helpers import ROOT, command, invoke, run_cli
-from mjxskill.training.run_dir import EVALUATIONS, PARETO, Run
+from mjxskill.runs.run_dir import EVALUATIONS, PARETO, Run
 from mjxskill.task import plan_task
 
 # Tiny episodes and a cheap acquisition search: the commands' behaviour, not the physics or the GP.

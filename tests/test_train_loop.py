@@ -6,7 +6,7 @@ import pytest
 
 from mjxskill.errors import Notice
 from mjxskill.gp import hypervolume
-from mjxskill.training.run_dir import EVALUATIONS, OPTIMIZER_STATE, PARETO, Run, read_csv
+from mjxskill.runs.run_dir import EVALUATIONS, OPTIMIZER_STATE, PARETO, Run, read_csv
 from mjxskill.cli.train import Progress
 from mjxskill.training.front import hypervolume_history, hypervolume_reference
 from mjxskill.training.loop import BatchResult, train

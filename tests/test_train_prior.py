@@ -11,12 +11,12 @@ from cli_helpers import error_line, invoke
 from mjxskill.cli.train import build_parser, resolve_config, resumed_config
 from mjxskill.errors import CommandError, RunError
 from mjxskill.gp import Prior
-from mjxskill.training.evaluations_csv import Evaluations
+from mjxskill.runs.evaluations_csv import Evaluations
 from mjxskill.training.front import pareto_mask_of
 from mjxskill.training.loop import train
 from mjxskill.training.priors import PRIOR_FROM_STD_FRACTION, prior_from_run
-from mjxskill.training.run_config import RunConfig, optimizer_config
-from mjxskill.training.run_dir import EVALUATIONS, Run
+from mjxskill.runs.run_config import RunConfig, optimizer_config
+from mjxskill.runs.run_dir import EVALUATIONS, Run
 from scenario_texts import shipped_text
 from test_run_dir import make_config, rows
 from test_train_loop import Recorder, new_run
@@ -123,7 +123,7 @@ PRIORS = ("parameter_priors:\n  Push.offset_x_start: {mean: -0.03, std: 0.05}\n"
 
 
 def test_the_scenarios_prior_is_the_default_and_prior_from_overrides_it(tmp_path):
-    from mjxskill.training.run_task import scenario_and_task
+    from mjxskill.runs.run_task import scenario_and_task
 
     path = tmp_path / "push.yaml"
     path.write_text(shipped_text("push").replace("manual_parameters:\n", PRIORS, 1))

@@ -6,10 +6,10 @@ import pytest
 
 from mjxskill.ebt.primitives import PRIMITIVES
 from mjxskill.errors import ScenarioError
-from mjxskill.native.leaves import LEAF_PROGRAMS as NATIVE_LEAVES
-from mjxskill.native.rewards import build_native_terms
-from mjxskill.rollout.leaves import LEAF_PROGRAMS as COMPILED_LEAVES
-from mjxskill.rollout.rewards import build_terms
+from mjxskill.engine.native.leaves import LEAF_PROGRAMS as NATIVE_LEAVES
+from mjxskill.engine.native.rewards import build_native_terms
+from mjxskill.engine.mjx.leaves import LEAF_PROGRAMS as COMPILED_LEAVES
+from mjxskill.engine.mjx.rewards import build_terms
 from mjxskill.scenario import load_scenario
 from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS
 from scenario_texts import shipped_text
@@ -40,7 +40,7 @@ def test_the_loader_accepts_cap_and_rejects_an_unknown_constant(tmp_path):
     loaded = load_scenario(path)
     reward = next(r for r in loaded.rewards if r.name == "commanded_force")
     assert reward.constant("cap") == 20.0
-    from mjxskill.rollout.bindings import bind_scene, referenced_objects
+    from mjxskill.engine.common.bindings import bind_scene, referenced_objects
     from mjxskill.sim.model import build_model
 
     bindings = bind_scene(loaded, build_model(loaded), referenced_objects(loaded, []))

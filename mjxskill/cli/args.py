@@ -13,7 +13,7 @@ def add_task_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def add_validation_arguments(parser: argparse.ArgumentParser, when: str, default: str) -> None:
-    """The pick's validation flags (``mjxskill.training.validation``) of experiment and evaluate;
+    """The pick's validation flags (``mjxskill.evaluation.validation``) of experiment and evaluate;
     ``when``: to which picks they apply, ``default``: what applies without the flag (for the help)."""
     parser.add_argument("--validation-per-config", type=int_at_least(0), metavar="N",
                         help=f"{when}: the best solutions within the force bound are rolled out again in N fresh worlds "
@@ -51,7 +51,7 @@ def nonnegative_float(text: str) -> float:
 
 
 def setting_type(setting) -> Callable[[str], object]:
-    """The argparse type of a run setting (``mjxskill.training.settings.Setting``): the check
+    """The argparse type of a run setting (``mjxskill.runs.settings.Setting``): the check
     config.yaml goes through too."""
 
     def parse(text: str):
@@ -66,7 +66,7 @@ def setting_type(setting) -> Callable[[str], object]:
 
 def seed_type() -> Callable[[str], int]:
     """``--seed`` of every command: an integer in the range of a run's seed."""
-    from mjxskill.training.settings import SEED
+    from mjxskill.runs.settings import SEED
 
     return setting_type(SEED)
 

@@ -6,11 +6,11 @@
     python -m mjxskill.evaluate runs/peg-exp                  # an experiment: its protocol, then its report
 
 DIR is a run, a repeated run (``train --repeats``) or an experiment directory
-(``mjxskill.training.runs``); a run or repeated run inside an experiment is evaluated through
+(``mjxskill.runs.layout``); a run or repeated run inside an experiment is evaluated through
 the experiment only (its evaluations follow the experiment's protocol). A run's evaluation goes
-to ``RUN_DIR/evaluation/`` and is reused when it is current (``mjxskill.training.evaluate_run``). A repeated run evaluates sub-run i in
+to ``RUN_DIR/evaluation/`` and is reused when it is current (``mjxskill.evaluation.evaluate_run``). A repeated run evaluates sub-run i in
 the worlds of seed ``--seed`` + i and pools them: one picked solution per run against the
-baselines (``mjxskill.training.pooled``; each pick validated as an experiment's is, unless
+baselines (``mjxskill.evaluation.pooled``; each pick validated as an experiment's is, unless
 ``--validation-per-config 0``), in ``DIR/evaluation/``. An experiment evaluates every
 repetition whose runs are finished with its own protocol (``--validation-per-config`` may change
 how its picks are validated) and rewrites its report.
@@ -25,9 +25,9 @@ from typing import Sequence
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
-from mjxskill.engines import CHOICES, build_rollout, resolve_engine
+from mjxskill.engine.build import CHOICES, build_rollout, resolve_engine
 from mjxskill.errors import CommandError
-from mjxskill.training.settings import BY_NAME
+from mjxskill.runs.settings import BY_NAME
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -50,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _settings(args, config, seed: int) -> dict:
-    from mjxskill.training.evaluate_run import evaluation_settings
+    from mjxskill.evaluation.evaluate_run import evaluation_settings
 
     engine = resolve_engine(args.engine)[0] if args.engine else config.engine
     return evaluation_settings(args.per_config or 5, 10 if args.random is None else args.random, seed,
@@ -75,7 +75,7 @@ def _progress(done: int, total: int) -> None:
 
 
 def _main(args: argparse.Namespace) -> int:
-    from mjxskill.training.runs import directory_kind, experiment_holding
+    from mjxskill.runs.layout import directory_kind, experiment_holding
 
     kind = directory_kind(args.run)
     if kind == "experiment":
@@ -91,11 +91,11 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def _runs(args: argparse.Namespace, repeated: bool) -> int:
-    from mjxskill.training.evaluate_run import FOLDER, evaluate_run
-    from mjxskill.training.evaluation import table
-    from mjxskill.training.experiment.directory import runs_of
-    from mjxskill.training.run_dir import Run
-    from mjxskill.training.run_task import load_run_task
+    from mjxskill.evaluation.evaluate_run import FOLDER, evaluate_run
+    from mjxskill.evaluation.baselines import table
+    from mjxskill.experiment.directory import runs_of
+    from mjxskill.runs.run_dir import Run
+    from mjxskill.runs.run_task import load_run_task
 
     run = Run(args.run)
     config = run.config()
@@ -128,8 +128,8 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
 
 
 def _validate(args, sub, config, ev, rollout, settings: dict):
-    """The validation of one sub-run's pick (``mjxskill.training.validation``; None: asked for none)."""
-    from mjxskill.training.validation import in_contention, validate, validation_settings
+    """The validation of one sub-run's pick (``mjxskill.evaluation.validation``; None: asked for none)."""
+    from mjxskill.evaluation.validation import in_contention, validate, validation_settings
 
     per = 5 if args.validation_per_config is None else args.validation_per_config
     if not per:
@@ -147,8 +147,8 @@ def _validate(args, sub, config, ev, rollout, settings: dict):
 
 def _pool(run, config, results, max_force) -> str:
     """Picks, pooled groups and tests of a repeated run into ``DIR/evaluation/``."""
-    from mjxskill.training.evaluate_run import FOLDER
-    from mjxskill.training.pooled import group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
+    from mjxskill.evaluation.evaluate_run import FOLDER
+    from mjxskill.evaluation.pooled import group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
 
     picks = [pick(sub.front(c), ev, max_force, validation) for sub, c, ev, validation in results]
     validations = [v for *_, v in results]
@@ -172,11 +172,12 @@ def _pool(run, config, results, max_force) -> str:
 
 
 def _experiment(args: argparse.Namespace) -> int:
-    from mjxskill.training.experiment import Experiment, write_report
-    from mjxskill.training.experiment.directory import is_done, repetition_settings
-    from mjxskill.training.experiment.driver import evaluate_timed, validate_timed
+    from mjxskill.experiment.directory import Experiment
+    from mjxskill.experiment.report import write_report
+    from mjxskill.experiment.directory import is_done, repetition_settings
+    from mjxskill.experiment.driver import evaluate_timed, validate_timed
     from mjxskill.cli.experiment import change_validation
-    from mjxskill.training.run_task import load_run_task
+    from mjxskill.runs.run_task import load_run_task
 
     exp = Experiment(args.run)
     config, protocol = exp.config(), exp.protocol()

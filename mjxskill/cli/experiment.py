@@ -8,7 +8,7 @@ R repetitions of the optimizer (seeds seed..seed+R-1) and R of uniform random se
 same settings; per repetition the paper's evaluation; ``report.md``, ``report.json`` and the
 figures in the experiment directory, rewritten after each repetition. The flags are train's
 (``--repeats`` defaults to the scenario's ``repetitions``) plus the evaluation's. What it runs:
-``mjxskill.training.experiment``; the directory: ``mjxskill.training.runs``.
+``mjxskill.experiment``; the directory: ``mjxskill.runs.layout``.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from typing import Sequence
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.cli.train import Progress, add_setting_arguments, resolve_config, resumed_config
-from mjxskill.engines import build_rollout, resolve_engine
+from mjxskill.engine.build import build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 
 # The evaluation's flags: name -> (default, what the protocol field is called)
@@ -86,9 +86,9 @@ def _validation_words(protocol) -> str:
 
 def _main(args: argparse.Namespace) -> int:
     from mjxskill.task import planning_texts
-    from mjxskill.training.experiment import Experiment, Protocol
-    from mjxskill.training.experiment.directory import random_search_config
-    from mjxskill.training.run_task import load_run_task, scenario_and_task
+    from mjxskill.experiment.directory import Experiment, Protocol
+    from mjxskill.experiment.directory import random_search_config
+    from mjxskill.runs.run_task import load_run_task, scenario_and_task
 
     started = time.monotonic()
     if args.resume is not None:
@@ -121,7 +121,8 @@ def _main(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> int:
     from mjxskill.task import describe
-    from mjxskill.training.experiment import run_experiment, write_report
+    from mjxskill.experiment.driver import run_experiment
+    from mjxskill.experiment.report import write_report
 
     protocol = exp.protocol()
     print(describe(scn, task))

@@ -3,7 +3,7 @@
     python -m mjxskill.explore runs/push-0                 # http://127.0.0.1:8765/
     python -m mjxskill.explore runs/push-x10 --port 0      # a repeated run; any free port
 
-The page, its API and what it writes: ``mjxskill.training.explore``.
+The page, its API and what it writes: ``mjxskill.explore``.
 """
 
 from __future__ import annotations
@@ -33,10 +33,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _main(args: argparse.Namespace) -> int:
-    from mjxskill.training.render import default_gl
+    from mjxskill.evaluation.render import default_gl
 
     default_gl()  # before anything imports mujoco (the on-demand rendering)
-    from mjxskill.training.explore import Explorer, Solutions, make_explore_server
+    from mjxskill.explore.server import Explorer, make_explore_server
+    from mjxskill.explore.solutions import Solutions
 
     explorer = Explorer(args.run, Solutions(args.run, per_config=args.per_config, seed=args.seed))
     server = make_explore_server(explorer, args.host, args.port)

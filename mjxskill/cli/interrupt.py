@@ -25,7 +25,7 @@ of a ``python -m mjxskill.<command>`` (``run_command``; never on import):
 
 Nothing is lost by ending there: every finished batch is on disk (appended and fsynced), every
 other file is replaced in one step, and a line cut short is set aside on resume
-(``mjxskill.training.resume``). After an interrupt the process also ends with ``os._exit``
+(``mjxskill.runs.resume``). After an interrupt the process also ends with ``os._exit``
 rather than the interpreter's shutdown, which could crash in XLA's threads (exit 139) when the
 interrupt came during a compile.
 """

@@ -6,14 +6,14 @@
     python -m mjxskill.select runs/push-0 --pick 2 --format mp4 --config-index 1
     python -m mjxskill.select runs/peg-exp --max-force 5     # over every run of an experiment
 
-DIR may be a repeated run or an experiment (``mjxskill.training.runs``): the fronts of all its
+DIR may be a repeated run or an experiment (``mjxskill.runs.layout``): the fronts of all its
 runs are listed in one table (# numbers every row, ``run`` names the run and its row), ``--pick``
 and the constraints choose from all of them, and the export goes to
 ``DIR/selected-<kind>-<seed>-<row>/``. Where the runs' picks were validated
 (``evaluation/validation.json``), the table has their validation success and a pick by
 constraint takes a validated solution first.
 
-The rule of a pick by constraint and the export format: ``mjxskill.training.selection``.
+The rule of a pick by constraint and the export format: ``mjxskill.evaluation.selection``.
 """
 
 from __future__ import annotations
@@ -47,11 +47,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _fronts(path: Path):
     """([(ref, run, its config, its front)], whether ``path`` holds several runs) for the runs
-    ``path`` holds (a run, a repeated run or an experiment: ``mjxskill.training.runs``). Of several,
+    ``path`` holds (a run, a repeated run or an experiment: ``mjxskill.runs.layout``). Of several,
     those not trained yet are left out (an experiment in progress lists the runs done so far); a
     damaged file is refused as ever."""
-    from mjxskill.training.run_dir import PARETO, Run
-    from mjxskill.training.runs import runs_in
+    from mjxskill.runs.run_dir import PARETO, Run
+    from mjxskill.runs.layout import runs_in
 
     refs = runs_in(path)
     out = []
@@ -84,13 +84,13 @@ def _say_what_decided(union, i: int, validated, other: int | None, owner) -> Non
 
 
 def _main(args: argparse.Namespace) -> int:
-    from mjxskill.training.render import default_gl
+    from mjxskill.evaluation.render import default_gl
 
     default_gl()  # before anything imports mujoco
     from mjxskill.training.report import front_table
-    from mjxskill.training.run_dir import concat_all
-    from mjxskill.training.selection import best_unvalidated, choose, export_document, write_export
-    from mjxskill.training.validation import row_validation, validated_union
+    from mjxskill.runs.run_dir import concat_all
+    from mjxskill.evaluation.selection import best_unvalidated, choose, export_document, write_export
+    from mjxskill.evaluation.validation import row_validation, validated_union
 
     fronts, several = _fronts(args.run)
     if args.min_success is not None and args.min_success > 1:
@@ -137,9 +137,9 @@ def _main(args: argparse.Namespace) -> int:
     if args.no_render:
         return 0
 
-    from mjxskill.engines import build_rollout
-    from mjxskill.training.render import RenderUnavailable, render_episode, render_world
-    from mjxskill.training.run_task import load_run_task
+    from mjxskill.engine.build import build_rollout
+    from mjxskill.evaluation.render import RenderUnavailable, render_episode, render_world
+    from mjxskill.runs.run_task import load_run_task
 
     scn, task = load_run_task(run, config)
     n_known = len(scn.robot.start_configs)

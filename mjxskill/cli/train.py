@@ -26,13 +26,13 @@ import numpy as np
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
-from mjxskill.engines import build_rollout, resolve_engine
+from mjxskill.engine.build import build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 from mjxskill.training.loop import rollout_evaluator, train
 from mjxskill.training.priors import describe_prior, prior_from_run, scenario_prior
-from mjxskill.training.run_config import optimizer_problem
-from mjxskill.training.run_dir import Evaluations, Run, RunConfig
-from mjxskill.training.settings import BY_NAME, SETTINGS, cross_problems, optimizer_option_value
+from mjxskill.runs.run_config import optimizer_problem
+from mjxskill.runs.run_dir import Evaluations, Run, RunConfig
+from mjxskill.runs.settings import BY_NAME, SETTINGS, cross_problems, optimizer_option_value
 
 
 class Progress:
@@ -92,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def add_setting_arguments(parser: argparse.ArgumentParser, skip: tuple[str, ...] = (), defaults: dict | None = None) -> None:
     """One flag per run setting but ``skip`` (the same checks as config.yaml's,
-    mjxskill.training.settings; ``defaults``: name -> the default's text for the help), and
+    mjxskill.runs.settings; ``defaults``: name -> the default's text for the help), and
     --quiet and --optimizer-option: the flags of every command that trains."""
     for setting in SETTINGS:
         if setting.name in skip:
@@ -189,7 +189,7 @@ def resumed_config(args: argparse.Namespace, run_path: Path | None = None) -> Ru
 
 def _main(args: argparse.Namespace) -> int:
     from mjxskill.task import planning_texts
-    from mjxskill.training.run_task import load_run_task, scenario_and_task
+    from mjxskill.runs.run_task import load_run_task, scenario_and_task
 
     if args.resume is not None:
         config = resumed_config(args)

@@ -1,7 +1,7 @@
 """The leaf primitives of the eBT: the vocabulary both engines implement.
 
 A leaf's ``Node.primitive`` names one of ``PRIMITIVES``; the compiled rollout
-(``mjxskill.rollout.leaves``) and the native engine (``mjxskill.native.leaves``) each keep one
+(``mjxskill.engine.mjx.leaves``) and the native engine (``mjxskill.engine.native.leaves``) each keep one
 registry of leaf programs keyed by these names, and a test checks that both registries name
 exactly this tuple.
 

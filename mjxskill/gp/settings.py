@@ -167,7 +167,7 @@ class AcquisitionSettings:
 
 
 # The defaults of each generation, as changes from today's (the last one: AcquisitionSettings()).
-# A run records the generation it began with (mjxskill.training.run_config) and resumes with
+# A run records the generation it began with (mjxskill.runs.run_config) and resumes with
 # it, so a change of the defaults does not change the optimizer in the middle of a run.
 # Generation 1, until issue 19: log-EI on augmented Chebyshev scalarizations (ParEGO), the
 # hybrid model.

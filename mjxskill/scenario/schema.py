@@ -32,7 +32,7 @@ from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS
 
 
 # Bounds of the run settings a scenario gives defaults for, shared with the command-line flags
-# and a run's config.yaml (mjxskill.training.settings): one number, one place.
+# and a run's config.yaml (mjxskill.runs.settings): one number, one place.
 MAX_EPISODE_SECONDS = 3600.0  # an hour of simulated time; the shipped episodes last 12 and 18 s
 MAX_SEED = 2**32 - 1  # seeds become uint32 PRNG keys and numpy seed words
 MIN_N_INIT = 2  # the optimizer's warm-up needs two points to fit a model

@@ -1,9 +1,9 @@
 """The world model's vocabularies, each declared once: reward kinds, shapes, success tests.
 
 The loader (``mjxskill.scenario``) reads what a YAML may and must give from these tables; each
-engine keeps one implementation per entry (rewards: ``mjxskill.rollout.rewards`` and
-``mjxskill.native.rewards``; success tests: ``mjxskill.rollout.success`` and
-``mjxskill.native.success``; shapes: ``mjxskill.sim.shapes``), and tests check that every
+engine keeps one implementation per entry (rewards: ``mjxskill.engine.mjx.rewards`` and
+``mjxskill.engine.native.rewards``; success tests: ``mjxskill.engine.mjx.success`` and
+``mjxskill.engine.native.success``; shapes: ``mjxskill.sim.shapes``), and tests check that every
 registry names exactly its table.
 """
 
@@ -30,7 +30,7 @@ class RewardKind:
 
 
 # The reward vocabulary, read by the loader (what a YAML may and must give), the compiled
-# rewards (mjxskill.rollout.rewards) and the native ones (mjxskill.native.rewards): one table, so
+# rewards (mjxskill.engine.mjx.rewards) and the native ones (mjxskill.engine.native.rewards): one table, so
 # the three cannot disagree about a kind, a constant or a default. Meanings: ``Reward``.
 REWARD_KINDS: Mapping[str, RewardKind] = MappingProxyType(
     {
@@ -78,7 +78,7 @@ SHAPES: Mapping[str, ShapeKind] = MappingProxyType(
 
 # The success tests a scenario can select (``success.kind``): kind -> (required keys, optional
 # keys) besides kind, object and target. Both engines keep one test per kind
-# (mjxskill.rollout.success, mjxskill.native.success) and a test checks they name exactly these.
+# (mjxskill.engine.mjx.success, mjxskill.engine.native.success) and a test checks they name exactly these.
 SUCCESS_KINDS: Mapping[str, tuple[tuple[str, ...], tuple[str, ...]]] = MappingProxyType(
     {
         "object_at_pose": (("position_tolerance", "orientation_tolerance_deg"), ()),

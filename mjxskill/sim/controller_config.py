@@ -1,5 +1,5 @@
 """The impedance controller's static settings and the arm's layout, shared by both engines: the
-JAX law (``mjxskill.sim.controller``, over MJX) and the numpy one (``mjxskill.native.controller``,
+JAX law (``mjxskill.engine.mjx.controller``, over MJX) and the numpy one (``mjxskill.engine.native.controller``,
 over native MuJoCo). Host-side only: nothing here imports MJX.
 """
 

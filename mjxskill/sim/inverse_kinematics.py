@@ -6,7 +6,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from mjxskill.sim.controller import N_ARM
+from mjxskill.sim.controller_config import N_ARM
 from mjxskill.sim.scene import TOOL_SITE
 
 # Tool pointing straight down (site z axis = world -z): rotation by pi about y, the natural

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from mjxskill.errors import RunError
-from mjxskill.training.run_dir import RUN_STATE, Evaluations, Run, RunConfig, batch_sizes
+from mjxskill.runs.run_dir import RUN_STATE, Evaluations, Run, RunConfig, batch_sizes
 
 HV_MARGIN = 0.1  # reference point = worst warm-up value + this fraction of the warm-up range
 

@@ -3,7 +3,7 @@
 Scenario -> plan -> eBT -> compiled rollout -> optimizer loop (the Bayesian optimizer, or uniform
 random search as the baseline it is compared with: ``propose``). Every batch is appended to
 ``evaluations.csv`` and flushed before the next proposal; the optimizer state is replayed from
-that file on resume (see ``mjxskill.training.run_dir``), so an interrupted run continues to the
+that file on resume (see ``mjxskill.runs.run_dir``), so an interrupted run continues to the
 same budget and ends with the results of an uninterrupted one.
 """
 
@@ -13,12 +13,12 @@ from typing import Callable, NamedTuple, Protocol
 
 import numpy as np
 
-from mjxskill.training.atomic_write import replace_whole
+from mjxskill.runs.atomic_write import replace_whole
 from mjxskill.training.front import pareto_mask_of, reference_from
-from mjxskill.training.evaluations_csv import FORCE_COLUMNS
-from mjxskill.training.resume import resume_batches
-from mjxskill.training.run_config import optimizer_config
-from mjxskill.training.run_dir import OPTIMIZER_STATE, Evaluations, Run, RunConfig, batch_sizes, concat_all
+from mjxskill.runs.evaluations_csv import FORCE_COLUMNS
+from mjxskill.runs.resume import resume_batches
+from mjxskill.runs.run_config import optimizer_config
+from mjxskill.runs.run_dir import OPTIMIZER_STATE, Evaluations, Run, RunConfig, batch_sizes, concat_all
 
 
 class BatchResult(NamedTuple):
@@ -75,7 +75,7 @@ def rollout_evaluator(rollout, batch_size: int, seed: int) -> BatchEvaluator:
 def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Progress | None = None) -> Evaluations:
     """Runs (or continues) the optimizer loop of ``run`` to ``config.budget`` evaluations.
 
-    The complete batches on disk are kept (``mjxskill.training.resume``: what cannot be used is
+    The complete batches on disk are kept (``mjxskill.runs.resume``: what cannot be used is
     set aside, never dropped) and only the missing ones are evaluated. The optimizer state is
     replayed batch by batch in batch order, so every proposal is the one an uninterrupted run
     makes; each new batch is on disk before the next proposal. Returns all evaluations.

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from mjxskill.errors import RunError
-from mjxskill.training.run_dir import Run
+from mjxskill.runs.run_dir import Run
 
 FLAT_STD_FACTOR = 10.0
 PRIOR_FROM_STD_FRACTION = 0.1

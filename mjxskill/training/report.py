@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjxskill.training.run_dir import Evaluations, Run, RunConfig
+from mjxskill.runs.run_dir import Evaluations, Run, RunConfig
 
 OBJECTIVE_UNIT = "reward, larger is better"
 

@@ -1,0 +1,49 @@
+"""The two physics engines behind one interface, and which one a run uses.
+
+``mjx``: the compiled rollout (``mjxskill.engine.mjx``): every episode of a call in one XLA program;
+what accelerators are for. ``native``: the native MuJoCo engine (``mjxskill.engine.native``): episodes
+in lockstep in numpy over C MuJoCo, one worker process per core; on a CPU it runs the training
+workload several times faster than MJX does (benchmarks/throughput.py, results in
+benchmarks/RESULTS.md), and the two agree on success rates (benchmarks/agreement.py).
+``auto`` picks MJX on a GPU or TPU and the native engine on a CPU.
+
+Both engines give ``rollout(params (B, P), key) -> RolloutOutput`` with the same worlds for the
+same key, ``run_worlds``, ``sample_worlds``, ``worlds_per_config``, ``trace``,
+``parameter_names``, ``bounds``, ``task``, ``scenario``, ``mj_model``.
+"""
+
+from __future__ import annotations
+
+ENGINES = ("mjx", "native")
+CHOICES = (*ENGINES, "auto")
+
+
+def resolve_engine(name: str, backend: str | None = None) -> tuple[str, str]:
+    """(engine, why) for ``name`` in CHOICES; ``backend`` defaults to jax's default backend."""
+    if name in ENGINES:
+        return name, "as asked"
+    if name != "auto":
+        raise ValueError(f"unknown engine {name!r}; expected one of {', '.join(CHOICES)}")
+    if backend is None:
+        import jax
+
+        backend = jax.default_backend()
+    if backend in ("gpu", "cuda", "rocm", "tpu"):
+        return "mjx", f"auto: MJX on the {backend.upper()}"
+    return "native", f"auto: the native engine on the {backend.upper()} (faster than MJX there, benchmarks/RESULTS.md)"
+
+
+def build_rollout(scn, task, engine: str, *, worlds: int | None = None, episode_seconds: float | None = None,
+                  start_configs=None, mj_model=None, workers: int | None = None):
+    """The rollout of ``task`` in ``scn`` on ``engine`` ("mjx" or "native"; resolve "auto" first)."""
+    if engine == "mjx":
+        from mjxskill.engine.mjx.compiled import compile_rollout
+
+        return compile_rollout(scn, task, worlds=worlds, episode_seconds=episode_seconds,
+                               start_configs=start_configs, mj_model=mj_model)
+    if engine == "native":
+        from mjxskill.engine.native.rollout import NativeRollout
+
+        return NativeRollout(scn, task, worlds=worlds, episode_seconds=episode_seconds,
+                             start_configs=start_configs, mj_model=mj_model, workers=workers)
+    raise ValueError(f"unknown engine {engine!r}; expected one of {', '.join(ENGINES)}")

@@ -1,0 +1,247 @@
+"""``compile_rollout``: every parameter set in every randomized world in one compiled call.
+
+    rollout = compile_rollout(load_scenario("push"), worlds=7)   # plans the scenario's goal
+    out = rollout(params, key)       # params (B, P) in rollout.parameter_names order
+    out.objectives                   # (B, O), larger is better, mean over the W worlds
+    out.success                      # (B, W) bool
+    out.metrics                      # name -> (B, W) per-world values
+
+The B x W episodes are flattened into one batch axis and mapped with the backend's batching
+strategy (``mjxskill.engine.mjx.batching``); the same key gives the same worlds and bit-identical
+outputs. Worlds are drawn independently for every (parameter set, world) pair, as the paper
+draws them per evaluation.
+
+The jitted functions are closures over what they need (the episode spec, the MJX model and
+data template, the world sampler), built once here, Brax style: nothing mutable is passed to
+``jax.jit`` as a static argument.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from mujoco import mjx
+
+from mjxskill.bt_compiled import compile_tree
+from mjxskill.engine.mjx.episode import EpisodeSpec, run_episode
+from mjxskill.engine.mjx.leaves import build_leaf_programs
+from mjxskill.engine.mjx.program_cache import Program, load_or_trace
+from mjxskill.engine.mjx.rewards import build_terms
+from mjxskill.engine.mjx.sharding import shard_batch
+from mjxskill.engine.common.types import EpisodeResult, RolloutOutput, episode_setup, objective_matrix, summarize
+from mjxskill.engine.common.worlds import Worlds, WorldSampler, make_sampler, sample_worlds, worlds_per_config
+from mjxskill.scenario.schema import Scenario
+from mjxskill.engine.mjx.batching import STRATEGIES, default_strategy, over_worlds
+
+
+@dataclass(frozen=True, eq=False)
+class Rollout:
+    """A compiled rollout of one planned task and W worlds per parameter set (see module doc).
+
+    task: the ``mjxskill.task.PlannedTask`` it runs. mj_model: the native model it simulates
+    (``mjxskill.sim.model.build_model``). The callables are the jitted closures
+    ``compile_rollout`` built; ``program`` picks the batched-episode program per shape.
+    """
+
+    scenario: Scenario
+    task: object
+    worlds: int
+    spec: EpisodeSpec
+    sampler: WorldSampler
+    mj_model: mujoco.MjModel
+    strategy: str
+    chunk: int | None
+    _sample: Callable = field(repr=False)  # (key, batch) -> Worlds (batch, W)
+    _episodes: Callable = field(repr=False)  # (params (B, P), worlds (B, W)) -> RolloutOutput, unjitted
+    _trace: Callable = field(repr=False)  # jitted (params (P,), world) -> (EpisodeResult, TickRecord)
+    _programs: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return self.task.parameter_names
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, P) lower and upper bounds of the learnable parameters."""
+        return self.task.bounds
+
+    @property
+    def objective_names(self) -> tuple[str, ...]:
+        return self.scenario.objective_names
+
+    @property
+    def reward_names(self) -> tuple[str, ...]:
+        return tuple(t.name for t in self.spec.terms)
+
+    @property
+    def episode_seconds(self) -> float:
+        return self.spec.setup.ticks / self.scenario.bt_hz
+
+    @property
+    def control_steps_per_episode(self) -> int:
+        return self.spec.setup.ticks * self.spec.setup.steps_per_tick
+
+    def check_params(self, params) -> np.ndarray:
+        params = np.asarray(params, np.float32)
+        if params.ndim == 1:
+            params = params[None]
+        n = len(self.parameter_names)
+        if params.ndim != 2 or params.shape[1] != n:
+            raise ValueError(
+                f"params must have shape (B, {n}) in the order {list(self.parameter_names)}, got {params.shape}"
+            )
+        if not np.all(np.isfinite(params)):
+            raise ValueError(f"params must be finite, got {params}")
+        return params
+
+    def __call__(self, params, key: jax.Array) -> RolloutOutput:
+        """Rolls out (B, P) ``params`` in W worlds each, drawn from ``key``."""
+        params = self.check_params(params)
+        # Sampling is a separate small program, so a call and ``run_worlds`` share one compile.
+        return self._run(params, self.sample_worlds(key, len(params)))
+
+    def run_worlds(self, params, worlds: Worlds) -> RolloutOutput:
+        """Rolls out (B, P) ``params`` in explicit ``worlds`` of leading shape (B, W') or (W',)
+        (the same worlds for every parameter set)."""
+        params = self.check_params(params)
+        lead = worlds.config_index.shape
+        if len(lead) == 1:
+            worlds = jax.tree.map(lambda x: jnp.broadcast_to(x, (len(params),) + x.shape), worlds)
+        elif len(lead) != 2 or lead[0] != len(params):
+            raise ValueError(f"worlds must have leading shape (W,) or ({len(params)}, W), got {lead}")
+        return self._run(params, worlds)
+
+    def _run(self, params: np.ndarray, worlds: Worlds) -> RolloutOutput:
+        params = jnp.asarray(params)
+        return self.program(params, worlds).fn(params, worlds)
+
+    def program(self, params, worlds: Worlds) -> Program:
+        """The batched-episode program for arguments shaped like (B, P) ``params`` and (B, W)
+        ``worlds``: on one device read from (or traced into) the on-disk program cache, so that
+        another process skips the tracing (``mjxskill.engine.mjx.program_cache``); over several
+        devices the sharded ``jax.jit`` program, traced in each process."""
+        shapes = tuple((np.shape(x), str(x.dtype)) for x in jax.tree.leaves((params, worlds)))
+        if shapes not in self._programs:
+            if jax.local_device_count() > 1:
+                self._programs[shapes] = Program(jax.jit(self._episodes), "jit", "")
+            else:
+                self._programs[shapes] = load_or_trace(self.identity(), self.mj_model, self._episodes, params, worlds)
+        return self._programs[shapes]
+
+    def identity(self) -> str:
+        """Everything besides the model and the argument shapes that shapes the program (part
+        of its cache key): the scenario's validated content, the plan, the episode settings."""
+        setup = self.spec.setup
+        return repr((self.scenario, self.task, setup.ticks, setup.steps_per_tick, self.strategy, self.chunk))
+
+    def trace(self, params, world: Worlds):
+        """Per-tick record of one parameter vector (P,) in one world (unbatched fields):
+        (EpisodeResult, TickRecord with leading (T,)); for inspection and rendering."""
+        params = self.check_params(params)[0]
+        return self._trace(jnp.asarray(params), world)
+
+    def sample_worlds(self, key: jax.Array, batch: int) -> Worlds:
+        """The (batch, W) worlds ``rollout(params, key)`` uses for ``batch`` parameter sets."""
+        return self._sample(key, batch)
+
+    def worlds_per_config(self, key: jax.Array, per_config: int, configs: np.ndarray | None = None) -> Worlds:
+        """``per_config`` worlds from each start configuration (default: the training ones;
+        pass ``scenario.robot.eval_configs`` for the unseen ones)."""
+        sampler = self.sampler if configs is None else self.sampler._replace(configs=np.asarray(configs, np.float32))
+        return worlds_per_config(sampler, key, per_config)
+
+
+def compile_rollout(
+    scn: Scenario,
+    task=None,
+    *,
+    worlds: int | None = None,
+    episode_seconds: float | None = None,
+    batching: str | None = None,
+    chunk: int | None = None,
+    start_configs: np.ndarray | None = None,
+    mj_model: mujoco.MjModel | None = None,
+) -> Rollout:
+    """Builds the rollout of ``task`` in ``scn`` (compiled lazily on the first call per batch size).
+
+    task: a ``mjxskill.task.PlannedTask`` (default: ``plan_task(scn)``, the scenario's goal).
+    worlds: W, randomized worlds per parameter set (default: the scenario's n_worlds).
+    episode_seconds: overrides the scenario's episode length.
+    batching: "vmap", "map" or "chunked" (default: the backend's fastest, see sim.batching).
+    start_configs: (C, 7) start configurations to draw from (default: the training ones).
+    mj_model: the model to simulate (default: ``mjxskill.build_model(scn)``, the MJCF with the world
+    model's physics).
+    """
+    from mjxskill._runtime import enable_compilation_cache
+
+    enable_compilation_cache()
+    if task is None:
+        from mjxskill.task import plan_task
+
+        task = plan_task(scn)
+    worlds = scn.randomization.n_worlds if worlds is None else int(worlds)
+    if worlds < 1:
+        raise ValueError(f"worlds must be >= 1, got {worlds}")
+    seconds = scn.episode_seconds if episode_seconds is None else float(episode_seconds)
+    if not (seconds > 0 and math.isfinite(seconds)):
+        raise ValueError(f"episode_seconds must be positive, got {episode_seconds}")
+    strategy = default_strategy() if batching is None else batching
+    if strategy not in STRATEGIES:
+        raise ValueError(f"unknown batching strategy {strategy!r}; expected one of {STRATEGIES}")
+
+    if mj_model is None:
+        from mjxskill.sim.model import build_model
+
+        mj_model = build_model(scn)
+    setup = episode_setup(scn, task, mj_model, seconds)
+    ct = compile_tree(task.tree)
+    terms = build_terms(scn, setup.bindings)
+    spec = EpisodeSpec(
+        ct=ct,
+        leaves=build_leaf_programs(ct, task.parameter_names, setup.bindings, scn.robot.default_stiffness, 1.0 / scn.bt_hz),
+        terms=terms,
+        setup=setup,
+    )
+    data = mujoco.MjData(mj_model)
+    mujoco.mj_forward(mj_model, data)
+    # MJX places the model on jax.devices()[0] unless told: under jax.distributed that is process
+    # 0's device, which the other processes cannot use; this process's first device is.
+    device = jax.local_devices()[0]
+    model, template = mjx.put_model(mj_model, device=device), mjx.put_data(mj_model, data, device=device)
+    sampler = make_sampler(scn, setup.bindings, start_configs)
+    weights = objective_matrix(terms, len(scn.objective_names))
+    reward_names = tuple(t.name for t in terms)
+
+    def episode(params, world):
+        return run_episode(spec, model, template, params, world)
+
+    def batched_episodes(params: jax.Array, worlds_: Worlds) -> RolloutOutput:
+        b, w = worlds_.config_index.shape
+        flat_params = jnp.repeat(params, w, axis=0)
+        flat_worlds = jax.tree.map(lambda x: x.reshape((b * w,) + x.shape[2:]), worlds_)
+        # The flat B x W batch is split over all local devices (one device: unchanged).
+        res: EpisodeResult = shard_batch(over_worlds(episode, strategy, chunk))(flat_params, flat_worlds)
+        res = jax.tree.map(lambda x: x.reshape((b, w) + x.shape[1:]), res)
+        return summarize(res, worlds_.config_index, weights, reward_names, xp=jnp)
+
+    sample = jax.jit(lambda key, batch: sample_worlds(sampler, key, (batch, worlds)), static_argnums=1)
+    trace = jax.jit(lambda params, world: run_episode(spec, model, template, params, world, record=True))
+    return Rollout(
+        scenario=scn,
+        task=task,
+        worlds=worlds,
+        spec=spec,
+        sampler=sampler,
+        mj_model=mj_model,
+        strategy=strategy,
+        chunk=chunk,
+        _sample=sample,
+        _episodes=batched_episodes,
+        _trace=trace,
+    )

@@ -1,0 +1,236 @@
+"""One native episode as state that advances tick by tick, shared by the two ways of stepping it.
+
+Per BT tick (``begin_tick``): every leaf's status in Python (``mjxskill.engine.native.leaves``), one tick
+of the reference interpreter, the active leaves' effects on the blackboard. Then
+``steps_per_tick`` control steps, either ``plain_steps`` here (a user's Python loop: the numpy
+controller and ``mujoco.mj_step`` one step at a time, the baseline the benchmarks measure
+against) or many episodes at once in ``mjxskill.engine.native.lockstep``. Then ``end_tick``: the
+divergence check and the tick's rewards.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from mjxskill.ebt.interpreter import Interpreter, TickResult
+from mjxskill.ebt.nodes import Status
+from mjxskill.engine.native.controller import NativeControllerState, native_impedance_control
+from mjxskill.engine.native.leaves import NativeBlackboard
+from mjxskill.engine.native.rewards import NativeObservation
+from mjxskill.engine.native.success import success
+from mjxskill.engine.common.bindings import FREE, MOCAP
+from mjxskill.engine.common.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, TickRecord
+from mjxskill.sim.controller_config import N_ARM
+
+
+_RESET_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+def _live_nodes(interp: Interpreter, result: TickResult) -> set[int]:
+    """Nodes that carry on at the next tick: ticked, and they and all ancestors RUNNING."""
+    live, stack = set(), [0]
+    while stack:
+        nid = stack.pop()
+        if result.node_status.get(nid) == Status.RUNNING:
+            live.add(nid)
+            stack.extend(interp.children[nid])
+    return live
+
+
+def initial_data(engine, model: mujoco.MjModel, world) -> mujoco.MjData:
+    """Native data at ``world``'s initial conditions, kinematics computed; ``model`` gets the
+    world's friction on the randomized contact pairs."""
+    b = engine.spec.bindings
+    model.pair_friction[:] = engine.base_pair_friction
+    if b.randomized_pairs and not math.isnan(float(world.friction)):
+        model.pair_friction[list(b.randomized_pairs), :2] = float(world.friction)
+    data = mujoco.MjData(model)
+    data.qpos[list(b.arm_qpos)] = world.arm_qpos
+    for k, slot in enumerate(b.slots):
+        if slot.how == FREE:
+            data.qpos[slot.qpos_adr : slot.qpos_adr + 3] = world.object_pos[k]
+            data.qpos[slot.qpos_adr + 3 : slot.qpos_adr + 7] = world.object_quat[k]
+        elif slot.how == MOCAP:
+            data.mocap_pos[slot.mocap_id] = world.object_pos[k]
+            data.mocap_quat[slot.mocap_id] = world.object_quat[k]
+    mujoco.mj_forward(model, data)
+    return data
+
+
+class _Snapshot:
+    """What is read of an episode's data after it has ended: its state and the kinematics
+    ``mj_step`` left (copying the whole MjData each tick cost more than a tick's physics)."""
+
+    FIELDS = ("qpos", "qvel", "xpos", "xquat", "site_xpos", "site_xmat")
+
+    def __init__(self, data: mujoco.MjData):
+        self.arrays = [getattr(data, name).copy() for name in self.FIELDS]
+
+    def restore(self, data: mujoco.MjData) -> None:
+        for name, array in zip(self.FIELDS, self.arrays):
+            getattr(data, name)[:] = array
+
+
+class NativeEpisode:
+    """The state of one episode of ``engine`` (a ``NativeRollout``): ``params`` (P,) in ``world``
+    (unbatched numpy fields), simulated on ``model`` (the engine's, or a private copy when
+    several episodes run at once: each world has its own friction)."""
+
+    def __init__(self, engine, params, world, model: mujoco.MjModel, record: bool = False):
+        self.engine, self.world, self.model, self.record = engine, world, model, record
+        spec = engine.spec
+        self.params = np.asarray(params, float)
+        self.data = initial_data(engine, model, world)
+        tool_pos, tool_quat = self.tool_pose()
+        self.n_leaves = len(engine.programs)
+        self.bb = NativeBlackboard(tool_pos, tool_quat, spec.default_stiffness, self.n_leaves)
+        self.cstate = NativeControllerState(self.data.qfrc_bias[:N_ARM], spec.default_stiffness, np.zeros(6))
+        self.nullspace_target = np.asarray(world.arm_qpos, float)
+        self.interp = Interpreter(engine.tree)
+        self.live: set[int] = set()
+        self.done, self.diverged = False, False
+        self.status, self.done_tick = Status.RUNNING, -1
+        self.totals = np.zeros(len(engine.terms))
+        self.peak_commanded_force = 0.0
+        # measured contact force (the tool's touch sensors): this tick's sum and peak over its
+        # control steps (written by the stepping code), and the episode's
+        self.tick_force = (0.0, 0.0)
+        self.force_sum, self.force_peak = 0.0, 0.0
+        self.default_stiffness = np.asarray(spec.default_stiffness, float)
+        self.records: list[TickRecord] = []
+        self.root, self.active = Status.RUNNING, [False] * self.n_leaves
+        self._before = None
+
+    # -- observation ------------------------------------------------------------------------
+    def tool_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        site = self.engine.spec.ctrl.site_id
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, self.data.site_xmat[site])
+        return self.data.site_xpos[site].copy(), quat
+
+    def slot_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        pos = np.array(self.world.object_pos, float)
+        quat = np.array(self.world.object_quat, float)
+        for k, slot in enumerate(self.engine.spec.bindings.slots):
+            if slot.how == FREE:
+                pos[k], quat[k] = self.data.xpos[slot.body_id], self.data.xquat[slot.body_id]
+        return pos, quat
+
+    def healthy(self) -> bool:
+        data = self.data
+        # MuJoCo resets the data to the model's initial state when its state or accelerations go
+        # bad (NaN, huge) and only counts a warning: without this check such a world would carry
+        # on from qpos0 where MJX's keeps its NaNs and is contained (found by the engines'
+        # agreement test on a world with a NaN start posture).
+        if any(data.warning[w].number for w in _RESET_WARNINGS):
+            return False
+        if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
+            return False
+        if np.any(np.abs(data.qvel) >= MAX_QVEL):
+            return False
+        return all(data.qpos[s.qpos_adr + 2] > MIN_OBJECT_Z for s in self.engine.spec.bindings.slots if s.how == FREE)
+
+    # -- one tick ---------------------------------------------------------------------------
+    def begin_tick(self) -> None:
+        """The BT tick and the active leaves' effects (the blackboard then holds this tick's
+        commanded stiffness, wrench, motion and spiral)."""
+        engine, bb = self.engine, self.bb
+        tool_pos, _ = self.tool_pose()
+        if self.done:  # the tree is no longer ticked: every leaf is idle
+            root, active, started = self.status, [False] * self.n_leaves, [False] * self.n_leaves
+        else:
+            leaf_status = [prog[0](bb, tool_pos, nid in self.live) for prog, nid in zip(engine.programs, engine.leaf_ids)]
+            result = self.interp.tick(lambda nid, node: leaf_status[engine.leaf_position[nid]])
+            root = result.status
+            ticked = set(result.active_leaves)
+            active = [nid in ticked for nid in engine.leaf_ids]
+            started = [a and nid not in self.live for a, nid in zip(active, engine.leaf_ids)]
+            self.live = _live_nodes(self.interp, result)
+        # Held effects fall back to their defaults unless an active leaf sets them again.
+        self._before = (_Snapshot(self.data), self.cstate, bb.copy())
+        bb.stiffness, bb.wrench, bb.spiral_on = self.default_stiffness, np.zeros(6), False
+        for k, (_, effect) in enumerate(engine.programs):
+            if active[k]:
+                effect(bb, started[k], self.params)
+        bb.leaf_ticks = [(1 if s else n + 1) if a else 0 for a, s, n in zip(active, started, bb.leaf_ticks)]
+        self.root, self.active = root, active
+
+    def plain_steps(self) -> None:
+        """The tick's control steps one at a time: reference, numpy controller, ``mj_step``."""
+        model, data, bb, cfg = self.model, self.data, self.bb, self.engine.spec.ctrl
+        cstate = self.cstate
+        sensors = list(self.engine.spec.bindings.force_sensors)
+        force_sum = force_peak = 0.0
+        for _ in range(self.engine.spec.steps_per_tick):
+            ref_pos, ref_quat = bb.reference()
+            command = np.concatenate([ref_pos, ref_quat, bb.wrench, bb.stiffness])
+            tau, cstate = native_impedance_control(cfg, model, data, command, self.nullspace_target, cstate)
+            data.ctrl[:N_ARM] = tau
+            mujoco.mj_step(model, data)
+            force = float(np.sum(data.sensordata[sensors]))  # computed by mj_step: this step's contact force
+            force_sum, force_peak = force_sum + force, max(force_peak, force)
+            bb.advance(cfg.dt)
+        self.cstate = cstate
+        self.tick_force = (force_sum, force_peak)
+
+    def end_tick(self, t: int) -> bool:
+        """Divergence check and the tick's rewards; False when the episode has ended (diverged:
+        frozen at the last good state, charged the worst rewards in ``result``)."""
+        if not self.healthy():
+            # The compiled rollout keeps ticking a frozen world, which changes nothing.
+            snapshot, self.cstate, self.bb = self._before
+            snapshot.restore(self.data)
+            self.diverged = True
+            return False
+        root = self.root
+        if root != Status.RUNNING and not self.done:
+            self.done, self.done_tick = True, t
+        self.status = root
+        tool_pos, tool_quat = self.tool_pose()
+        slot_pos, slot_quat = self.slot_poses()
+        force_sum, force_peak = self.tick_force
+        self.force_sum, self.force_peak = self.force_sum + force_sum, max(self.force_peak, force_peak)
+        obs = NativeObservation(tool_pos, tool_quat, self.bb.reference()[0], slot_pos, slot_quat,
+                                self.cstate.wrench, root == Status.SUCCESS, force_sum / self.engine.spec.steps_per_tick)
+        raw = [term.raw(obs) for term in self.engine.terms]
+        self.totals += raw
+        if self.record:
+            self.records.append(TickRecord(self.data.qpos.copy(), self.data.mocap_pos.copy(), self.data.mocap_quat.copy(),
+                                           tool_pos, obs.ref_pos, int(root),
+                                           np.array(self.active), np.array(raw)))
+        self.peak_commanded_force = max(self.peak_commanded_force, float(np.linalg.norm(self.cstate.wrench[:3])))
+        return True
+
+    # -- the end ----------------------------------------------------------------------------
+    def result(self) -> EpisodeResult:
+        engine, spec = self.engine, self.engine.spec
+        totals = self.totals
+        if self.diverged:
+            totals = np.array([term.worst_raw * spec.ticks for term in engine.terms])
+        success, pos_err, rot_err, depth = self._success()
+        return EpisodeResult(
+            reward_totals=totals,
+            success=bool(success and not self.diverged),
+            diverged=self.diverged,
+            bt_status=int(Status.FAILURE if self.diverged else self.status),
+            bt_done_tick=self.done_tick,
+            position_error=pos_err,
+            orientation_error=rot_err,
+            insertion_depth=depth,
+            peak_commanded_force=self.peak_commanded_force,
+            # a diverged world's forces are not known: NaN, which meets no force limit
+            peak_contact_force=math.nan if self.diverged else self.force_peak,
+            mean_contact_force=math.nan if self.diverged else self.force_sum / (spec.ticks * spec.steps_per_tick),
+        )
+
+    def trace(self) -> TickRecord | None:
+        """The per-tick record (leading (T,) axis; T: ticks run), when recording."""
+        return TickRecord(*(np.array(f) for f in zip(*self.records))) if self.records else None
+
+    def _success(self):
+        slot_pos, slot_quat = self.slot_poses()
+        spec = self.engine.spec
+        return success(spec.success, self.data.site_xpos[spec.ctrl.site_id].copy(), slot_pos, slot_quat)

@@ -1,0 +1,252 @@
+"""The leaf programs of ``mjxskill.engine.mjx.leaves`` in plain Python over a mutable blackboard, for
+the native-MuJoCo baseline (same two phases per BT tick: every leaf's status from the state
+before the tick, then the effects of the leaves the tick activated, in tick order).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+from mjxskill.ebt.nodes import Node, Status
+from mjxskill.engine.native.motion import LinearMotion, plane_basis, quat_mul, spiral_step
+from mjxskill.ebt.primitives import SPIRAL_NORMAL, LeafRegistry, goal_orientation
+
+TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # rotation by pi about y: the tool's z along world -z
+
+
+class NativeBlackboard:
+    """Per-episode state the leaf programs share (fields as ``rollout.leaves.Blackboard``).
+
+    goal_pos (3,), goal_quat (4,); motion: the current LinearMotion; mg_time s; stiffness (6,),
+    wrench (6,); spiral_theta, spiral_radius, spiral_on, spiral_params (radius cap, velocity,
+    pitch), spiral_axes (two (3,) unit vectors spanning its plane); leaf_ticks: list of L ints.
+    """
+
+    def __init__(self, tool_pos, tool_quat, default_stiffness, n_leaves: int):
+        self.goal_pos = np.array(tool_pos, float)
+        self.goal_quat = np.array(tool_quat, float)
+        self.motion = LinearMotion(tool_pos, tool_quat, tool_pos, tool_quat)
+        self.mg_time = 0.0
+        self.stiffness = np.array(default_stiffness, float)
+        self.wrench = np.zeros(6)
+        self.spiral_theta = 0.0
+        self.spiral_radius = 0.0
+        self.spiral_on = False
+        self.spiral_params = (0.0, 0.0, 0.0)
+        self.spiral_axes = plane_basis(SPIRAL_NORMAL)
+        self.leaf_ticks = [0] * n_leaves
+
+    def copy(self) -> "NativeBlackboard":
+        # Fields are rebound, never mutated in place, so a shallow copy is a snapshot.
+        new = copy.copy(self)
+        new.leaf_ticks = list(self.leaf_ticks)
+        return new
+
+    def reference(self) -> tuple[np.ndarray, np.ndarray]:
+        """Controller reference position (3,) and quaternion (4,)."""
+        pos, quat = self.motion.at(self.mg_time)
+        if self.spiral_on:
+            r, th = self.spiral_radius, self.spiral_theta
+            e1, e2 = self.spiral_axes
+            pos = pos + r * (math.cos(th) * e1 + math.sin(th) * e2)
+        return pos, quat
+
+    def references(self, n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The references of the next ``n`` control periods, positions (n, 3) and quaternions
+        (n, 4), and the blackboard advanced past them: what ``n`` rounds of ``reference()`` and
+        ``advance(dt)`` give, with the motion evaluated for all ``n`` times at once."""
+        times = np.cumsum(np.concatenate([[self.mg_time], np.full(n, dt)]))  # sequential sums, as += dt
+        pos, quat = self.motion.at_times(times[:-1])
+        self.mg_time = float(times[-1])
+        if self.spiral_on:
+            radius_max, velocity, pitch = self.spiral_params
+            offsets = np.empty((n, 3))
+            e1, e2 = self.spiral_axes
+            for k in range(n):
+                r, th = self.spiral_radius, self.spiral_theta
+                offsets[k] = r * (math.cos(th) * e1 + math.sin(th) * e2)
+                self.spiral_theta, self.spiral_radius = spiral_step(th, r, radius_max, velocity, pitch, dt)
+            pos = pos + offsets
+        return pos, quat
+
+    def advance(self, dt: float) -> None:
+        """One control period of the motion generator and the spiral."""
+        self.mg_time += dt
+        if self.spiral_on:
+            radius_max, velocity, pitch = self.spiral_params
+            self.spiral_theta, self.spiral_radius = spiral_step(
+                self.spiral_theta, self.spiral_radius, radius_max, velocity, pitch, dt
+            )
+
+
+# status(bb, tool_pos, live) -> Status; effect(bb, fresh, params) -> None (writes bb).
+StatusFn = Callable[[NativeBlackboard, np.ndarray, bool], Status]
+EffectFn = Callable[[NativeBlackboard, bool, np.ndarray], None]
+
+
+def _input(leaf: Node, name: str, index: dict) -> Callable[[np.ndarray], float]:
+    if name in leaf.params:
+        i = index.get(leaf.params[name])
+        if i is None:
+            raise ValueError(f"leaf {leaf.name!r}: input {name!r} names parameter {leaf.params[name]!r}, which is not learnable here")
+        return lambda params: float(params[i])
+    value = float(leaf.args.get(name, 0.0))
+    return lambda params: value
+
+
+def _running(bb, tool_pos, live):
+    return Status.RUNNING
+
+
+def _keep(bb, fresh, params):
+    return None
+
+
+def tool_yaw(quat) -> float:
+    """Yaw (rad) of a tool-down orientation (w, x, y, z)."""
+    w, x, y, z = quat
+    return math.atan2(-2.0 * (x * y + w * z), -(1.0 - 2.0 * (y * y + z * z)))
+
+
+def tool_down_aligned(current_quat, object_yaw: float, tilt=None) -> np.ndarray:
+    """(4,) tool pointing down (rotation by pi about y, then ``yaw`` about world z), with the
+    yaw among the square tool's quarter-turn symmetric ones that aligns its faces with
+    ``object_yaw`` (rad) nearest the current orientation (4,), tilted by ``tilt`` (roll, pitch)
+    rad about the turned frame's x then y axes (None: not tilted)."""
+    yaw = tool_yaw(current_quat)
+    quarter = math.pi / 2
+    target = yaw + (object_yaw - yaw + quarter / 2) % quarter - quarter / 2
+    down = TOOL_DOWN
+    if tilt is not None:
+        roll, pitch = tilt
+        about_x = [math.cos(roll / 2), math.sin(roll / 2), 0.0, 0.0]
+        about_y = [math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0]
+        down = quat_mul(quat_mul(about_y, about_x), down)
+    return quat_mul([math.cos(target / 2), 0.0, 0.0, math.sin(target / 2)], down)
+
+
+def build_native_leaves(leaves: list[Node], parameter_names, slot_of: dict, nominal_pos: np.ndarray,
+                        nominal_quat: np.ndarray, tick_seconds: float) -> list[tuple[StatusFn, EffectFn]]:
+    """(status, effect) per leaf, in pre-order. nominal_pos (K, 3), nominal_quat (K, 4): the
+    world model's object poses (the skills see the YAML, not the randomized world)."""
+    ctx = _Context({name: i for i, name in enumerate(parameter_names)}, slot_of, nominal_pos, nominal_quat, tick_seconds)
+    return [LEAF_PROGRAMS.build(i, leaf, ctx) for i, leaf in enumerate(leaves)]
+
+
+class _Context(NamedTuple):
+    """What leaf programs are built from: parameter name -> index, object name -> slot, the
+    world model's slot poses (K, 3), (K, 4) and the BT tick period (s)."""
+
+    index: dict
+    slot_of: dict
+    nominal_pos: np.ndarray
+    nominal_quat: np.ndarray
+    tick_seconds: float
+
+
+# primitive -> (leaf number, leaf, _Context) -> (status, effect): every mjxskill.ebt.primitives.PRIMITIVES
+LEAF_PROGRAMS = LeafRegistry()
+
+
+@LEAF_PROGRAMS.register
+def _set_goal_from_object(i: int, leaf, ctx: _Context):
+    index, slot_of, nominal_pos, nominal_quat = ctx.index, ctx.slot_of, ctx.nominal_pos, ctx.nominal_quat
+    obj = leaf.args.get("object")
+    if obj not in slot_of:
+        raise ValueError(f"leaf {leaf.name!r}: object {obj!r} is not bound to the scene")
+    base = np.asarray(nominal_pos[slot_of[obj]], float) + np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), float)
+    dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
+    roll, pitch, yaw = (_input(leaf, f"tool_{k}", index) for k in ("roll", "pitch", "yaw"))
+    tilted = any(f"tool_{k}" in leaf.args or f"tool_{k}" in leaf.params for k in ("roll", "pitch"))
+    w, x, y, z = nominal_quat[slot_of[obj]]
+    object_yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    aligned = goal_orientation(leaf) == "tool_down_aligned"
+
+    def set_goal(bb, fresh, params):
+        bb.goal_pos = base + np.array([dx(params), dy(params), 0.0])
+        current = bb.reference()[1]
+        target = (object_yaw if aligned else tool_yaw(current)) + math.radians(yaw(params))
+        tilt = (math.radians(roll(params)), math.radians(pitch(params))) if tilted else None
+        bb.goal_quat = tool_down_aligned(current, target, tilt)
+
+    return (lambda bb, tool_pos, live: Status.SUCCESS), set_goal
+
+
+@LEAF_PROGRAMS.register
+def _goal_pose(i: int, leaf, ctx: _Context):
+
+    def start_motion(bb, fresh, params):
+        if fresh:
+            pos, quat = bb.reference()
+            bb.motion = LinearMotion(pos, quat, bb.goal_pos, bb.goal_quat)
+            bb.mg_time = 0.0
+
+    return _running, start_motion
+
+
+@LEAF_PROGRAMS.register
+def _change_stiffness(i: int, leaf, ctx: _Context):
+    stiffness = np.asarray(leaf.args["stiffness"], float)
+
+    def set_stiffness(bb, fresh, params):
+        bb.stiffness = stiffness
+
+    return _running, set_stiffness
+
+
+@LEAF_PROGRAMS.register
+def _apply_force(i: int, leaf, ctx: _Context):
+    index = ctx.index
+    base = np.asarray(leaf.args.get("wrench", (0.0,) * 6), float)
+    overrides = [(axis, _input(leaf, f"force_{c}", index)) for axis, c in enumerate("xyz")
+                 if f"force_{c}" in leaf.params or f"force_{c}" in leaf.args]
+
+    def apply_force(bb, fresh, params):
+        wrench = base.copy()
+        for axis, value in overrides:
+            wrench[axis] = value(params)
+        bb.wrench = wrench
+
+    return _running, apply_force
+
+
+@LEAF_PROGRAMS.register
+def _overlay_spiral(i: int, leaf, ctx: _Context):
+    index = ctx.index
+    radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
+    axes = plane_basis(leaf.args.get("normal", SPIRAL_NORMAL))
+
+    def overlay(bb, fresh, params):
+        if fresh:
+            bb.spiral_theta, bb.spiral_radius = 0.0, 0.0
+        bb.spiral_on = True
+        bb.spiral_params = (radius(params), velocity(params), pitch(params))
+        bb.spiral_axes = axes
+
+    return _running, overlay
+
+
+@LEAF_PROGRAMS.register
+def _ee_pose_distance(i: int, leaf, ctx: _Context):
+    threshold = float(leaf.args["threshold"])
+
+    def reached(bb, tool_pos, live):
+        close = np.linalg.norm(tool_pos - bb.motion.goal_pos) < threshold
+        return Status.SUCCESS if live and close else Status.RUNNING
+
+    return reached, _keep
+
+
+@LEAF_PROGRAMS.register
+def _wait(i: int, leaf, ctx: _Context):
+    tick_seconds = ctx.tick_seconds
+    ticks = int(np.ceil(float(leaf.args["seconds"]) / tick_seconds - 1e-9))
+
+    def waited(bb, tool_pos, live):
+        return Status.SUCCESS if live and bb.leaf_ticks[i] >= ticks else Status.RUNNING
+
+    return waited, _keep

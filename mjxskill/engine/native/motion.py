@@ -1,0 +1,183 @@
+"""The motion generator of ``mjxskill.engine.mjx.motion`` in plain Python floats and numpy, for the
+native-MuJoCo baseline: a straight-line trajectory with a synchronised trapezoid velocity
+profile, and the Archimedes spiral overlay.
+
+Written as a user without JAX would write it: everything that depends only on the start and goal
+(lengths, duration, cruise speeds) is computed once when a motion starts; a control step only
+evaluates the trapezoid at time t.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mjxskill.engine.common.motion import AxisLimits, MotionLimits
+
+
+def quat_mul(a, b) -> np.ndarray:
+    """Hamilton product a * b of (4,) quaternions (w x y z)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return np.array(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ]
+    )
+
+
+def quat_conj(q) -> np.ndarray:
+    return np.array([q[0], -q[1], -q[2], -q[3]])
+
+
+def quat_to_rotvec(q) -> np.ndarray:
+    """(3,) rotation vector of unit quaternion q (4,), the shorter of q and -q."""
+    q = -np.asarray(q, float) if q[0] < 0 else np.asarray(q, float)
+    s = math.sqrt(q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+    scale = 2.0 / max(q[0], 1e-12) if s < 1e-9 else 2.0 * math.atan2(s, q[0]) / s
+    return q[1:] * scale
+
+
+def rotvec_to_quat(r) -> np.ndarray:
+    """(4,) unit quaternion of rotation vector r (3,)."""
+    angle = math.sqrt(r[0] ** 2 + r[1] ** 2 + r[2] ** 2)
+    scale = 0.5 if angle < 1e-9 else math.sin(0.5 * angle) / angle
+    return np.array([math.cos(0.5 * angle), r[0] * scale, r[1] * scale, r[2] * scale])
+
+
+def quat_rotate(q, v) -> np.ndarray:
+    """(3,) v rotated by unit quaternion q (4,): q v q*."""
+    u = np.asarray(q[1:], float)
+    t = 2.0 * np.cross(u, v)
+    return np.asarray(v, float) + q[0] * t + np.cross(u, t)
+
+
+def quat_angle(a, b) -> float:
+    """Angle (rad) of the rotation between unit quaternions a and b (4,)."""
+    return 2.0 * math.acos(min(abs(float(np.dot(a, b))), 1.0))
+
+
+def _shape_constant(lim: AxisLimits) -> float:
+    return 0.5 / lim.acc + 0.5 / lim.dec
+
+
+def min_duration(distance: float, lim: AxisLimits) -> float:
+    """Shortest trapezoid (or triangle) duration covering ``distance``."""
+    c = _shape_constant(lim)
+    if distance >= c * lim.v_max**2:
+        return distance / lim.v_max + c * lim.v_max
+    return 2.0 * math.sqrt(c * distance)
+
+
+def cruise_speed(distance: float, duration: float, lim: AxisLimits) -> float:
+    """Cruise speed covering ``distance`` in ``duration`` with ``lim``'s acc/dec."""
+    c = _shape_constant(lim)
+    denom = duration + math.sqrt(max(duration**2 - 4.0 * c * distance, 0.0))
+    return 2.0 * distance / denom if denom > 0 else 0.0
+
+
+def trapezoid_position(t: float, distance: float, duration: float, speed: float, lim: AxisLimits) -> float:
+    """Distance travelled at time t (clamped to [0, duration]) at cruise ``speed``."""
+    t_acc, t_dec = speed / lim.acc, speed / lim.dec
+    t = min(max(t, 0.0), duration)
+    if t < t_acc:
+        return 0.5 * lim.acc * t**2
+    if t < duration - t_dec:
+        return 0.5 * lim.acc * t_acc**2 + speed * (t - t_acc)
+    return distance - 0.5 * lim.dec * (duration - t) ** 2
+
+
+def trapezoid_positions(t: np.ndarray, distance: float, duration: float, speed: float, lim: AxisLimits) -> np.ndarray:
+    """``trapezoid_position`` at every time of ``t`` (n,) at once."""
+    t_acc, t_dec = speed / lim.acc, speed / lim.dec
+    t = np.clip(t, 0.0, duration)
+    cruise = 0.5 * lim.acc * t_acc**2 + speed * (t - t_acc)
+    braking = distance - 0.5 * lim.dec * (duration - t) ** 2
+    return np.where(t < t_acc, 0.5 * lim.acc * t**2, np.where(t < duration - t_dec, cruise, braking))
+
+
+def rotvec_to_quat_rows(r: np.ndarray) -> np.ndarray:
+    """``rotvec_to_quat`` of every row of r (n, 3): (n, 4)."""
+    angle = np.sqrt(np.sum(r**2, axis=1))
+    scale = np.where(angle < 1e-9, 0.5, np.sin(0.5 * angle) / np.where(angle < 1e-9, 1.0, angle))
+    return np.concatenate([np.cos(0.5 * angle)[:, None], r * scale[:, None]], axis=1)
+
+
+def quat_mul_rows_by(a: np.ndarray, b) -> np.ndarray:
+    """Hamilton products a[i] * b of (n, 4) quaternions with one (4,) quaternion."""
+    aw, ax, ay, az = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
+    bw, bx, by, bz = b
+    return np.stack([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ], axis=1)
+
+
+class LinearMotion:
+    """Straight-line, constant-axis motion from (start_pos (3,), start_quat (4,)) to
+    (goal_pos, goal_quat); translation and rotation finish together at ``duration``."""
+
+    def __init__(self, start_pos, start_quat, goal_pos, goal_quat, limits: MotionLimits = MotionLimits()):
+        self.start_pos = np.array(start_pos, float)
+        self.start_quat = np.array(start_quat, float)
+        self.goal_pos = np.array(goal_pos, float)
+        self.goal_quat = np.array(goal_quat, float)
+        self.limits = limits
+        self.delta = self.goal_pos - self.start_pos
+        self.length = float(np.linalg.norm(self.delta))
+        self.rotvec = quat_to_rotvec(quat_mul(self.goal_quat, quat_conj(self.start_quat)))
+        self.angle = float(np.linalg.norm(self.rotvec))
+        self.duration = max(min_duration(self.length, limits.translation), min_duration(self.angle, limits.rotation))
+        self.speed_pos = cruise_speed(self.length, self.duration, limits.translation)
+        self.speed_rot = cruise_speed(self.angle, self.duration, limits.rotation)
+
+    def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Reference position (3,) and quaternion (4,) at time t (s) since the start."""
+        lim = self.limits
+        if self.length > 0:
+            frac_pos = trapezoid_position(t, self.length, self.duration, self.speed_pos, lim.translation) / self.length
+        else:
+            frac_pos = 1.0
+        if self.angle > 0:
+            frac_rot = trapezoid_position(t, self.angle, self.duration, self.speed_rot, lim.rotation) / self.angle
+        else:
+            frac_rot = 1.0
+        pos = self.start_pos + frac_pos * self.delta
+        quat = quat_mul(rotvec_to_quat(frac_rot * self.rotvec), self.start_quat)
+        return pos, quat
+
+    def at_times(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``at`` for every time of ``t`` (n,) at once: positions (n, 3), quaternions (n, 4)."""
+        lim = self.limits
+        if self.length > 0:
+            frac_pos = trapezoid_positions(t, self.length, self.duration, self.speed_pos, lim.translation) / self.length
+        else:
+            frac_pos = np.ones_like(t)
+        if self.angle > 0:
+            frac_rot = trapezoid_positions(t, self.angle, self.duration, self.speed_rot, lim.rotation) / self.angle
+        else:
+            frac_rot = np.ones_like(t)
+        pos = self.start_pos + frac_pos[:, None] * self.delta
+        quat = quat_mul_rows_by(rotvec_to_quat_rows(frac_rot[:, None] * self.rotvec), self.start_quat)
+        return pos, quat
+
+
+def plane_basis(normal) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors (3,) spanning the plane normal to ``normal`` (3,) (as sim.motion)."""
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    helper = np.array([0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    e1 = np.cross(helper, n)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(n, e1)
+
+
+def spiral_step(theta: float, radius: float, radius_max: float, velocity: float, pitch: float, dt: float):
+    """SkiREIL's Archimedes spiral, one period: returns the new (theta, radius)."""
+    dtheta = velocity / (radius + 0.001) * dt
+    return theta + dtheta, min(radius + dtheta * pitch / (2.0 * math.pi), radius_max)

@@ -1,0 +1,226 @@
+"""The native MuJoCo engine: the episodes of a planned task on native MuJoCo, numpy and the
+reference BT interpreter, without MJX.
+
+Two ways of stepping the same episodes (``mjxskill.engine.native.episode``): ``run_episode``, a plain
+single-process Python loop one control step at a time (how a user without this project would
+write it: the baseline the benchmarks measure against, and the reference in tests), and
+``run_worlds``/``__call__``, all episodes of a call in lockstep (``mjxskill.engine.native.lockstep``:
+one vectorized impedance law per control step for all of them), split over ``workers``
+processes (``mjxskill.engine.native.pool``). Same MJCF model and timestep as the compiled rollout,
+same worlds (``mjxskill.engine.common.worlds``), same world-model poses for the skills, same
+divergence containment (``mjxskill.engine.common.types``); float64 throughout where MJX runs float32.
+Nothing of the compiled rollout or of MJX is imported: this engine is the independent reference
+the compiled one is tested against.
+
+    native = NativeRollout(scn, task, worlds=7)           # as compile_rollout(scn, task, worlds=7)
+    out = native(params, key)                             # as a compiled rollout: RolloutOutput
+    out = native.run_worlds(params, native.sample_worlds(key, len(params)))
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+import jax
+import mujoco
+import numpy as np
+
+from mjxskill.ebt.interpreter import Interpreter
+from mjxskill.engine.native.episode import NativeEpisode
+from mjxskill.engine.native.leaves import build_native_leaves
+from mjxskill.engine.native.rewards import build_native_terms
+from mjxskill.engine.common.bindings import nominal_poses
+from mjxskill.engine.common.types import EpisodeResult, RolloutOutput, episode_setup, objective_matrix, summarize
+from mjxskill.engine.common.worlds import Worlds, make_sampler, sample_worlds, worlds_per_config
+
+
+def sources_sha256(scn) -> str:
+    """sha256 over the bytes of the scenario file and of the skill libraries it includes."""
+    digest = hashlib.sha256()
+    for path in (scn.source, *scn.libraries):
+        digest.update(hashlib.sha256(Path(path).read_bytes()).digest())
+    return digest.hexdigest()
+
+
+def default_workers() -> int:
+    """One worker process per core this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+class NativeRollout:
+    """The episodes of ``task`` in ``scn`` on native MuJoCo (arguments as ``compile_rollout``;
+    nothing is compiled). workers: processes ``run_worlds`` splits a call's episodes over
+    (default: one per core; 1 runs them in this process). Results do not depend on it."""
+
+    def __init__(self, scn, task=None, *, worlds: int | None = None, episode_seconds: float | None = None,
+                 start_configs: np.ndarray | None = None, mj_model: mujoco.MjModel | None = None,
+                 workers: int | None = None):
+        if task is None:
+            from mjxskill.task import plan_task
+
+            task = plan_task(scn)
+        if mj_model is None:
+            from mjxskill.sim.model import build_model
+
+            mj_model = build_model(scn)
+        seconds = scn.episode_seconds if episode_seconds is None else float(episode_seconds)
+        self.scenario, self.task = scn, task
+        self.episode_seconds = seconds
+        self.start_configs = None if start_configs is None else np.asarray(start_configs)
+        self.workers = default_workers() if workers is None else max(1, int(workers))
+        self._pool = None
+        # The scenario and skill library files as this engine read them: workers rebuild from
+        # them and check they are unchanged.
+        self.scenario_sha256 = sources_sha256(scn)
+        self.spec = episode_setup(scn, task, mj_model, seconds)
+        self.worlds = scn.randomization.n_worlds if worlds is None else int(worlds)
+        self.sampler = make_sampler(scn, self.spec.bindings, start_configs)
+        sampler, n_worlds = self.sampler, self.worlds
+        # The compiled rollout's sampling program, written the same way: the same worlds, bit for bit.
+        self._sample = jax.jit(lambda key, batch: sample_worlds(sampler, key, (batch, n_worlds)), static_argnums=1)
+        self.model = mj_model
+        self.base_pair_friction = self.model.pair_friction.copy()
+        self.tree = task.tree
+        self.leaf_ids = [i for i, n in enumerate(Interpreter(self.tree).nodes) if n.is_leaf]
+        self.leaf_position = {nid: k for k, nid in enumerate(self.leaf_ids)}
+        nominal_pos, nominal_quat = nominal_poses(self.spec.bindings)
+        self.programs = build_native_leaves(
+            self.tree.leaves(), task.parameter_names, self.spec.bindings.slot_of, nominal_pos, nominal_quat, 1.0 / scn.bt_hz
+        )
+        self.terms = build_native_terms(scn, self.spec.bindings.slot_of)
+        self.objective_matrix = objective_matrix(self.terms, len(scn.objective_names), np.float64)
+        self.reward_names = tuple(t.name for t in self.terms)
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return self.task.parameter_names
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, P) lower and upper bounds of the learnable parameters."""
+        return self.task.bounds
+
+    @property
+    def objective_names(self) -> tuple[str, ...]:
+        return self.scenario.objective_names
+
+    @property
+    def mj_model(self) -> mujoco.MjModel:
+        return self.model
+
+    @property
+    def control_steps_per_episode(self) -> int:
+        return self.spec.ticks * self.spec.steps_per_tick
+
+    def sample_worlds(self, key, batch: int) -> Worlds:
+        """The (batch, W) worlds for ``batch`` parameter sets drawn from ``key``: the same as
+        the compiled rollout's for the same key, settings and worlds (one shared sampler)."""
+        return jax.tree.map(np.asarray, self._sample(key, batch))
+
+    def worlds_per_config(self, key, per_config: int, configs: np.ndarray | None = None) -> Worlds:
+        """``per_config`` worlds from each start configuration (as ``Rollout.worlds_per_config``)."""
+        sampler = self.sampler if configs is None else self.sampler._replace(configs=np.asarray(configs, np.float32))
+        return jax.tree.map(np.asarray, worlds_per_config(sampler, key, per_config))
+
+    # -- episodes ---------------------------------------------------------------------------
+    def run_episode(self, params, world: Worlds, record: bool = False):
+        """Rolls out ``params`` (P,) in ``world`` (unbatched numpy fields) in a plain Python loop,
+        one control step at a time; the result's fields are numpy scalars / (R,) as in
+        ``rollout.types.EpisodeResult``. With ``record``, returns (result, TickRecord of numpy
+        arrays with a leading (T,) axis) like the compiled rollout's ``trace`` (T: ticks run;
+        fewer if the world diverged)."""
+        episode = NativeEpisode(self, params, world, self.model, record=record)
+        for t in range(self.spec.ticks):
+            episode.begin_tick()
+            episode.plain_steps()
+            if not episode.end_tick(t):
+                break
+        return (episode.result(), episode.trace()) if record else episode.result()
+
+    def trace(self, params, world: Worlds):
+        """Per-tick record of one parameter vector (P,) in one world, as ``Rollout.trace``."""
+        params = np.asarray(params, float).reshape(-1)
+        return self.run_episode(params, jax.tree.map(np.asarray, world), record=True)
+
+    def __call__(self, params, key) -> RolloutOutput:
+        """Rolls out (B, P) ``params`` in W worlds each, drawn from ``key`` (the compiled
+        rollout's worlds for the same key)."""
+        params = self.check_params(params)
+        return self.run_worlds(params, self.sample_worlds(key, len(params)))
+
+    def check_params(self, params) -> np.ndarray:
+        params = np.atleast_2d(np.asarray(params, np.float64))
+        n = len(self.parameter_names)
+        if params.ndim != 2 or params.shape[1] != n:
+            raise ValueError(f"params must have shape (B, {n}) in the order {list(self.parameter_names)}, got {params.shape}")
+        if not np.all(np.isfinite(params)):
+            raise ValueError(f"params must be finite, got {params}")
+        return params
+
+    def run_worlds(self, params, worlds: Worlds, *, plain: bool = False) -> RolloutOutput:
+        """Rolls out (B, P) ``params`` in ``worlds`` of leading shape (B, W) or (W,) (the same
+        worlds for every parameter set): the B x W episodes in lockstep, split over the worker
+        processes (``plain``: one after another in the plain loop, in this process). Returns a
+        RolloutOutput of numpy arrays with the compiled rollout's fields and metric names."""
+        params = self.check_params(params)
+        worlds = jax.tree.map(np.asarray, worlds)
+        if worlds.config_index.ndim == 1:
+            worlds = jax.tree.map(lambda x: np.broadcast_to(x, (len(params),) + x.shape), worlds)
+        if worlds.config_index.ndim != 2 or worlds.config_index.shape[0] != len(params):
+            raise ValueError(f"worlds must have leading shape (W,) or ({len(params)}, W), got {worlds.config_index.shape}")
+        b, w = worlds.config_index.shape
+        flat_params = np.repeat(params, w, axis=0)
+        flat_worlds = jax.tree.map(lambda x: np.ascontiguousarray(x.reshape((b * w,) + x.shape[2:])), worlds)
+        if plain:
+            results = [self.run_episode(flat_params[i], jax.tree.map(lambda x: x[i], flat_worlds)) for i in range(b * w)]
+        else:
+            results = self._lockstep(flat_params, flat_worlds)
+        res = EpisodeResult(*(np.array([getattr(r, f) for r in results]).reshape((b, w) + np.shape(getattr(results[0], f)))
+                              for f in EpisodeResult._fields))
+        return summarize(res, worlds.config_index, self.objective_matrix, self.reward_names, xp=np)
+
+    def _lockstep(self, params: np.ndarray, worlds: Worlds) -> list[EpisodeResult]:
+        from mjxskill.engine.native.lockstep import run_lockstep
+
+        if min(self.workers, len(params)) <= 1:
+            return run_lockstep(self, params, worlds)
+        return self.start_workers().run(params, worlds)
+
+    def start_workers(self):
+        """Starts the worker processes now (a call starts them when it first needs them: a few
+        seconds of imports each). Returns the pool."""
+        if self._pool is None and self.workers > 1:
+            from mjxskill.engine.native.pool import WorkerPool
+
+            self._pool = WorkerPool(self, self.workers)
+        return self._pool
+
+    def memory_per_episode(self) -> int:
+        """Bytes one episode holds while it runs: its model copy and its MjData (buffer and the
+        arena it used), measured on a short plain episode."""
+        from mjxskill.engine.native.episode import NativeEpisode
+
+        world = jax.tree.map(lambda x: np.asarray(x)[0, 0], self.sample_worlds(jax.random.key(0), 1))
+        episode = NativeEpisode(self, self.task.defaults, world, self.model.__copy__())
+        for t in range(min(self.spec.ticks, 5)):
+            episode.begin_tick()
+            episode.plain_steps()
+            episode.end_tick(t)
+        return int(mujoco.mj_sizeModel(episode.model) + episode.data.nbuffer + episode.data.maxuse_arena)
+
+    def close(self) -> None:
+        """Stops the worker processes (they also stop when this process exits)."""
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

@@ -1,0 +1,68 @@
+"""A native engine worker process (started by ``mjxskill.engine.native.pool``; not a user command).
+
+Reads a recipe frame (JSON), builds the engine, answers ``K``; then for every job frame (NPZ:
+params and world fields) runs the episodes in lockstep and answers an ``O`` frame (NPZ: the
+EpisodeResult fields). Any failure is answered with an ``E`` frame holding the traceback.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+
+def _build(spec: dict):
+    import mujoco
+
+    from mjxskill.engine.native.rollout import NativeRollout, sources_sha256
+    from mjxskill.scenario import load_scenario
+    from mjxskill.task import plan_task
+
+    source = Path(spec["scenario"])
+    scn = load_scenario(source)
+    if sources_sha256(scn) != spec["sha256"]:
+        raise RuntimeError(f"{source} or a skill library it includes changed since the engine was built; build it again")
+    configs = spec["start_configs"]
+    return NativeRollout(scn, plan_task(scn, spec["goal"]), worlds=spec["worlds"],
+                         episode_seconds=spec["episode_seconds"],
+                         start_configs=None if configs is None else np.asarray(configs),
+                         mj_model=mujoco.MjModel.from_binary_path(spec["model"]), workers=1)
+
+
+def main() -> int:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops us
+    from mjxskill.engine.native.lockstep import run_lockstep
+    from mjxskill.engine.native.pool import pack_arrays, read_frame, unpack_arrays, write_frame
+    from mjxskill.engine.common.types import EpisodeResult
+    from mjxskill.engine.common.worlds import Worlds
+
+    stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
+    sys.stdout = sys.stderr  # anything printed by accident must not corrupt the frames
+    try:
+        kind, payload = read_frame(stdin)
+        engine = _build(json.loads(payload))
+        write_frame(stdout, b"K", b"")
+        while True:
+            kind, payload = read_frame(stdin)
+            arrays = unpack_arrays(payload)
+            worlds = Worlds(*(arrays[f"world_{name}"] for name in Worlds._fields))
+            results = run_lockstep(engine, arrays["params"], worlds)
+            fields = {f: np.array([getattr(r, f) for r in results]) for f in EpisodeResult._fields}
+            write_frame(stdout, b"O", pack_arrays(**fields))
+    except EOFError:  # the parent closed the pipe: done
+        return 0
+    except BaseException:  # noqa: BLE001  (reported to the parent, which raises it)
+        try:
+            write_frame(stdout, b"E", traceback.format_exc().encode())
+        except OSError:
+            pass
+        return 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

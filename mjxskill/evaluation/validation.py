@@ -1,0 +1,209 @@
+"""The pick's validation: the Pareto solutions in contention rolled out again in fresh worlds.
+
+A Pareto solution's training success rate comes from the few worlds of its own batch
+(``--worlds``: 7 in the paper), and the front keeps whatever did best there, so a knife-edge set
+that happened to succeed in all of them looks as good as a robust one: on peg an 8 mm spiral
+with 100 % training success reached 30-40 % in the evaluation and was picked over a set that
+reached 93-100 % at the same training success (docs/experiments/peg). Before the pick
+(``mjxskill.evaluation.pooled.pick``) the ``candidates`` Pareto solutions within the force bound
+with the highest training success are rolled out in ``per_config`` fresh worlds from each
+*known* start configuration, drawn from the evaluation's seed (an experiment's: the
+repetition's) on a stream of their own (not the training batches' worlds, not the
+evaluation's); the pick takes the highest validation success.
+An operator could do the same on the real cell before committing to a set; the unseen start
+configurations stay unseen until the evaluation.
+
+``RUN_DIR/evaluation/validation.json``: the settings, the validated Pareto rows, their parameters
+and success rates. It is *current* for a pick when it has the same worlds (per_config, seed,
+engine, episode length) and validated every row in contention with the same parameters (a
+validation of more candidates serves one of fewer); a current one is reused (the same inputs
+give the same numbers). It is small and quick to make, so a killed validation is run again
+whole. With no solution within the bound there is nothing to validate and no file.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from mjxskill.errors import RunError
+from mjxskill.scenario.fields import read_text
+from mjxskill.runs.atomic_write import write_json
+from mjxskill.evaluation.evaluate_run import FOLDER
+from mjxskill.evaluation.baselines import evaluate_chunk
+from mjxskill.runs.run_dir import Evaluations, Run
+
+FILE = "validation.json"
+FORMAT = "mjxskill.validation/1"
+STREAM = 0x7A11D  # the validation worlds' PRNG stream (training: 0x0ED0, evaluation: 0xE7A1)
+
+
+class Validation(NamedTuple):
+    """rows: the validated Pareto rows (the contenders, best in training first); success: their
+    success rates (len(rows),) over ``worlds`` validation worlds each; candidates: how many
+    contenders were asked for (None: len(rows))."""
+
+    rows: tuple[int, ...]
+    success: np.ndarray
+    worlds: int
+    candidates: int | None = None
+
+    def success_of(self, row: int) -> float:
+        return float(self.success[self.rows.index(row)])
+
+
+def validation_settings(per_config: int, candidates: int, seed: int, engine: str, episode_seconds: float) -> dict:
+    """What a validation's numbers depend on (candidates: how many were asked for)."""
+    return {"per_config": int(per_config), "candidates": int(candidates), "seed": int(seed), "engine": str(engine),
+            "episode_seconds": float(episode_seconds)}
+
+
+def _same(a: dict, b: dict) -> bool:
+    return all(a.get(k) == b.get(k) for k in ("per_config", "seed", "engine", "episode_seconds"))
+
+
+def in_contention(front: Evaluations, ev, max_force: float | None, n: int) -> list[int]:
+    """The Pareto rows a validated pick chooses from: the ``n`` within the pick's force bound
+    (from the run's evaluation ``ev``) with the best training success."""
+    from mjxskill.evaluation.pooled import contenders, force_bound
+
+    return contenders(front, force_bound(ev, max_force)[0], n)
+
+
+def validation_worlds(rollout, per_config: int, seed: int):
+    """``per_config`` worlds from each known start configuration, from ``seed``'s own stream."""
+    import jax
+
+    known = np.asarray(rollout.scenario.robot.start_configs)
+    return rollout.worlds_per_config(jax.random.fold_in(jax.random.PRNGKey(seed), STREAM), per_config, known), len(known)
+
+
+def validate_rows(rollout, params: np.ndarray, per_config: int, seed: int, pad_to: int = 0) -> np.ndarray:
+    """The success rate of each row of ``params`` over the validation worlds of ``seed``, in one
+    call padded to ``pad_to`` rows (the number of candidates asked for: one compiled shape for
+    MJX whatever the number in contention; the world count differs from training's and the
+    evaluation's, so MJX compiles that shape once more)."""
+    if not len(params):
+        return np.zeros(0)
+    worlds, n_cfg = validation_worlds(rollout, per_config, seed)
+    return evaluate_chunk(rollout, params, worlds, n_cfg, per_config, max(len(params), pad_to))["success"].mean(axis=1)
+
+
+def validate(run: Run, front: Evaluations, rows: Sequence[int], rollout, settings: dict) -> tuple[Validation, bool]:
+    """Validates Pareto ``rows`` of ``run``'s ``front`` (reuses a current validation.json, else
+    rolls them out and writes it). Returns (validation, whether nothing was rolled out)."""
+    rows = tuple(int(r) for r in rows)
+    old = load_validation(run, front, rows, settings)
+    if old is not None:
+        return old, True
+    success = validate_rows(rollout, front.params[list(rows)], settings["per_config"], settings["seed"],
+                            settings["candidates"])
+    n_known = len(rollout.scenario.robot.start_configs)
+    result = Validation(rows, success, settings["per_config"] * n_known, settings["candidates"])
+    doc = {"format": FORMAT, "settings": settings, "worlds": result.worlds, "rows": list(rows),
+           "params": front.params[list(rows)].tolist(), "success": success.tolist()}
+    (run.path / FOLDER).mkdir(exist_ok=True)
+    write_json(run.path / FOLDER / FILE, doc)
+    return result, False
+
+
+def load_validation(run: Run, front: Evaluations, rows: Sequence[int], settings: dict) -> Validation | None:
+    """The validation of Pareto ``rows`` on disk when it is current (see the module docstring);
+    None when there is none or it is of other worlds or parameters. No rows: an empty
+    validation, no file needed. RunError when the file is damaged."""
+    if not len(rows):
+        return Validation((), np.zeros(0), 0, settings["candidates"])
+    stored = _read(run)
+    if stored is None:
+        return None
+    doc, stored_rows, worlds, params, success = stored
+    if not _same(doc["settings"], settings) or not set(rows) <= set(stored_rows):
+        return None
+    index = [stored_rows.index(r) for r in rows]
+    if any(r >= len(front) for r in rows) or not np.array_equal(params[index], front.params[list(rows)]):
+        return None
+    return Validation(tuple(rows), success[index], worlds, settings["candidates"])
+
+
+def validated_success(run: Run, front: Evaluations) -> tuple[np.ndarray, int] | None:
+    """What ``run``'s validation.json says of its current ``front``, whatever its settings (what
+    ``select`` shows): (len(front),) success rates, NaN for a row it did not validate or whose
+    parameters changed since, and its world count; None when the run has no validation. RunError
+    when the file is damaged."""
+    stored = _read(run)
+    if stored is None:
+        return None
+    _, stored_rows, worlds, params, success = stored
+    out = np.full(len(front), np.nan)
+    for i, r in enumerate(stored_rows):
+        if r < len(front) and np.array_equal(params[i], front.params[r]):
+            out[r] = success[i]
+    return out, worlds
+
+
+def validated_union(runs_and_fronts, damaged=None) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """:func:`validated_success` over several (run, front) pairs, the fronts concatenated in
+    order (as ``select`` lists them): (their rates, NaN where none; each row's validation world
+    count, 0 where none), or (None, None) when no run has a validation. A damaged
+    validation.json counts as none and its RunError's message goes to ``damaged`` (None:
+    ignored): a listing is still of use without it."""
+    pairs = list(runs_and_fronts)
+
+    def read(run, front):
+        try:
+            return validated_success(run, front)
+        except RunError as err:
+            if damaged is not None:
+                damaged(str(err))
+            return None
+
+    found = [read(run, front) for run, front in pairs]
+    if all(v is None for v in found):
+        return None, None
+    rates = np.concatenate([np.full(len(front), np.nan) if v is None else v[0] for v, (_, front) in zip(found, pairs)])
+    worlds = np.concatenate([np.zeros(len(front), int) if v is None else np.full(len(front), v[1])
+                             for v, (_, front) in zip(found, pairs)])
+    return rates, np.where(np.isnan(rates), 0, worlds)
+
+
+def row_validation(rates: np.ndarray | None, worlds: np.ndarray | None, i: int) -> tuple[float, int] | None:
+    """(validation success, worlds) of row ``i`` of :func:`validated_union`'s arrays (what an
+    export records), or None when that row was not validated."""
+    if rates is None or np.isnan(rates[i]):
+        return None
+    return float(rates[i]), int(worlds[i])
+
+
+def _read(run: Run):
+    """(document, rows, worlds, params, success) of ``run``'s validation.json, checked; None
+    when there is none. RunError when it is damaged."""
+    path = run.path / FOLDER / FILE
+    if not path.is_file():
+        return None
+    try:
+        doc = json.loads(read_text(path, RunError, "validation"))
+        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+            raise ValueError(f"format {FORMAT!r} expected")
+        stored_rows, worlds = doc["rows"], doc["worlds"]
+        if not isinstance(stored_rows, list) or not stored_rows or not all(_count(r) for r in stored_rows):
+            raise ValueError("rows: a list of Pareto row numbers expected")
+        if not _count(worlds) or worlds < 1 or not isinstance(doc["settings"], dict):
+            raise ValueError("a positive world count and the settings expected")
+        params = np.array(doc["params"], np.float64).reshape(len(stored_rows), -1)
+        success = np.array(doc["success"], np.float64).reshape(len(stored_rows))
+        if not np.all((success >= 0) & (success <= 1)):
+            raise ValueError("success rates in [0, 1] expected")
+    except (KeyError, TypeError, ValueError, OverflowError, RecursionError) as err:
+        raise RunError(f"{path} is not a readable validation ({err}); delete it (it is made again in a minute)") from None
+    return doc, stored_rows, worlds, params, success
+
+
+def _count(v) -> bool:
+    """A JSON integer >= 0 (not a bool, not a float)."""
+    return isinstance(v, int) and not isinstance(v, bool) and v >= 0
+
+
+__all__ = ["FILE", "FORMAT", "Validation", "in_contention", "load_validation", "validate", "validate_rows", "validated_success",
+           "validated_union", "row_validation", "validation_settings", "validation_worlds"]

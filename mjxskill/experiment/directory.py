@@ -1,0 +1,187 @@
+"""An experiment directory: its protocol (``experiment.yaml``), its two repeated runs, its state.
+
+Layout: ``mjxskill.runs.layout``. ``experiment.yaml`` holds what the runs' ``config.yaml``
+files do not: how each repetition is evaluated (worlds per start configuration, random sets,
+the pick's force bound and its validation; the validation alone may be changed when the
+experiment is resumed, ``Experiment.set_validation``). The training settings are the runs' own: ``optimizer/config.yaml``
+and ``random_search/config.yaml`` are one configuration that differs only in ``optimizer``.
+``state.json`` accumulates the wall time spent on each run and evaluation, over every session
+(a resumed experiment adds to it). Like a run, an experiment is created whole or not at all,
+only where nothing is, and written by one process at a time.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from mjxskill.errors import RunError
+from mjxskill.scenario.fields import compose_text, read_text
+from mjxskill.runs.atomic_write import write_json, write_text
+from mjxskill.evaluation.evaluate_run import evaluation_settings
+from mjxskill.runs.run_dir import Run, RunConfig, created_whole
+from mjxskill.runs.run_lock import RunLock, lock_run
+from mjxskill.evaluation.validation import validation_settings
+from mjxskill.runs.layout import EXPERIMENT, OPTIMIZER_RUNS, RANDOM_RUNS
+
+FORMAT = "mjxskill.experiment/1"
+STATE = "state.json"
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """How each repetition is evaluated. per_config: worlds from each known and each unseen
+    start configuration; random_sets: uniform parameter sets; max_force: the pick's force bound,
+    N (None: the largest force an operator set commands, ``mjxskill.evaluation.pooled``);
+    validation_per_config: fresh worlds from each known start configuration in which the
+    validation_candidates best solutions within the bound are rolled out again before the pick
+    (``mjxskill.evaluation.validation``; 0: the training success alone decides, as in an
+    experiment.yaml written before validation existed, which has neither key)."""
+
+    per_config: int = 5
+    random_sets: int = 10
+    max_force: float | None = None
+    validation_per_config: int = 5
+    validation_candidates: int = 3
+
+    def to_yaml(self, task: str) -> str:
+        import yaml
+
+        return yaml.safe_dump({"format": FORMAT, "task": task, "per_config": self.per_config,
+                               "random_sets": self.random_sets, "max_force": self.max_force,
+                               "validation_per_config": self.validation_per_config,
+                               "validation_candidates": self.validation_candidates}, sort_keys=False)
+
+    @classmethod
+    def from_yaml(cls, text: str, where: str) -> "Protocol":
+        root = compose_text(text, where, RunError)
+        f = root.mapping(required=("format", "task", "per_config", "random_sets", "max_force"),
+                         optional=("validation_per_config", "validation_candidates"))
+        if f["format"].is_null() or f["format"].scalar() != FORMAT:
+            f["format"].fail(f"not an mjxskill experiment (format {FORMAT!r} expected)")
+        return cls(per_config=f["per_config"].integer(minimum=1), random_sets=f["random_sets"].integer(minimum=0),
+                   max_force=None if f["max_force"].is_null() else f["max_force"].number(nonnegative=True),
+                   validation_per_config=f["validation_per_config"].integer(minimum=0) if "validation_per_config" in f else 0,
+                   validation_candidates=f["validation_candidates"].integer(minimum=1) if "validation_candidates" in f else 3)
+
+
+def random_search_config(config: RunConfig) -> RunConfig:
+    """The random search that goes with optimizer configuration ``config``."""
+    return replace(config, optimizer="random")
+
+
+def runs_of(run: Run, config: RunConfig) -> list[Run]:
+    """The runs a (repeated or single) run directory holds, in seed order."""
+    return run.sub_runs(config) if config.repeats > 1 else [run]
+
+
+class Experiment:
+    """An experiment directory (see the module docstring)."""
+
+    def __init__(self, path: Path | str):
+        self.path = Path(path)
+        self.optimizer = Run(self.path / OPTIMIZER_RUNS)
+        self.random_search = Run(self.path / RANDOM_RUNS)
+
+    def create(self, config: RunConfig, protocol: Protocol, scenario_source: str, texts: dict[str, str]) -> None:
+        """Writes experiment.yaml and the two repeated runs of ``config`` (optimizer "mobo");
+        all or nothing, and only where nothing is (a missing or empty folder)."""
+        if (self.path / EXPERIMENT).exists():
+            raise RunError(f"{self.path} already holds an experiment; continue it with --resume {self.path}")
+        if self.path.exists() and (not self.path.is_dir() or os.listdir(self.path)):
+            raise RunError(f"{self.path} is not empty and holds no mjxskill experiment; refusing to write into it: "
+                           f"choose another --out")
+        with created_whole(self.path, "experiment directory") as staging:
+            Run(staging / OPTIMIZER_RUNS).create(replace(config, optimizer="mobo"), scenario_source, texts)
+            Run(staging / RANDOM_RUNS).create(random_search_config(config), scenario_source, texts)
+            (staging / EXPERIMENT).write_text(protocol.to_yaml(config.task))
+
+    def protocol(self) -> Protocol:
+        path = self.path / EXPERIMENT
+        if not path.is_file():
+            raise RunError(f"{self.path} is not an experiment directory (no {EXPERIMENT})")
+        return Protocol.from_yaml(read_text(path, RunError, "experiment protocol"), str(path))
+
+    def set_validation(self, per_config: int, candidates: int) -> Protocol:
+        """Rewrites experiment.yaml with another validation of the pick (the one protocol setting
+        a resumed experiment may change: the runs and evaluations do not depend on it, the picks
+        are made again from them); returns the new protocol."""
+        protocol = replace(self.protocol(), validation_per_config=per_config, validation_candidates=candidates)
+        write_text(self.path / EXPERIMENT, protocol.to_yaml(self.config().task))
+        return protocol
+
+    def config(self) -> RunConfig:
+        """The training configuration (the optimizer's), checked against the random search's."""
+        config = self.optimizer.config()
+        other = self.random_search.config()
+        if config.optimizer != "mobo" or other != random_search_config(config):
+            raise RunError(f"{self.random_search.path / 'config.yaml'} and {self.optimizer.path / 'config.yaml'} "
+                           f"must differ only in optimizer (mobo, random): the two would not be comparable")
+        return config
+
+    def runs(self, config: RunConfig) -> list[tuple[Run, Run]]:
+        """(optimizer run, random search run) per repetition, in seed order."""
+        return list(zip(runs_of(self.optimizer, config), runs_of(self.random_search, random_search_config(config))))
+
+    def lock(self) -> RunLock:
+        return lock_run(self.path)
+
+    # -- wall times ----------------------------------------------------------------------------
+    def state(self) -> dict:
+        path = self.path / STATE
+        if not path.is_file():
+            return {"sessions": [], "times": {}}
+        try:
+            state = json.loads(read_text(path, RunError, "experiment state"))
+            if not isinstance(state.get("sessions"), list) or not isinstance(state.get("times"), dict):
+                raise ValueError("sessions and times expected")
+        except (ValueError, AttributeError) as err:
+            raise RunError(f"{path} is not an experiment state ({err}); delete it (only wall times are lost)") from None
+        return state
+
+    def add_time(self, key: str, field: str, seconds: float, evaluations: int = 0) -> None:
+        """Adds ``seconds`` (and ``evaluations`` computed in them) to ``times[key][field]``."""
+        state = self.state()
+        entry = state["times"].setdefault(key, {})
+        entry[field] = entry.get(field, 0.0) + float(seconds)
+        if evaluations:
+            entry[field + "_evaluations"] = entry.get(field + "_evaluations", 0) + int(evaluations)
+        self._write_state(state)
+
+    def add_session(self, startup_seconds: float, engine: str) -> None:
+        state = self.state()
+        state["sessions"].append({"started": time.strftime("%Y-%m-%d %H:%M:%S"), "startup_seconds": float(startup_seconds),
+                                  "engine": engine, "cpus": os.cpu_count()})
+        self._write_state(state)
+
+    def _write_state(self, state: dict) -> None:
+        write_json(self.path / STATE, state)
+
+
+def repetition_settings(config: RunConfig, protocol: Protocol, seed: int) -> dict:
+    """The evaluation settings of the repetition of seed ``seed``: its worlds come from its seed."""
+    return evaluation_settings(protocol.per_config, protocol.random_sets, seed, config.batch_size, config.engine,
+                               config.episode_seconds)
+
+
+def repetition_validation(config: RunConfig, protocol: Protocol, seed: int) -> dict | None:
+    """The validation settings of the repetition of seed ``seed`` (None: the protocol has none)."""
+    if not protocol.validation_per_config:
+        return None
+    return validation_settings(protocol.validation_per_config, protocol.validation_candidates, seed, config.engine,
+                               config.episode_seconds)
+
+
+def is_done(run: Run, config: RunConfig) -> bool:
+    return len(run.evaluations(config)) >= config.budget
+
+
+def time_key(kind: str, seed: int) -> str:
+    return f"{kind}/seed-{seed}"
+
+
+__all__ = ["FORMAT", "STATE", "Experiment", "Protocol", "is_done", "random_search_config",
+           "repetition_settings", "repetition_validation", "runs_of", "time_key"]

@@ -1,0 +1,192 @@
+"""The experiment's report: ``report.json`` (plain data, ``stats.summarize``), ``report.md`` (the
+same numbers for people, side by side with the paper) and the figures, in the experiment
+directory. Rewritten after every repetition, so a long experiment has a report all along.
+
+report.json: ``task``; ``status`` (repetitions done of all); ``protocol`` (every setting);
+``pick_rule`` and ``picked`` (per repetition, with the validation's success rates);
+``training_pick`` (the picks the training success alone makes, where they differ, and their
+success rates: what the validation changed); ``front_size`` (``mean``, ``sd``, per
+repetition, and the random search's); ``groups`` (group -> ``known``, ``unseen`` mean success
+rates); ``samples`` (their counts); ``mann_whitney`` (baseline -> ``known``, ``unseen``: p of the
+picked solutions against it); ``force_and_time`` (group -> ``peak_commanded_force_N``, the
+commanded force, and ``success_time_s``); ``hypervolume`` (``optimizer``,
+``random_search``: final hypervolume per repetition; the curves, the space and reference point);
+``wall_time`` (per repetition and kind, seconds); ``sessions``; ``paper`` (the side-by-side rows).
+"""
+
+from __future__ import annotations
+
+from mjxskill.runs.atomic_write import write_json, write_text
+from mjxskill.evaluation.baselines import stars_of
+from mjxskill.experiment.directory import Experiment
+from mjxskill.experiment.figures import FRONTS, HYPERVOLUME, SUCCESS, plot_fronts, plot_hypervolume
+from mjxskill.evaluation.pooled import POOLED_LABELS, plot_pooled, pooled_samples
+
+PAPER_PROTOCOL = (10, 400, 7)  # repetitions, evaluations, worlds (the paper's experiments)
+
+
+def write_report(exp: Experiment) -> str:
+    """Writes report.json, report.md and the figures; returns a line saying where."""
+    from mjxskill.experiment.stats import finished_repetitions, summarize
+
+    summary = summarize(exp)
+    config = exp.config()
+    reps = finished_repetitions(exp, config, exp.protocol())
+    if reps:
+        plot_fronts(reps, config.objective_names, config.task, exp.path / FRONTS)
+        plot_hypervolume(summary["hypervolume"], config.n_init, config.task, exp.path / HYPERVOLUME)
+        samples = pooled_samples([r.evaluation for r in reps], [r.pick for r in reps])
+        plot_pooled(samples, exp.path / SUCCESS, f"{config.task}: success rate per start configuration, "
+                                                 f"{len(reps)} repetitions")
+    write_json(exp.path / "report.json", summary)
+    write_text(exp.path / "report.md", markdown(summary, figures=bool(reps)))
+    s = summary["status"]
+    return f"report of {s['repetitions_done']} of {s['repetitions']} repetitions: {exp.path / 'report.md'}"
+
+
+def _pct(v) -> str:
+    return "-" if v is None else f"{100 * v:.1f} %"
+
+
+def _num(v, fmt="{:.3g}") -> str:
+    return "-" if v is None else fmt.format(v)
+
+
+def _p(p) -> str:
+    return "-" if p is None else f"{p:.3g} {stars_of(p)}"
+
+
+def _table(head: list[str], rows: list[list[str]]) -> list[str]:
+    return ["| " + " | ".join(head) + " |", "|" + "---|" * len(head), *("| " + " | ".join(r) + " |" for r in rows)]
+
+
+def markdown(s: dict, figures: bool = True) -> str:
+    p, st = s["protocol"], s["status"]
+    scale = (st["repetitions"], p["budget"], p["worlds"])
+    lines = [f"# Experiment: {s['task']}", "",
+             f"{st['repetitions_done']} of {st['repetitions']} repetitions finished"
+             + ("." if st["repetitions_done"] == st["repetitions"] else " (the report covers the finished ones)."),
+             f"Protocol {scale[0]} repetitions x {scale[1]} evaluations x {scale[2]} worlds"
+             + (f", smaller than the paper's {PAPER_PROTOCOL[0]} x {PAPER_PROTOCOL[1]} x {PAPER_PROTOCOL[2]}."
+                if any(a < b for a, b in zip(scale, PAPER_PROTOCOL)) else ", the paper's."), ""]
+    lines += ["## Side by side with the paper", ""]
+    rows = []
+    for row in s["paper"]:
+        if "ours_known" in row:
+            ours = f"{_pct(row['ours_known'])} known, {_pct(row['ours_unseen'])} unseen"
+        elif row["unit"] == "fraction":
+            detail = ", ".join(f"{k.rsplit('_', 1)[0]} {_num(v)} {k.rsplit('_', 1)[1]}" for k, v in row["detail"].items())
+            ours = f"{_pct(row['ours'])} ({detail})"
+        else:
+            ours = _num(row["ours"], "{:.1f}")
+        paper = "-" if row["paper"] is None else (_pct(row["paper"]) if row["unit"] == "fraction" else f"{row['paper']:g}")
+        rows.append([row["quantity"], paper, ours])
+    lines += _table(["quantity", "paper", "ours"], rows)
+    lines += ["", "The paper's success rates are the real robot's over known and unseen start configurations; ours "
+              "are simulated, per start configuration group. Times to success are over the successful worlds.", ""]
+
+    lines += ["## Success rates", ""] + ([f"![success rates]({SUCCESS})", ""] if figures else [])
+    rows = []
+    for g, m in s["groups"].items():
+        tests = s["mann_whitney"].get(g, {})
+        n = s["samples"][g]
+        rows.append([POOLED_LABELS[g], _pct(m["known"]), _pct(m["unseen"]), f"{n['known']} + {n['unseen']}",
+                     _p(tests.get("known")), _p(tests.get("unseen"))])
+    lines += _table(["group", "known", "unseen", "samples (known + unseen)", "picked vs group, known",
+                     "picked vs group, unseen"], rows)
+    lines += ["", "Mann-Whitney U, two-sided, stars at the paper's levels: * p < 0.1, ** p < 0.05, *** p < 0.01, "
+              "**** p < 0.001. A sample is one success rate per (repetition, candidate, start configuration), each over "
+              f"{p['per_config']} worlds: the picked group has one candidate per repetition, so R repetitions give R x C "
+              "samples (C start configurations); one sample per repetition would be too few. Samples of a repetition share "
+              "its worlds and are not independent.", ""]
+    lines += _finding(s)
+
+    lines += ["## Picked solutions", "", f"Rule: {s['pick_rule']}.", ""]
+    names = list(p["parameters"])
+    validated = s.get("training_pick", {}).get("validated", False)
+    rows = [[str(r["seed"]), _num(r["pareto_row"], "{}"), _num(r["bound_N"], "{:.2f} N")]
+            + ([_num(r["parameters"][n], "{:.4g}") for n in names] + [_pct(r["training_success"])]
+               + ([_pct(r["validation_success"])] if validated else [])
+               + [_num(r["training_peak_commanded_force_N"], "{:.2f}"), _pct(r["known"]), _pct(r["unseen"])]
+               if r["pareto_row"] is not None else
+               ["no Pareto solution within the bound"] + [""] * (len(names) + 3 + validated))
+            for r in s["picked"]]
+    lines += _table(["seed", "Pareto row", "bound", *(n.split(".")[-1] for n in names), "training success",
+                     *(["validation success"] if validated else []), "commanded force [N]", "known", "unseen"], rows)
+    lines += [""] + _validation_effect(s)
+
+    f = s["front_size"]
+    lines += ["## Pareto fronts", ""] + ([f"![Pareto fronts]({FRONTS})", ""] if figures else [])
+    lines += [f"Front size: optimizer {_num(f['mean'], '{:.2f}')} +- {_num(f['sd'], '{:.2f}')} (mean +- sd over "
+              f"repetitions; per seed {f['per_repetition']}); random search {_num(f['random_search']['mean'], '{:.2f}')} "
+              f"+- {_num(f['random_search']['sd'], '{:.2f}')} ({f['random_search']['per_repetition']}).", ""]
+
+    hv = s["hypervolume"]
+    lines += ["## Hypervolume", ""] + ([f"![hypervolume]({HYPERVOLUME})", ""] if figures else [])
+    if hv["optimizer"]:
+        lines += _table(["seed", "optimizer", "random search"],
+                        [[str(r["seed"]), f"{a:.4f}", f"{b:.4f}"] for r, a, b in zip(s["picked"], hv["optimizer"], hv["random_search"])])
+        lines += ["", f"Final hypervolume in the {hv['space']}; reference point {hv['reference_point']}. Optimizer vs "
+                  f"random search, Mann-Whitney U over the repetitions: p = {_p(hv['mann_whitney_p_final'])} (with R "
+                  "repetitions per side the smallest possible two-sided p is 2 / C(2R, R)).", ""]
+
+    lines += ["## Wall time", ""]
+    rows = []
+    for seed, kinds in s["wall_time"].items():
+        o, r = kinds["optimizer"], kinds["random_search"]
+        total = sum(e.get(k, 0.0) for e, k in ((o, "train_seconds"), (r, "train_seconds"), (o, "evaluate_seconds"),
+                                                (o, "validate_seconds")))
+        rows.append([seed, _secs(o, "train_seconds"), _secs(o, "simulation_seconds"), _secs(r, "train_seconds"),
+                     _num(o.get("evaluate_seconds"), "{:.0f} s"), _num(o.get("validate_seconds"), "{:.0f} s"),
+                     f"{total:.0f} s"])
+    lines += _table(["seed", "optimizer run (evaluations)", "of it simulation", "random search run", "evaluation",
+                     "validation", "repetition"], rows)
+    sessions = s["sessions"]
+    lines += ["", f"{len(sessions)} session(s); start-up (planning, engine start, compilation) "
+              + ", ".join(f"{x['startup_seconds']:.0f} s ({x['engine']}, {x['cpus']} CPUs)" for x in sessions)
+              + ". Times are this machine's, shared with other work while they ran.", ""]
+    lines += ["## Protocol", ""]
+    lines += _table(["setting", "value"], [[k, f"`{v}`"] for k, v in p.items() if k != "parameters"])
+    lines += ["", "Parameters: " + ", ".join(f"{n} in [{v['bounds'][0]:g}, {v['bounds'][1]:g}] {v['unit']}"
+                                             for n, v in p["parameters"].items()) + ".", ""]
+    return "\n".join(lines)
+
+
+def _validation_effect(s: dict) -> list[str]:
+    """What the validation changed: the picks the training success alone would have made."""
+    t = s.get("training_pick", {})
+    if not t.get("validated"):
+        return []
+    if not t["changed"]:
+        return ["The validation picked what the training success alone picks in every repetition.", ""]
+    seeds = ", ".join(f"seed {c['seed']}: row {c['validated_row']} instead of {c['training_row']}" for c in t["changed"])
+    g, mine = t["groups"], s["groups"].get("picked", {})
+    return [f"The validation changed the pick in {len(t['changed'])} of {len(s['picked'])} repetitions ({seeds}). "
+            f"The training success alone would have picked solutions that reach {_pct(g.get('known'))} known, "
+            f"{_pct(g.get('unseen'))} unseen, against {_pct(mine.get('known'))} and {_pct(mine.get('unseen'))} for "
+            "the validated picks.", ""]
+
+
+def _secs(entry: dict, field: str) -> str:
+    if field not in entry:
+        return "-"
+    return f"{entry[field]:.0f} s ({entry.get(field + '_evaluations', 0)})"
+
+
+def _finding(s: dict) -> list[str]:
+    """The sentence the issue asks for: do the picked solutions beat random sets and planner-only
+    on the unseen configurations with p < 0.05? As measured."""
+    out = []
+    for baseline in ("random", "planner"):
+        t = s["mann_whitney"].get(baseline, {}).get("unseen")
+        if t is None:
+            continue
+        mp, mb = s["groups"]["picked"]["unseen"], s["groups"][baseline]["unseen"]
+        better = mp is not None and mb is not None and mp > mb
+        verdict = "beat" if (t < 0.05 and better) else "did not beat"
+        out.append(f"On the unseen start configurations the picked solutions {verdict} {POOLED_LABELS[baseline]} "
+                   f"at p < 0.05 ({_pct(mp)} vs {_pct(mb)}, p = {t:.3g}).")
+    return (["**Finding.** " + " ".join(out), ""]) if out else []
+
+
+__all__ = ["PAPER_PROTOCOL", "markdown", "write_report"]

@@ -1,0 +1,249 @@
+"""The numbers of an experiment's report, over its finished repetitions (plain data: report.json).
+
+A repetition is finished when its optimizer run and its random search reached the budget, the
+optimizer run's evaluation has the protocol's settings and, when the protocol validates the
+pick, its validation is current (``mjxskill.evaluation.validation``). Hypervolume: both runs of every
+finished repetition are measured in one space, the objectives negated (minimized) and scaled
+per objective to [0, 1] by the minimum and maximum over every finite evaluation of every one of
+those runs; the reference point is 1 + ``HV_MARGIN`` in each objective (the worst value of all
+runs plus 10 % of the range, as a run's own reference is made), so the largest possible
+hypervolume is 1.1 ** O. Front sizes: the sample standard deviation (ddof 1) over repetitions.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from mjxskill.evaluation.evaluate_run import evaluation_current, load_evaluation
+from mjxskill.evaluation.baselines import Evaluation, significance
+from mjxskill.experiment.directory import (
+    Experiment,
+    Protocol,
+    is_done,
+    repetition_settings,
+    repetition_validation,
+    time_key,
+)
+from mjxskill.training.front import HV_MARGIN, hypervolume_history, pareto_mask_of
+from mjxskill.evaluation.pooled import (
+    Pick,
+    group_force_and_time,
+    group_means,
+    pick,
+    pooled_samples,
+    pooled_tests,
+)
+from mjxskill.runs.run_dir import Evaluations, RunConfig
+from mjxskill.evaluation.validation import Validation, in_contention, load_validation
+
+# The paper's numbers (Mayr et al., experiments section), per scenario name.
+PAPER = {
+    "push": {"front_size": 8.3},
+    "peg": {"front_size": 6.1, "picked": 0.96, "manual": 0.522, "random": 0.41, "faster": 0.181, "force_higher": 0.166},
+}
+
+
+class Repetition(NamedTuple):
+    """One finished repetition: its seed, both runs' evaluations (training rows), the optimizer's
+    training front, its evaluation against the baselines and its pick."""
+
+    seed: int
+    optimizer: Evaluations
+    random_search: Evaluations
+    front: Evaluations
+    evaluation: Evaluation
+    pick: Pick
+    validation: Validation | None = None  # of the pick's contenders (None: the protocol has none)
+    training_pick: Pick | None = None  # what the training success alone picks (the rule without validation)
+
+
+def finished_repetitions(exp: Experiment, config: RunConfig, protocol: Protocol) -> list[Repetition]:
+    """The repetitions whose runs are finished, evaluated and (when the protocol says so) whose
+    pick is validated, with the settings of ``protocol``."""
+    reps = []
+    for i, (opt, rnd) in enumerate(exp.runs(config)):
+        seed = config.seed + i
+        opt_config, rnd_config = opt.config(), rnd.config()
+        if not (is_done(opt, opt_config) and is_done(rnd, rnd_config)
+                and evaluation_current(opt, opt_config, repetition_settings(config, protocol, seed))):
+            continue
+        front = opt.front(opt_config)
+        ev, _ = load_evaluation(opt)
+        validation = None
+        settings = repetition_validation(config, protocol, seed)
+        if settings is not None:
+            rows = in_contention(front, ev, protocol.max_force, protocol.validation_candidates)
+            validation = load_validation(opt, front, rows, settings)
+            if validation is None:
+                continue
+        reps.append(Repetition(seed, opt.evaluations(opt_config), rnd.evaluations(rnd_config), front, ev,
+                               pick(front, ev, protocol.max_force, validation), validation,
+                               pick(front, ev, protocol.max_force)))
+    return reps
+
+
+def normalization(runs: list[Evaluations]) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) per objective of the negated objectives over every finite row of ``runs``."""
+    z = -np.concatenate([r.objectives for r in runs])
+    z = np.where(np.isfinite(z), z, np.nan)
+    lo, hi = np.nanmin(z, axis=0), np.nanmax(z, axis=0)
+    return lo, np.where(hi > lo, hi, lo + 1.0)
+
+
+def normalized_curve(ev: Evaluations, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(evaluations done after each batch, hypervolume there) in the normalized space."""
+    scaled = Evaluations(ev.iteration, ev.params, -((-ev.objectives - lo) / (hi - lo)), *ev[3:])  # not _replace: len() is rows
+    return hypervolume_history(scaled, np.full(ev.objectives.shape[1], 1.0 + HV_MARGIN))
+
+
+def hypervolumes(reps: list[Repetition]) -> dict:
+    if not reps:
+        return {"optimizer": [], "random_search": []}
+    lo, hi = normalization([r.optimizer for r in reps] + [r.random_search for r in reps])
+    curves = {kind: [normalized_curve(getattr(r, kind), lo, hi) for r in reps] for kind in ("optimizer", "random_search")}
+    finals = {kind: [float(c[1][-1]) for c in curves[kind]] for kind in curves}
+    p = significance(np.array(finals["optimizer"]), np.array(finals["random_search"]))[0] if len(reps) > 1 else None
+    n_obj = reps[0].optimizer.objectives.shape[1]
+    return {
+        **finals,
+        "reference_point": [1.0 + HV_MARGIN] * n_obj,
+        "space": "negated objectives scaled to [0, 1] by the min and max over every evaluation of every run",
+        "normalization": {"min": lo.tolist(), "max": hi.tolist()},
+        "evaluations": curves["optimizer"][0][0].tolist(),
+        "curves": {kind: [c[1].tolist() for c in curves[kind]] for kind in curves},
+        "mann_whitney_p_final": p,
+    }
+
+
+def _mean_sd(values) -> dict:
+    a = np.asarray(values, np.float64)
+    return {"mean": float(a.mean()) if len(a) else None, "sd": float(a.std(ddof=1)) if len(a) > 1 else None}
+
+
+def front_sizes(reps: list[Repetition]) -> dict:
+    opt = [len(r.front) for r in reps]
+    rnd = [int(pareto_mask_of(r.random_search).sum()) for r in reps]
+    return {**_mean_sd(opt), "per_repetition": {str(r.seed): n for r, n in zip(reps, opt)},
+            "random_search": {**_mean_sd(rnd), "per_repetition": {str(r.seed): n for r, n in zip(reps, rnd)}}}
+
+
+def paper_rows(task: str, front: dict, means: dict, force_time: dict) -> list[dict]:
+    """The side-by-side table: quantity, the paper's value, ours (None: not measured)."""
+    paper = PAPER.get(task, {})
+    picked_force, picked_time = force_time.get("picked", (np.nan, np.nan))
+    manual_force, manual_time = force_time.get("manual", (np.nan, np.nan))
+    finite = lambda v: float(v) if v is not None and np.isfinite(v) else None  # noqa: E731
+    rows = [{"quantity": "Pareto front size (mean over repetitions)", "paper": paper.get("front_size"),
+             "ours": front.get("mean"), "unit": "points"}]
+    for group, what in (("picked", "success of the best learned (picked) solutions"),
+                        ("manual", "success of the operators' sets"), ("random", "success of random parameter sets")):
+        m = means.get(group, {})
+        rows.append({"quantity": what, "paper": paper.get(group), "ours_known": m.get("known"),
+                     "ours_unseen": m.get("unseen"), "unit": "fraction"})
+    faster = 1.0 - picked_time / manual_time if manual_time and np.isfinite(manual_time) else np.nan
+    higher = manual_force / picked_force - 1.0 if picked_force and np.isfinite(picked_force) else np.nan
+    rows.append({"quantity": "learned successes faster than the operators' (1 - t_picked / t_operators)",
+                 "paper": paper.get("faster"), "ours": finite(faster), "unit": "fraction",
+                 "detail": {"picked_s": finite(picked_time), "operators_s": finite(manual_time)}})
+    rows.append({"quantity": "operators' commanded force above the learned (F_operators / F_picked - 1)",
+                 "paper": paper.get("force_higher"), "ours": finite(higher), "unit": "fraction",
+                 "detail": {"picked_N": finite(picked_force), "operators_N": finite(manual_force)}})
+    return rows
+
+
+def summarize(exp: Experiment) -> dict:
+    """Everything report.json holds (see mjxskill.experiment.report)."""
+    from dataclasses import asdict
+
+    config, protocol = exp.config(), exp.protocol()
+    reps = finished_repetitions(exp, config, protocol)
+    evals, picks = [r.evaluation for r in reps], [r.pick for r in reps]
+    samples = pooled_samples(evals, picks)
+    means = group_means(samples)
+    force_time = {g: group_force_and_time(evals, picks, g) for g in samples}
+    front = front_sizes(reps)
+    state = exp.state()
+    n_known = int(reps[0].evaluation.known.sum()) if reps else None
+    return {
+        "task": config.task,
+        "status": {"repetitions_done": len(reps), "repetitions": config.repeats},
+        "protocol": {**{k: v for k, v in asdict(config).items() if k not in ("parameter_names", "parameter_units", "bounds",
+                                                                          "objective_names", "optimizer", "scenario")},
+                     "parameters": {n: {"bounds": [lo, hi], "unit": u} for n, lo, hi, u in
+                                    zip(config.parameter_names, *config.bounds, config.parameter_units)},
+                     "objectives": list(config.objective_names), "scenario": config.scenario,
+                     "per_config": protocol.per_config, "random_sets": protocol.random_sets,
+                     "max_force": protocol.max_force, "validation_per_config": protocol.validation_per_config,
+                     "validation_candidates": protocol.validation_candidates,
+                     "known_configs": n_known, "unseen_configs": None if not reps else int((~reps[0].evaluation.known).sum()),
+                     "evaluation_seeds": "each repetition's own training seed"},
+        "pick_rule": pick_rule(protocol, n_known),
+        "picked": [_picked(r, config) for r in reps],
+        "training_pick": training_pick(reps),
+        "front_size": front,
+        "groups": means,
+        "samples": {g: {"known": len(v[0]), "unseen": len(v[1])} for g, v in samples.items()},
+        "mann_whitney": pooled_tests(samples),
+        "force_and_time": {g: {"peak_commanded_force_N": _finite(f), "success_time_s": _finite(t)} for g, (f, t) in force_time.items()},
+        "hypervolume": hypervolumes(reps),
+        "wall_time": {str(r.seed): {kind: state["times"].get(time_key(kind, r.seed), {})
+                                    for kind in ("optimizer", "random_search")} for r in reps},
+        "sessions": state["sessions"],
+        "paper": paper_rows(config.task, front, means, force_time),
+    }
+
+
+def pick_rule(protocol: Protocol, n_known: int | None) -> str:
+    """The pick rule in words (report.json's ``pick_rule``)."""
+    force = ("commanded force (peak_commanded_force: the largest feed-forward force the skills command in an episode, "
+             "mean over the training worlds; not the measured contact force) is at most the bound")
+    bound = "Bound: " + (f"{protocol.max_force:g} N (given)" if protocol.max_force is not None else
+                         "the largest force an operator set commands in the repetition's evaluation")
+    if not protocol.validation_per_config:
+        return (f"the Pareto solution with the highest training success rate among those whose {force}; ties: the "
+                f"higher first objective. {bound}")
+    per = protocol.validation_per_config
+    worlds = f"{per * n_known} fresh worlds ({per}" if n_known else f"fresh worlds ({per}"
+    return (f"of the Pareto solutions whose {force}, the {protocol.validation_candidates} with the highest training "
+            f"success rate (ties: the higher first objective) are rolled out again in {worlds} from each known start "
+            "configuration, drawn from the repetition's seed apart from the training and evaluation worlds); the one "
+            "with the highest success rate there is picked; ties: the higher training success rate, then the higher "
+            f"first objective. {bound}")
+
+
+def training_pick(reps: list[Repetition]) -> dict:
+    """What the pick would have been without validation: per repetition where it differs, and
+    the success rates of those picks pooled (the validation's effect, measured)."""
+    if not reps or all(r.validation is None for r in reps):
+        return {"validated": False}
+    evals, picks = [r.evaluation for r in reps], [r.training_pick for r in reps]
+    means = group_means(pooled_samples(evals, picks)).get("picked", {"known": None, "unseen": None})
+    changed = [{"seed": r.seed, "validated_row": r.pick.row, "training_row": r.training_pick.row}
+               for r in reps if r.pick.row != r.training_pick.row]
+    return {"validated": True, "changed": changed, "groups": means}
+
+
+def _finite(v) -> float | None:
+    return float(v) if v is not None and np.isfinite(v) else None
+
+
+def _picked(r: Repetition, config: RunConfig) -> dict:
+    p = r.pick
+    out = {"seed": r.seed, "pareto_row": p.row, "bound_N": p.bound, "bound_source": p.source}
+    if p.row is not None:
+        ev = r.evaluation
+        row = ev.candidates.names.index(f"pareto-{p.row}")
+        out.update(parameters=dict(zip(config.parameter_names, map(float, r.front.params[p.row]))),
+                   training_success=float(r.front.success_rate[p.row]), training_peak_commanded_force_N=float(r.front.peak_commanded_force[p.row]),
+                   validation_success=None if r.validation is None else r.validation.success_of(p.row),
+                   known=float(ev.mean(True)[row]), unseen=_finite(ev.mean(False)[row]))
+    if r.validation is not None:
+        out["validation_rates"] = {str(row): rate for row, rate in zip(r.validation.rows, map(float, r.validation.success))}
+        out["validation_worlds"] = r.validation.worlds
+    return out
+
+
+__all__ = ["PAPER", "Repetition", "finished_repetitions", "hypervolumes", "normalization", "normalized_curve", "pick_rule",
+           "summarize", "training_pick"]

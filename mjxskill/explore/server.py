@@ -1,0 +1,185 @@
+"""The explore page's HTTP server: the page, its JSON API and the files of the run directory.
+
+Routing, JSON responses and static files (content types, ranges for the video, conditional
+requests) come from Bottle, one module with no dependencies; it runs on the standard library's
+WSGI server made threaded, so a slow request (a long video) never holds up another. What is
+served:
+
+    /                        the page;  /static/<file>  its scripts, styles and D3 (package data)
+    /files/<path>            a file inside the run directory (frames and videos the page made)
+    /api/run                 task, parameters with units and bounds, objectives, runs
+    /api/front               the rows of every run's pareto.csv with their values
+    /api/evaluations         every evaluation (run, row, values, Pareto row k or null)
+    /api/hypervolume         each run's hypervolume after each batch
+    /api/choose?min_success=R&max_force=N    the Pareto solution select picks for these limits
+    /api/solution/<run>/<index>?config=C     per-world results and rendering of a point, progress
+    POST /api/solution/<run>/<index>  {"config": C}   start computing them (background)
+    POST /api/export {"run": r, "k": k}      write selected-<k>/ as ``select --pick k``
+
+A path with a ``..`` segment, a backslash or a NUL is refused (403) before any routing, and a
+file is served only when its real path (symlinks resolved) lies inside the static folder or the
+run directory. Bad input to the API answers 400 with ``{"error": message}``.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import socket
+import socketserver
+from pathlib import Path
+from wsgiref.simple_server import WSGIRequestHandler, WSGIServer, make_server
+
+import bottle
+
+from mjxskill.errors import CommandError, UserError
+from mjxskill.explore.data import (
+    choose_document,
+    evaluations_document,
+    front_document,
+    hypervolume_document,
+    point,
+    run_document,
+    runs_in,
+)
+from mjxskill.explore.export import export_solution
+from mjxskill.explore.solutions import Solutions
+
+STATIC = Path(__file__).resolve().parent / "static"
+
+
+class Explorer:
+    """The run directory ``path`` (a run, or a repeated run) and its on-demand rollouts."""
+
+    def __init__(self, path: Path | str, solutions: Solutions | None = None):
+        self.path = Path(path)
+        runs_in(self.path)  # a bad directory fails here, before a server starts
+        self.solutions = solutions or Solutions(self.path)
+
+    def entries(self):
+        return runs_in(self.path)  # read again on every request: a run may be training on
+
+
+def _json(status: int, doc: dict) -> bottle.HTTPResponse:
+    return bottle.HTTPResponse(json.dumps(doc), status, {"Content-Type": "application/json"})
+
+
+def refused(path: str) -> bool:
+    """True for a path that tries to leave where it points (``..``, backslashes, NULs)."""
+    return "\\" in path or "\x00" in path or ".." in path.split("/")
+
+
+def serve_file(root: Path, relative: str):
+    """The file ``relative`` inside ``root``, or 403 when its real path lies outside."""
+    real_root = root.resolve()
+    target = (real_root / relative).resolve()
+    if refused(relative) or relative.startswith("/") or not target.is_relative_to(real_root):
+        return _json(403, {"error": f"refused: {relative!r} is outside the served folder"})
+    if not target.is_file():
+        return _json(404, {"error": f"no file {relative!r}"})
+    response = bottle.static_file(target.relative_to(real_root).as_posix(), root=str(real_root))
+    response.set_header("Cache-Control", "no-cache")
+    return response
+
+
+def _limit(name: str) -> float | None:
+    text = bottle.request.query.get(name, "")
+    if text == "":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        raise CommandError(f"{name} must be a number, got {text!r}") from None
+
+
+def _body() -> dict:
+    try:
+        doc = json.loads(bottle.request.body.read() or b"{}")
+    except ValueError:
+        raise CommandError("the request body is not JSON") from None
+    if not isinstance(doc, dict):
+        raise CommandError("the request body must be a JSON object")
+    return doc
+
+
+def _int(doc, name: str, default: int | None = None) -> int:
+    """The integer ``name`` of a JSON body, or of the query string (``bottle.request.query``)."""
+    value = doc.get(name, default)
+    if isinstance(value, str):
+        try:
+            value = int(value)
+        except ValueError:
+            pass
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise CommandError(f"{name} must be an integer, got {value!r}")
+    return value
+
+
+def build_app(explorer: Explorer) -> bottle.Bottle:
+    app = bottle.Bottle()
+
+    @app.hook("before_request")
+    def _refuse_escapes():
+        if refused(bottle.request.path):
+            raise _json(403, {"error": f"refused: {bottle.request.path!r} leaves the served folders"})
+
+    def api(fn):
+        def handler(*args, **kwargs):
+            try:
+                return fn(*args, **kwargs)
+            except UserError as err:
+                return _json(400, {"error": str(err)})
+        return handler
+
+    def solution(run: int, index: int, start: bool):
+        config_index = _int(_body() if start else bottle.request.query, "config", 0)
+        entry, row = point(explorer.entries(), run, index)
+        act = explorer.solutions.start if start else explorer.solutions.status
+        return act(run, entry, index, row.params[0], config_index)
+
+    app.get("/")(lambda: serve_file(STATIC, "index.html"))
+    app.get("/static/<path:path>")(lambda path: serve_file(STATIC, path))
+    app.get("/files/<path:path>")(lambda path: serve_file(explorer.path, path))
+    app.get("/api/run")(api(lambda: run_document(explorer.path, explorer.entries())))
+    app.get("/api/front")(api(lambda: front_document(explorer.entries())))
+    app.get("/api/evaluations")(api(lambda: evaluations_document(explorer.entries())))
+    app.get("/api/hypervolume")(api(lambda: hypervolume_document(explorer.entries())))
+    app.get("/api/choose")(api(lambda: choose_document(explorer.entries(), _limit("max_force"), _limit("min_success"))))
+    app.get("/api/solution/<run:int>/<index:int>")(api(lambda run, index: solution(run, index, start=False)))
+    app.post("/api/solution/<run:int>/<index:int>")(api(lambda run, index: solution(run, index, start=True)))
+
+    @app.post("/api/export")
+    @api
+    def _export():
+        doc, entries = _body(), explorer.entries()
+        run = _int(doc, "run")
+        if not 0 <= run < len(entries):
+            raise CommandError(f"run {run}: this directory holds runs 0-{len(entries) - 1}")
+        return export_solution(entries[run], _int(doc, "k"), explorer.solutions)
+
+    return app
+
+
+class _ThreadingServer(socketserver.ThreadingMixIn, WSGIServer):
+    daemon_threads = True  # a connection left open never keeps the process alive
+
+
+class _IPv6Server(_ThreadingServer):
+    address_family = socket.AF_INET6
+
+
+class _QuietHandler(WSGIRequestHandler):
+    def log_message(self, format, *args):  # noqa: A002  (the page polls; a line per request is noise)
+        pass
+
+
+def make_explore_server(explorer: Explorer, host: str = "127.0.0.1", port: int = 0) -> WSGIServer:
+    """A server bound to ``host:port`` (0: a free port; ``server.server_port`` tells which),
+    not yet serving: call ``serve_forever()``. A port in use or a bad host is a CommandError."""
+    server_class = _IPv6Server if ":" in host else _ThreadingServer
+    try:
+        return make_server(host, port, build_app(explorer), server_class=server_class, handler_class=_QuietHandler)
+    except OSError as err:
+        if err.errno == errno.EADDRINUSE:
+            raise CommandError(f"port {port} on {host} is in use; choose another with --port N (0: any free port)") from None
+        raise CommandError(f"cannot listen on {host}:{port}: {err.strerror or err}") from None

@@ -1,0 +1,230 @@
+"""On-demand rollouts of one point of a run: success per world and per start configuration, and
+a rendered episode, computed in a background thread and kept in the run directory.
+
+A point ``(run, index)`` (row ``index`` of that run's evaluations.csv) is rolled out in the
+worlds ``python -m mjxskill.evaluate`` uses (``per_config`` worlds from every known and unseen
+start configuration, ``evaluation_worlds``), and rendered in the world ``select`` renders from
+(``render_world``: known start configuration ``c``, seed 0). Results go to::
+
+    RUN/explore/evaluation-<index>/worlds.json       per-world success, peak contact force, position error
+    RUN/explore/evaluation-<index>/known-<c>/        PNG frames (or known-<c>.mp4 with ffmpeg)
+    RUN/explore/evaluation-<index>/known-<c>.json    what was rendered, in which world
+
+Each file records the parameters it was computed for; a file whose parameters are not the
+row's (the run was cut and re-trained) is computed again. One worker thread runs the jobs one
+after another (a compiled rollout is not shared between threads; the CPU is the limit anyway);
+the server only reads the jobs' progress, so it never waits for a compile.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import shutil
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from mjxskill.errors import CommandError, UserError
+from mjxskill.runs.atomic_write import write_json
+from mjxskill.explore.data import RunEntry, number, numbers
+
+FORMAT = "mjxskill.explore/1"
+CACHE = "explore"
+
+# (run entry) -> a rollout with scenario, worlds_per_config, run_worlds, trace and mj_model
+RolloutFactory = Callable[[RunEntry], object]
+
+
+def compile_for(entry: RunEntry):
+    """The run's compiled rollout (one world per parameter set; worlds are passed explicitly)."""
+    from mjxskill.engine.mjx import compile_rollout
+    from mjxskill.runs.run_task import load_run_task
+
+    scn, task = load_run_task(entry.run, entry.config)
+    return compile_rollout(scn, task, worlds=1, episode_seconds=entry.config.episode_seconds)
+
+
+@dataclass
+class Job:
+    """Progress of one request: state queued | running | done | failed; fraction in [0, 1]."""
+
+    entry: RunEntry
+    index: int
+    params: np.ndarray
+    config_index: int
+    state: str = "queued"
+    stage: str = "waiting for the job before it"
+    fraction: float = 0.0
+    message: str = ""
+    started: float = field(default_factory=time.monotonic)
+
+    def document(self) -> dict:
+        return {"state": self.state, "stage": self.stage, "fraction": round(self.fraction, 3), "message": self.message,
+                "elapsed_s": round(time.monotonic() - self.started, 1)}
+
+
+def _write_json(path: Path, doc: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_json(path, doc)
+
+
+def read_cached(path: Path, params: np.ndarray, **settings) -> dict | None:
+    """The cached document at ``path`` if it was computed for ``params`` with ``settings``."""
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    ok = doc.get("format") == FORMAT and doc.get("params") == numbers(params)
+    return doc if ok and all(doc.get(k) == v for k, v in settings.items()) else None
+
+
+class Solutions:
+    """The on-demand rollouts of the points of the runs under ``root`` (see the module doc)."""
+
+    def __init__(self, root: Path, rollout_factory: RolloutFactory = compile_for, *, per_config: int = 5, seed: int = 0,
+                 size: tuple[int, int] = (640, 480)):
+        self.root = Path(root)
+        self.rollout_factory = rollout_factory
+        self.per_config, self.seed, self.size = per_config, seed, size
+        self._lock = threading.Lock()
+        self._jobs: dict[tuple, Job] = {}
+        self._queue: queue.Queue[Job] = queue.Queue()
+        self._rollouts: dict[tuple, object] = {}
+        self._worker: threading.Thread | None = None
+        # Why this process cannot render, once it failed to: the GL backend is fixed when mujoco
+        # is imported, and after a failed mjr_makeContext another attempt aborts the process
+        # (same thread) or hangs holding the GIL (another thread).
+        self._no_video: str | None = None
+
+    # -- where things are ---------------------------------------------------------------------
+    @staticmethod
+    def folder(entry: RunEntry, index: int) -> Path:
+        return entry.run.path / CACHE / f"evaluation-{index}"
+
+    def url(self, path: Path) -> str:
+        return "/files/" + Path(os.path.relpath(path, self.root)).as_posix()
+
+    def cached_worlds(self, folder: Path, params: np.ndarray) -> dict | None:
+        return read_cached(folder / "worlds.json", params, per_config=self.per_config, seed=self.seed)
+
+    def cached_video(self, folder: Path, params: np.ndarray, config_index: int) -> dict | None:
+        return read_cached(folder / f"known-{config_index}.json", params, seed=self.seed, size=list(self.size))
+
+    # -- what the page asks -------------------------------------------------------------------
+    def status(self, run: int, entry: RunEntry, index: int, params: np.ndarray, config_index: int) -> dict:
+        """What is known of point ``(run, index)``: its per-world results and its rendering from
+        known start configuration ``config_index`` (None until computed), and its job."""
+        folder = self.folder(entry, index)
+        worlds = self.cached_worlds(folder, params)
+        video = self.cached_video(folder, params, config_index)
+        if video is not None:
+            video = {**video, "urls": [self.url(folder / f) for f in video["files"]]}
+        with self._lock:
+            job = self._jobs.get((run, index, config_index))
+            job_doc = job.document() if job else None
+        return {"run": run, "index": index, "config_index": config_index, "worlds": worlds, "video": video, "job": job_doc}
+
+    def start(self, run: int, entry: RunEntry, index: int, params: np.ndarray, config_index: int) -> dict:
+        """Queues the rollout and rendering of the point unless both are on disk or under way."""
+        doc = self.status(run, entry, index, params, config_index)
+        if doc["worlds"] is not None and doc["video"] is not None:
+            return doc
+        key = (run, index, config_index)
+        with self._lock:
+            if key not in self._jobs or self._jobs[key].state in ("done", "failed"):
+                self._jobs[key] = Job(entry, index, np.asarray(params, np.float64), config_index)
+                self._queue.put(self._jobs[key])
+            if self._worker is None:
+                self._worker = threading.Thread(target=self._work, name="mjxskill-explore-rollouts", daemon=True)
+                self._worker.start()
+        return self.status(run, entry, index, params, config_index)
+
+    # -- the worker ---------------------------------------------------------------------------
+    def _set(self, job: Job, stage: str, fraction: float) -> None:
+        with self._lock:
+            job.stage, job.fraction = stage, fraction
+
+    def _work(self) -> None:
+        while True:
+            job = self._queue.get()
+            with self._lock:
+                job.state, job.stage, job.started = "running", "starting", time.monotonic()
+            try:
+                message = self._run(job)
+                state = "done"
+            except UserError as err:  # a scenario that no longer matches the run, a bad start configuration
+                message, state = str(err), "failed"
+            except Exception as err:  # noqa: BLE001  (shown on the page; the server keeps serving)
+                message, state = f"{type(err).__name__}: {err}", "failed"
+            with self._lock:
+                job.state, job.message = state, message
+                job.fraction = 1.0 if state == "done" else job.fraction
+
+    def _rollout(self, job: Job):
+        config = job.entry.config
+        key = (config.scenario, config.goal, config.episode_seconds)
+        if key not in self._rollouts:
+            self._set(job, "loading the scenario and building the rollout", 0.02)
+            self._rollouts[key] = self.rollout_factory(job.entry)
+        return self._rollouts[key]
+
+    def _run(self, job: Job) -> str:
+        folder = self.folder(job.entry, job.index)
+        rollout = self._rollout(job)
+        if self.cached_worlds(folder, job.params) is None:
+            _write_json(folder / "worlds.json", self._worlds(job, rollout))
+        if self.cached_video(folder, job.params, job.config_index) is None:
+            return self._render(job, rollout, folder)
+        return ""
+
+    def _worlds(self, job: Job, rollout) -> dict:
+        from mjxskill.evaluation.baselines import evaluation_worlds
+
+        worlds, names, known = evaluation_worlds(rollout, self.per_config, self.seed)
+        self._set(job, f"rolling out {len(names) * self.per_config} worlds ({self.per_config} per start configuration; "
+                       "the first call compiles: a minute or two on a CPU)", 0.1)
+        out = rollout.run_worlds(job.params[None], worlds)
+        success = np.asarray(out.success, bool)[0]
+        metric = lambda name: np.asarray(out.metrics[name], np.float64)[0]  # noqa: E731
+        force, error = metric("peak_contact_force"), metric("position_error")
+        configs = []
+        for c, name in enumerate(names):
+            rows = slice(c * self.per_config, (c + 1) * self.per_config)
+            configs.append({"name": name, "known": bool(known[c]), "success_rate": float(success[rows].mean()),
+                            "worlds": [{"success": bool(s), "peak_contact_force": number(f), "position_error": number(e)}
+                                       for s, f, e in zip(success[rows], force[rows], error[rows])]})
+        return {"format": FORMAT, "params": numbers(job.params), "per_config": self.per_config, "seed": self.seed,
+                "episode_seconds": job.entry.config.episode_seconds, "success_rate": float(success.mean()),
+                "peak_contact_force": number(np.nanmean(force)) if np.isfinite(force).any() else None,
+                "configs": configs}
+
+    def _render(self, job: Job, rollout, folder: Path) -> str:
+        from mjxskill.evaluation.render import RenderUnavailable, render_episode, render_world
+
+        n_known = len(rollout.scenario.robot.start_configs)
+        if not 0 <= job.config_index < n_known:
+            raise CommandError(f"start configuration {job.config_index}: the task has known ones 0-{n_known - 1}")
+        if self._no_video is not None:
+            return f"the per-world results are ready; no video: {self._no_video}"
+        fmt = "mp4" if shutil.which("ffmpeg") else "png"
+        out = folder / f"known-{job.config_index}"
+        self._set(job, "tracing the episode (compiled once)", 0.55)
+        world = render_world(rollout, job.config_index, self.seed)
+        progress = lambda i, n: self._set(job, f"rendering frame {i} of {n}", 0.6 + 0.4 * i / n)  # noqa: E731
+        try:
+            paths = render_episode(rollout, job.params, world, out, fmt, *self.size, progress=progress)
+        except RenderUnavailable as err:
+            self._no_video = err.reason
+            return f"the per-world results are ready; no video: {err.reason}"
+        _write_json(folder / f"known-{job.config_index}.json", {
+            "format": FORMAT, "params": numbers(job.params), "seed": self.seed, "size": list(self.size), "kind": fmt,
+            "fps": float(rollout.scenario.bt_hz),
+            "world": f"known start configuration {job.config_index}, objects randomized with seed {self.seed}",
+            "files": [Path(os.path.relpath(p, folder)).as_posix() for p in paths]})
+        return ""

@@ -1,0 +1,143 @@
+"""The training settings of a run, one table for the command-line flags and ``config.yaml``.
+
+A ``Setting`` is one ``RunConfig`` field: its ``config.yaml`` key, its flag, its type and
+bounds, where its default comes from (the scenario's value, or a fixed one). ``train`` builds
+its flags from ``SETTINGS`` and ``RunConfig.from_yaml`` reads the file with the very same
+``Setting.coerce``, so a value the flags refuse is refused in a hand-edited ``config.yaml``
+too (``batch_size: 0`` used to loop forever). A new setting is one row here and one field of
+``RunConfig`` (``tests/test_settings.py`` checks that the two agree).
+
+``cross_problems`` holds the checks that involve several settings, and
+``optimizer_option_value`` the check of one ``--optimizer-option`` / ``optimizer_options``
+entry, both for either source. The optimizer options are not a table here: they are the
+acquisition settings of ``mjxskill.gp`` (``AcquisitionSettings``), named, typed and checked by gp.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from mjxskill.scenario.schema import MAX_EPISODE_SECONDS, MAX_SEED, MIN_N_INIT
+
+NO_DEFAULT = object()
+OPTIMIZERS = ("mobo", "random")
+
+
+@dataclass(frozen=True)
+class Setting:
+    """name: RunConfig field and config.yaml key. flag: the train option. kind: "int",
+    "float" (positive and finite) or "text". scenario: the scenario's default (None: ``default``);
+    default: the value of a run whose config.yaml predates the setting (NO_DEFAULT: required)."""
+
+    name: str
+    flag: str
+    kind: str
+    help: str
+    minimum: float | None = None
+    maximum: float | None = None
+    unit: str = ""
+    scenario: Callable[[Any], Any] | None = None
+    default: Any = NO_DEFAULT
+    choices: tuple[str, ...] | None = None
+    default_text: str | None = None  # the flag's default for its help, when not the scenario's or ``default``
+
+    def coerce(self, value):
+        """The checked value of a flag's text or a config.yaml scalar; ValueError says why not."""
+        if self.kind == "text":
+            if not isinstance(value, str) or not value.strip():
+                raise ValueError(f"expected a text, got {value!r}")
+            if self.choices is not None and value not in self.choices:
+                raise ValueError(f"expected one of {', '.join(self.choices)}, got {value!r}")
+            return value
+        number = _int(value) if self.kind == "int" else _float(value)
+        show = (lambda v: str(int(v))) if self.kind == "int" else (lambda v: f"{v:g}")  # noqa: E731
+        unit = f" {self.unit}" if self.unit else ""
+        if self.kind == "float" and not number > 0:
+            raise ValueError(f"must be a positive finite number, got {value}")
+        if self.minimum is not None and number < self.minimum:
+            raise ValueError(f"must be at least {show(self.minimum)}{unit}, got {show(number)}")
+        if self.maximum is not None and number > self.maximum:
+            raise ValueError(f"must be at most {show(self.maximum)}{unit}, got {show(number)}")
+        return number
+
+    def default_for(self, scn):
+        return self.scenario(scn) if self.scenario is not None else self.default
+
+
+def _int(value) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, str)):
+        raise ValueError(f"expected an integer, got {value!r}")
+    try:
+        return int(value)
+    except ValueError:
+        raise ValueError(f"expected an integer, got {value!r}") from None
+
+
+def _float(value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise ValueError(f"expected a number, got {value!r}")
+    try:
+        number = float(value)
+    except (ValueError, OverflowError):
+        raise ValueError(f"expected a number, got {value!r}") from None
+    if not math.isfinite(number):
+        raise ValueError(f"must be a positive finite number, got {value}")
+    return number
+
+
+SETTINGS: tuple[Setting, ...] = (
+    Setting("goal", "--goal", "text", "PDDL goal to plan instead of the scenario's", scenario=lambda scn: scn.goal),
+    Setting("budget", "--budget", "int", "evaluations (parameter sets) per run", minimum=1,
+            scenario=lambda scn: scn.optimizer.budget),
+    Setting("batch_size", "--batch-size", "int", "parameter sets per batch", minimum=1,
+            scenario=lambda scn: scn.optimizer.batch_size),
+    Setting("n_init", "--init", "int", "random warm-up evaluations", minimum=MIN_N_INIT,
+            scenario=lambda scn: scn.optimizer.n_init),
+    Setting("worlds", "--worlds", "int", "randomized worlds per parameter set", minimum=1,
+            scenario=lambda scn: scn.randomization.n_worlds),
+    Setting("seed", "--seed", "int", "seed of the optimizer and the worlds", minimum=0, maximum=MAX_SEED,
+            scenario=lambda scn: scn.optimizer.seed),
+    Setting("episode_seconds", "--episode-seconds", "float", "episode length in s", maximum=MAX_EPISODE_SECONDS,
+            unit="s", scenario=lambda scn: scn.episode_seconds),
+    Setting("repeats", "--repeats", "int", "independent runs with seeds seed..seed+N-1", minimum=1, default=1),
+    # A new run stores the engine "auto" resolves to (mjxskill.engine.build); runs from before the
+    # setting ran on MJX.
+    Setting("engine", "--engine", "text", "physics engine: mjx (compiled MJX), native (native MuJoCo, one process "
+            "per core) or auto (MJX on a GPU/TPU, native on a CPU)", scenario=lambda scn: "auto", default="mjx",
+            choices=("mjx", "native", "auto"), default_text="auto"),
+    # Random search is a run like any other, to compare the optimizer with (mjxskill.experiment):
+    # the same batches, the same warm-up, then uniform draws instead of the model's proposals.
+    Setting("optimizer", "--optimizer", "text", "what proposes the batches after the warm-up: mobo (the "
+            "multi-objective Bayesian optimizer) or random (uniform random search, a baseline)",
+            default="mobo", choices=OPTIMIZERS),
+)
+BY_NAME = {s.name: s for s in SETTINGS}
+SEED = BY_NAME["seed"]  # evaluate's and select's --seed have the same bounds
+
+
+def cross_problems(values: dict) -> list[tuple[str, str]]:
+    """(setting name, problem) for checks over several settings, e.g. the warm-up within the
+    budget; the caller puts where the value came from in front."""
+    problems = []
+    if values["n_init"] > values["budget"]:
+        problems.append(("n_init", f"exceeds the budget of {values['budget']} evaluations"))
+    if values["seed"] + values.get("repeats", 1) - 1 > MAX_SEED:
+        problems.append(("repeats", f"make seeds beyond {MAX_SEED} (seed {values['seed']})"))
+    return problems
+
+
+def optimizer_option_value(key: str, value):
+    """The checked value of one ``--optimizer-option KEY=VALUE`` / ``optimizer_options`` entry
+    (a number or a string, e.g. ``n_raw=256`` or ``model=scalarized``), as gp types it;
+    ValueError names the key (listing the valid ones) or the value. The options are gp's
+    ``AcquisitionSettings`` fields; the run's parameter space, batches and seed are no option.
+    gp checks what several options must satisfy together when the run's ``MOBOConfig`` is
+    built (``run_config.optimizer_problem``)."""
+    from mjxskill.gp.settings import setting_value
+
+    return setting_value(key, value)
+
+
+__all__ = ["BY_NAME", "NO_DEFAULT", "OPTIMIZERS", "SEED", "SETTINGS", "Setting", "cross_problems", "optimizer_option_value"]
