@@ -170,11 +170,11 @@ def bare(engine, worlds, steps: int) -> dict:
     from mjxskill.engine.native.episode import initial_data
 
     world = type(worlds)(*(np.asarray(x)[0, 0] for x in worlds))
-    data = initial_data(engine, engine.model, world)
+    data = initial_data(engine, engine.mj_model, world)
     data.ctrl[:7] = data.qfrc_bias[:7]
     t0 = time.perf_counter()
     for _ in range(steps):
-        mujoco.mj_step(engine.model, data)
+        mujoco.mj_step(engine.mj_model, data)
     run_s = time.perf_counter() - t0
     return dict(engine="bare", steps=steps, run_s=run_s, steps_per_s=steps / run_s, load_avg=os.getloadavg()[0])
 

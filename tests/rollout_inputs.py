@@ -31,7 +31,7 @@ def native_like(rollout):
 def placed_worlds(rollout, cases) -> Worlds:
     """Worlds (W,) from cases (start configuration, {object: (dx, dy) m from its nominal pose},
     friction or None to keep the sampled one); objects not named stay at their nominal poses."""
-    bindings = rollout.spec.setup.bindings
+    bindings = rollout.setup.bindings
     nominal = nominal_poses(bindings)[0]
     worlds = []
     for config, offsets, friction in cases:

@@ -176,7 +176,7 @@ def _final_object(scn, params, seconds: float):
     world = jax.tree.map(lambda x: np.asarray(x)[0], engine.worlds_per_config(jax.random.key(0), 1))
     world = world._replace(object_pos=engine.sampler.nominal_pos.copy(), friction=np.float32(np.nan))
     _, record = engine.trace(params, world)
-    adr = engine.spec.bindings.slots[engine.spec.bindings.slot_of["ObjectToBePushed-1"]].qpos_adr
+    adr = engine.setup.bindings.slots[engine.setup.bindings.slot_of["ObjectToBePushed-1"]].qpos_adr
     return record.qpos[-1, adr:adr + 3], record.qpos[-1, adr + 3:adr + 7]
 
 
@@ -210,3 +210,28 @@ def test_a_tighter_hole_changes_the_insertion(tmp_path):
         out = engine.run_worlds(np.array([[-5.0, 0.0, 0.0, 0.0]]), jax.tree.map(lambda x: np.asarray(x)[None], world))
         depths.append(float(out.metrics["insertion_depth"][0, 0]))
     assert depths[0] > scn.success.depth > depths[1], depths
+
+
+def test_a_process_compiles_a_scenarios_model_once(monkeypatch):
+    """load_scenario builds the model to validate the YAML; the engines take copies of that build
+    instead of compiling the scene again, and a copy changed by one engine (the native engine
+    writes each world's friction into its model) leaves the others as built."""
+    import mjxskill.sim.model as model_module
+    from mjxskill.engine import build_rollout
+    from mjxskill.task import plan_task
+
+    compiled = []
+    real = model_module.compile_model
+    monkeypatch.setattr(model_module, "compile_model", lambda scn: compiled.append(scn) or real(scn))
+    scn = load_scenario("push")
+    task = plan_task(scn)
+    rollouts = [build_rollout(scn, task, engine, worlds=1, episode_seconds=0.1, workers=1) for engine in ("native", "mjx")]
+    try:
+        assert compiled == [scn]
+        native, mjx = rollouts
+        assert native.mj_model is not mjx.mj_model
+        native.mj_model.pair_friction[:] = 7.0
+        assert not np.any(mjx.mj_model.pair_friction == 7.0) and not np.any(build_model(scn).pair_friction == 7.0)
+    finally:
+        for rollout in rollouts:
+            rollout.close()

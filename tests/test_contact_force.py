@@ -72,4 +72,4 @@ def test_no_contact_no_force_and_the_reward_is_the_mean_force_per_tick(tmp_path)
     out = engine(np.array([[-0.05, -0.15, 0.07, -0.10]]), jax.random.key(1))
     mean, peak = out.metrics["mean_contact_force"][0], out.metrics["peak_contact_force"][0]
     assert np.all(mean > 0.5) and np.all(peak > mean)
-    np.testing.assert_allclose(out.metrics["reward_gentle"][0], mean * engine.spec.ticks, rtol=1e-9)
+    np.testing.assert_allclose(out.metrics["reward_gentle"][0], mean * engine.setup.ticks, rtol=1e-9)

@@ -147,7 +147,7 @@ def test_a_diverging_world_is_contained_in_lockstep_as_in_the_loop():
     assert bool(lockstep.metrics["diverged"][1, 0]) and int(np.sum(lockstep.metrics["diverged"])) == 1
     assert not bool(lockstep.success[1, 0])
     for term in engine.terms:
-        assert float(lockstep.metrics[f"reward_{term.name}"][1, 0]) == pytest.approx(term.worst_raw * engine.spec.ticks)
+        assert float(lockstep.metrics[f"reward_{term.name}"][1, 0]) == pytest.approx(term.worst_raw * engine.setup.ticks)
     assert_same_outputs(plain, lockstep, atol=1e-9)
     for name in lockstep.metrics:  # the other episodes of the call: as without the broken one
         np.testing.assert_array_equal(np.asarray(lockstep.metrics[name])[0], np.asarray(clean.metrics[name])[0])

@@ -92,8 +92,8 @@ def test_a_diverging_world_is_contained(peg):
     clean, bad = rollout.run_worlds(params, worlds), rollout.run_worlds(params, broken)
     assert bool(bad.metrics["diverged"][2, 1]) and not bool(np.asarray(bad.metrics["diverged"])[:2].any())
     assert not bool(bad.success[2, 1])
-    for r, term in enumerate(rollout.spec.terms):
-        assert float(bad.metrics[f"reward_{term.name}"][2, 1]) == pytest.approx(term.worst_raw * rollout.spec.setup.ticks)
+    for r, term in enumerate(rollout.episode_spec.terms):
+        assert float(bad.metrics[f"reward_{term.name}"][2, 1]) == pytest.approx(term.worst_raw * rollout.setup.ticks)
     assert np.isfinite(np.asarray(bad.objectives)).all()
     for x, y in zip(jax.tree.leaves(clean.metrics), jax.tree.leaves(bad.metrics)):
         np.testing.assert_array_equal(np.asarray(x)[:2], np.asarray(y)[:2])

@@ -150,7 +150,7 @@ def test_a_rendered_episode_shows_the_worlds_randomized_poses(tmp_path):
     scn = load_scenario("push")
     engine = NativeRollout(scn, plan_task(scn), worlds=1, episode_seconds=0.2, workers=1)
     world = jax.tree.map(lambda x: np.asarray(x)[0], engine.worlds_per_config(jax.random.key(0), 1))
-    slots = engine.spec.bindings.slot_of
+    slots = engine.setup.bindings.slot_of
     moved = world.object_pos.copy()
     moved[slots["ObjectToBePushed-1"], :2] += (-0.08, 0.05)
     moved[slots["ObjectGoalPose-1"], :2] += (0.10, -0.06)
@@ -168,7 +168,7 @@ def test_a_rendered_episode_shows_the_worlds_randomized_poses(tmp_path):
     assert np.abs(images[0].astype(int) - reference[0].astype(int)).max() <= 2
     assert np.abs(images[0].astype(int) - nominal[0].astype(int)).sum() > 1000  # the corner is elsewhere
     paths = render_episode(engine, engine.task.defaults, world, tmp_path / "frames", "png", 160, 120)
-    assert len(paths) == engine.spec.ticks and all(p.stat().st_size > 0 for p in paths)
+    assert len(paths) == engine.setup.ticks and all(p.stat().st_size > 0 for p in paths)
     first = plt_read(paths[0])
     np.testing.assert_allclose(first[..., :3], images[0] / 255.0, atol=1.5 / 255)
 

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from mjxskill.ebt.primitives import PRIMITIVES
+from mjxskill.engine.common.arrays import HOST, JAX
+from mjxskill.engine.common.rewards import build_terms
 from mjxskill.errors import ScenarioError
 from mjxskill.engine.native.leaves import LEAF_PROGRAMS as NATIVE_LEAVES
-from mjxskill.engine.native.rewards import build_native_terms
 from mjxskill.engine.mjx.leaves import LEAF_PROGRAMS as COMPILED_LEAVES
-from mjxskill.engine.mjx.rewards import build_terms
 from mjxskill.scenario import load_scenario
 from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS
 from scenario_texts import shipped_text
@@ -44,8 +44,8 @@ def test_the_loader_accepts_cap_and_rejects_an_unknown_constant(tmp_path):
     from mjxskill.sim.model import build_model
 
     bindings = bind_scene(loaded, build_model(loaded), referenced_objects(loaded, []))
-    compiled = next(t for t in build_terms(loaded, bindings) if t.name == "commanded_force")
-    native = next(t for t in build_native_terms(loaded, bindings.slot_of) if t.name == "commanded_force")
+    compiled = next(t for t in build_terms(loaded, bindings.slot_of, JAX) if t.name == "commanded_force")
+    native = next(t for t in build_terms(loaded, bindings.slot_of, HOST) if t.name == "commanded_force")
     assert compiled.worst_raw == native.worst_raw == 20.0  # the cap is what a diverged world is charged
     path.write_text(text.replace(anchor, extra.replace("{cap: 20.0}", "{cap: 20.0, limit: 3}") + anchor))
     with pytest.raises(ScenarioError, match=r"rewards\[\d+\]\.constants\.limit \(line \d+\): unknown key 'limit'"):

@@ -1,7 +1,8 @@
 """The simulated model of a scenario: its MJCF scene with the world model's physics written in
 (``mujoco.MjSpec``, MuJoCo's model editing API). Both engines, rendering and evaluation
-simulate this model; ``mjxskill.load_scenario`` builds it once to refuse, naming the YAML entry,
-what the simulator cannot honour.
+simulate this model; ``mjxskill.load_scenario`` builds it to refuse, naming the YAML entry, what
+the simulator cannot honour, and that build is the one every later ``build_model`` of the same
+scenario copies (a process compiles a scenario's model once).
 
 What the YAML sets (``build_model``), per object of the world model:
 
@@ -25,6 +26,9 @@ contact force of both engines.
 
 from __future__ import annotations
 
+import copy
+import weakref
+
 import mujoco
 import numpy as np
 
@@ -33,10 +37,24 @@ from mjxskill.sim.shapes import SHAPE_MODELS, Drawn, ShapeError
 from mjxskill.sim.tool_force import add_tool_force_sensors
 
 
+# scenario -> its model, built on the first request (load_scenario's); dropped with the scenario
+_BUILT: "weakref.WeakKeyDictionary[object, mujoco.MjModel]" = weakref.WeakKeyDictionary()
+
+
 def build_model(scn) -> mujoco.MjModel:
     """The MjModel of scenario ``scn`` (a ``mjxskill.scenario.Scenario``): its MJCF with the
     YAML's physics, gravity and control period applied (see the module docstring). Raises
-    ScenarioError naming the YAML entry the simulator cannot honour."""
+    ScenarioError naming the YAML entry the simulator cannot honour. Built once per scenario
+    object; every call returns a copy of its own (``mj_copyModel``), free to modify."""
+    model = _BUILT.get(scn)
+    if model is None:
+        model = _BUILT[scn] = compile_model(scn)
+    return copy.copy(model)
+
+
+def compile_model(scn) -> mujoco.MjModel:
+    """``build_model``'s work, done every time: three MjSpec compiles (the MJCF as written, with
+    the tool's force sensors placed, and the final model)."""
     spec = mujoco.MjSpec.from_file(scn.scene)
     base = spec.compile()  # the MJCF as written: poses, masses, where the tool tip is
     data = mujoco.MjData(base)

@@ -110,3 +110,13 @@ def worlds_per_config(sampler: WorldSampler, key: jax.Array, per_config: int) ->
     index = jnp.repeat(jnp.arange(n_configs), per_config)
     keys = jax.random.split(key, (n_configs * per_config, 2))
     return jax.vmap(lambda i, k: world_from_config(sampler, i, k[0], k[1]))(index, keys)
+
+
+def world_pair_friction(base, pairs, friction, xp):
+    """(npair, 5) contact-pair friction of one world: ``base`` (the model's ``pair_friction``) with
+    the world's ``friction`` as the sliding coefficients (the first two) of the randomized
+    ``pairs`` (indices), unless it is NaN (the MJCF's kept). ``xp``: the engine's array namespace
+    (``mjxskill.engine.common.arrays``)."""
+    mask = np.zeros(np.shape(base), bool)
+    mask[list(pairs), :2] = True
+    return xp.where(mask & ~xp.isnan(friction), friction, base)

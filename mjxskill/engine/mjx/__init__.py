@@ -8,7 +8,7 @@ importing a shared module does not import MJX.
 """
 
 _EXPORTS = {
-    "Rollout": "mjxskill.engine.mjx.compiled",
+    "MJXRollout": "mjxskill.engine.mjx.compiled",
     "compile_rollout": "mjxskill.engine.mjx.compiled",
     "RolloutOutput": "mjxskill.engine.common.types",
     "Worlds": "mjxskill.engine.common.worlds",

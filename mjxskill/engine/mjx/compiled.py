@@ -32,27 +32,28 @@ from mjxskill.bt_compiled import compile_tree
 from mjxskill.engine.mjx.episode import EpisodeSpec, run_episode
 from mjxskill.engine.mjx.leaves import build_leaf_programs
 from mjxskill.engine.mjx.program_cache import Program, load_or_trace
-from mjxskill.engine.mjx.rewards import build_terms
 from mjxskill.engine.mjx.sharding import shard_batch
-from mjxskill.engine.common.types import EpisodeResult, RolloutOutput, episode_setup, objective_matrix, summarize
+from mjxskill.engine.protocol import RolloutBase
+from mjxskill.engine.common.arrays import JAX
+from mjxskill.engine.common.rewards import build_terms
+from mjxskill.engine.common.types import EpisodeResult, EpisodeSetup, RolloutOutput, episode_setup, objective_matrix, summarize
 from mjxskill.engine.common.worlds import Worlds, WorldSampler, make_sampler, sample_worlds, worlds_per_config
 from mjxskill.scenario.schema import Scenario
 from mjxskill.engine.mjx.batching import STRATEGIES, default_strategy, over_worlds
 
 
 @dataclass(frozen=True, eq=False)
-class Rollout:
-    """A compiled rollout of one planned task and W worlds per parameter set (see module doc).
-
-    task: the ``mjxskill.task.PlannedTask`` it runs. mj_model: the native model it simulates
-    (``mjxskill.sim.model.build_model``). The callables are the jitted closures
-    ``compile_rollout`` built; ``program`` picks the batched-episode program per shape.
+class MJXRollout(RolloutBase):
+    """A compiled rollout of one planned task and W worlds per parameter set: the ``Rollout`` of
+    ``mjxskill.engine.protocol`` (see the module doc). episode_spec: the traced episode's static
+    description (tree, leaf programs, reward terms, ``setup``). The callables are the jitted
+    closures ``compile_rollout`` built; ``program`` picks the batched-episode program per shape.
     """
 
     scenario: Scenario
     task: object
     worlds: int
-    spec: EpisodeSpec
+    episode_spec: EpisodeSpec
     sampler: WorldSampler
     mj_model: mujoco.MjModel
     strategy: str
@@ -62,43 +63,11 @@ class Rollout:
     _trace: Callable = field(repr=False)  # jitted (params (P,), world) -> (EpisodeResult, TickRecord)
     _programs: dict = field(default_factory=dict, repr=False)
 
-    @property
-    def parameter_names(self) -> tuple[str, ...]:
-        return self.task.parameter_names
+    PARAMS_DTYPE = np.float32  # MJX simulates in float32
 
     @property
-    def bounds(self) -> np.ndarray:
-        """(2, P) lower and upper bounds of the learnable parameters."""
-        return self.task.bounds
-
-    @property
-    def objective_names(self) -> tuple[str, ...]:
-        return self.scenario.objective_names
-
-    @property
-    def reward_names(self) -> tuple[str, ...]:
-        return tuple(t.name for t in self.spec.terms)
-
-    @property
-    def episode_seconds(self) -> float:
-        return self.spec.setup.ticks / self.scenario.bt_hz
-
-    @property
-    def control_steps_per_episode(self) -> int:
-        return self.spec.setup.ticks * self.spec.setup.steps_per_tick
-
-    def check_params(self, params) -> np.ndarray:
-        params = np.asarray(params, np.float32)
-        if params.ndim == 1:
-            params = params[None]
-        n = len(self.parameter_names)
-        if params.ndim != 2 or params.shape[1] != n:
-            raise ValueError(
-                f"params must have shape (B, {n}) in the order {list(self.parameter_names)}, got {params.shape}"
-            )
-        if not np.all(np.isfinite(params)):
-            raise ValueError(f"params must be finite, got {params}")
-        return params
+    def setup(self) -> EpisodeSetup:
+        return self.episode_spec.setup
 
     def __call__(self, params, key: jax.Array) -> RolloutOutput:
         """Rolls out (B, P) ``params`` in W worlds each, drawn from ``key``."""
@@ -137,7 +106,7 @@ class Rollout:
     def identity(self) -> str:
         """Everything besides the model and the argument shapes that shapes the program (part
         of its cache key): the scenario's validated content, the plan, the episode settings."""
-        setup = self.spec.setup
+        setup = self.setup
         return repr((self.scenario, self.task, setup.ticks, setup.steps_per_tick, self.strategy, self.chunk))
 
     def trace(self, params, world: Worlds):
@@ -149,6 +118,9 @@ class Rollout:
     def sample_worlds(self, key: jax.Array, batch: int) -> Worlds:
         """The (batch, W) worlds ``rollout(params, key)`` uses for ``batch`` parameter sets."""
         return self._sample(key, batch)
+
+    def close(self) -> None:
+        """Nothing to release: XLA frees the programs and buffers with the rollout."""
 
     def worlds_per_config(self, key: jax.Array, per_config: int, configs: np.ndarray | None = None) -> Worlds:
         """``per_config`` worlds from each start configuration (default: the training ones;
@@ -167,7 +139,7 @@ def compile_rollout(
     chunk: int | None = None,
     start_configs: np.ndarray | None = None,
     mj_model: mujoco.MjModel | None = None,
-) -> Rollout:
+) -> MJXRollout:
     """Builds the rollout of ``task`` in ``scn`` (compiled lazily on the first call per batch size).
 
     task: a ``mjxskill.task.PlannedTask`` (default: ``plan_task(scn)``, the scenario's goal).
@@ -201,7 +173,7 @@ def compile_rollout(
         mj_model = build_model(scn)
     setup = episode_setup(scn, task, mj_model, seconds)
     ct = compile_tree(task.tree)
-    terms = build_terms(scn, setup.bindings)
+    terms = build_terms(scn, setup.bindings.slot_of, JAX)
     spec = EpisodeSpec(
         ct=ct,
         leaves=build_leaf_programs(ct, task.parameter_names, setup.bindings, scn.robot.default_stiffness, 1.0 / scn.bt_hz),
@@ -232,11 +204,11 @@ def compile_rollout(
 
     sample = jax.jit(lambda key, batch: sample_worlds(sampler, key, (batch, worlds)), static_argnums=1)
     trace = jax.jit(lambda params, world: run_episode(spec, model, template, params, world, record=True))
-    return Rollout(
+    return MJXRollout(
         scenario=scn,
         task=task,
         worlds=worlds,
-        spec=spec,
+        episode_spec=spec,
         sampler=sampler,
         mj_model=mj_model,
         strategy=strategy,

@@ -22,12 +22,13 @@ from mujoco import mjx
 
 from mjxskill.bt_compiled import CompiledTree, init_state, started_leaves, tick
 from mjxskill.ebt.nodes import Status
+from mjxskill.engine.common.arrays import JAX
 from mjxskill.engine.common.bindings import FREE, MOCAP, nominal_poses
+from mjxskill.engine.common.rewards import Observation, RewardTerm, raw_rewards
+from mjxskill.engine.common.success import success
 from mjxskill.engine.mjx.leaves import Blackboard, LeafPrograms, LeafWorld, advance, init_blackboard, reference_pose
-from mjxskill.engine.mjx.rewards import Observation, RewardTerm, raw_rewards
-from mjxskill.engine.mjx.success import success
 from mjxskill.engine.common.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, EpisodeSetup, TickRecord
-from mjxskill.engine.common.worlds import Worlds
+from mjxskill.engine.common.worlds import Worlds, world_pair_friction
 from mjxskill.engine.mjx.controller import (
     N_ARM,
     ControllerState,
@@ -83,10 +84,8 @@ def world_model(spec: EpisodeSpec, model: mjx.Model, world: Worlds) -> mjx.Model
     """The model with this world's friction on the randomized object's contact pairs."""
     if not spec.setup.bindings.randomized_pairs:
         return model
-    pairs = jnp.asarray(spec.setup.bindings.randomized_pairs)
-    friction = model.pair_friction
-    new = friction.at[pairs, 0].set(world.friction).at[pairs, 1].set(world.friction)
-    return model.replace(pair_friction=jnp.where(jnp.isnan(world.friction), friction, new))
+    return model.replace(pair_friction=world_pair_friction(model.pair_friction, spec.setup.bindings.randomized_pairs,
+                                                           world.friction, JAX))
 
 
 def slot_poses(spec: EpisodeSpec, data: mjx.Data, world: Worlds):
@@ -176,7 +175,7 @@ def run_episode(
             bt_succeeded=root == Status.SUCCESS,
             contact_force=force_sum / spec.setup.steps_per_tick,
         )
-        raw = raw_rewards(spec.terms, obs) if n_terms else jnp.zeros(0, jnp.float32)
+        raw = raw_rewards(spec.terms, obs, JAX) if n_terms else jnp.zeros(0, jnp.float32)
         totals = c.totals + raw
         trace = (TickRecord(data.qpos, data.mocap_pos, data.mocap_quat, tool_pos, obs.ref_pos, root, active, raw)
                  if record else None)
@@ -237,4 +236,4 @@ def run_episode(
 def _success(spec: EpisodeSpec, data: mjx.Data, world: Worlds):
     """(success, position error, orientation error, insertion depth) at the end of the episode."""
     slot_pos, slot_quat = slot_poses(spec, data, world)
-    return success(spec.setup.success, data.site_xpos[spec.setup.ctrl.site_id], slot_pos, slot_quat)
+    return success(spec.setup.success, data.site_xpos[spec.setup.ctrl.site_id], slot_pos, slot_quat, JAX)

@@ -34,6 +34,7 @@ from mjxskill.bt_compiled import CompiledTree
 from mjxskill.ebt.nodes import Status
 from mjxskill.ebt.primitives import SPIRAL_NORMAL, LeafRegistry, goal_orientation
 from mjxskill.engine.common.bindings import SceneBindings
+from mjxskill.engine.common.leaf_inputs import LeafInput, force_inputs, leaf_input, spiral_inputs, wait_ticks
 from mjxskill.engine.mjx.motion import MotionLimits, Pose, SpiralState, init_spiral, linear_trajectory, spiral_step
 from mjxskill.engine.common.rotations import quat_mul
 
@@ -159,15 +160,15 @@ class LeafWorld(NamedTuple):
     slot_pos: jax.Array
 
 
-def _input(leaf, name: str, parameter_index: dict, default=0.0) -> Callable:
-    """A leaf input: a learnable parameter (looked up in the parameter vector) or a fixed arg."""
-    if name in leaf.params:
-        idx = parameter_index.get(leaf.params[name])
-        if idx is None:
-            raise ValueError(f"leaf {leaf.name!r}: input {name!r} names parameter {leaf.params[name]!r}, which is not learnable here")
-        return lambda params: params[idx]
-    value = float(leaf.args.get(name, default))
-    return lambda params: jnp.float32(value)
+def _input(leaf, name: str, parameter_index: dict) -> Callable:
+    """A leaf input as a function of the parameter vector (``leaf_inputs.leaf_input``)."""
+    return _reader(leaf_input(leaf, name, parameter_index))
+
+
+def _reader(source: LeafInput) -> Callable:
+    if source.index is not None:
+        return lambda params: params[source.index]
+    return lambda params: jnp.float32(source.value)
 
 
 class LeafPrograms(NamedTuple):
@@ -284,8 +285,9 @@ def _change_stiffness(i: int, leaf, ctx: _Context):
 @LEAF_PROGRAMS.register
 def _apply_force(i: int, leaf, ctx: _Context):
     index = ctx.index
-    base = np.asarray(leaf.args.get("wrench", (0.0,) * 6), np.float32)
-    overrides = [(axis, _input(leaf, f"force_{c}", index)) for axis, c in enumerate("xyz") if f"force_{c}" in leaf.params or f"force_{c}" in leaf.args]
+    base, sources = force_inputs(leaf, index)
+    base = base.astype(np.float32)
+    overrides = [(axis, _reader(source)) for axis, source in sources]
 
     def apply_force(bb, world, params, fresh):
         wrench = jnp.asarray(base)
@@ -298,8 +300,7 @@ def _apply_force(i: int, leaf, ctx: _Context):
 
 @LEAF_PROGRAMS.register
 def _overlay_spiral(i: int, leaf, ctx: _Context):
-    index = ctx.index
-    radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
+    radius, velocity, pitch = (_reader(source) for source in spiral_inputs(leaf, ctx.index))
     axes = spiral_axes(leaf.args.get("normal", SPIRAL_NORMAL))
 
     def overlay(bb, world, params, fresh):
@@ -324,5 +325,5 @@ def _ee_pose_distance(i: int, leaf, ctx: _Context):
 @LEAF_PROGRAMS.register
 def _wait(i: int, leaf, ctx: _Context):
     tick_seconds = ctx.tick_seconds
-    ticks = int(np.ceil(float(leaf.args["seconds"]) / tick_seconds - 1e-9))
+    ticks = wait_ticks(leaf, tick_seconds)
     return (lambda bb, world, params, live: jnp.where(live[i] & (bb.leaf_ticks[i] >= ticks), Status.SUCCESS, Status.RUNNING)), _keep

@@ -11,6 +11,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from mjxskill.engine.common.arrays import HOST
+from mjxskill.engine.common.rotations import quat_mul
 from mjxskill.sim.controller_config import N_ARM, ControllerConfig
 
 
@@ -78,16 +80,6 @@ def native_rollout(cfg: ControllerConfig, model, data, command, nullspace_target
     return state
 
 
-def _quat_mul_rows(a, b):
-    """Row-wise Hamilton products of (N, 4) quaternions (w x y z)."""
-    aw, ax, ay, az = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
-    bw, bx, by, bz = b[:, 0], b[:, 1], b[:, 2], b[:, 3]
-    return np.stack([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ], axis=1)
 
 
 def _quat_to_rotvec_rows(q):
@@ -118,7 +110,7 @@ def batched_impedance_control(cfg: ControllerConfig, jac, site_pos, site_quat, q
     stiffness = _rate_limit(state.stiffness, cmd_stiffness, cfg.stiffness_rate * cfg.dt)
     wrench = _rate_limit(state.wrench, cmd_wrench, cfg.wrench_rate * cfg.dt)
     ref_inv = ref_quat * np.array([1.0, -1.0, -1.0, -1.0])
-    rot_err = _quat_to_rotvec_rows(_quat_mul_rows(site_quat, ref_inv))
+    rot_err = _quat_to_rotvec_rows(quat_mul(site_quat, ref_inv, HOST))
     pose_err = np.concatenate([site_pos - ref_pos, rot_err], axis=1)
     twist = np.einsum("nij,nj->ni", jac, qd)
     task_force = -stiffness * pose_err - 2.0 * np.sqrt(np.maximum(stiffness, 0.0)) * twist + wrench

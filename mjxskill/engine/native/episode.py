@@ -19,9 +19,11 @@ from mjxskill.ebt.interpreter import Interpreter, TickResult
 from mjxskill.ebt.nodes import Status
 from mjxskill.engine.native.controller import NativeControllerState, native_impedance_control
 from mjxskill.engine.native.leaves import NativeBlackboard
-from mjxskill.engine.native.rewards import NativeObservation
-from mjxskill.engine.native.success import success
+from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import FREE, MOCAP
+from mjxskill.engine.common.rewards import Observation
+from mjxskill.engine.common.success import success
+from mjxskill.engine.common.worlds import world_pair_friction
 from mjxskill.engine.common.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, TickRecord
 from mjxskill.sim.controller_config import N_ARM
 
@@ -43,10 +45,8 @@ def _live_nodes(interp: Interpreter, result: TickResult) -> set[int]:
 def initial_data(engine, model: mujoco.MjModel, world) -> mujoco.MjData:
     """Native data at ``world``'s initial conditions, kinematics computed; ``model`` gets the
     world's friction on the randomized contact pairs."""
-    b = engine.spec.bindings
-    model.pair_friction[:] = engine.base_pair_friction
-    if b.randomized_pairs and not math.isnan(float(world.friction)):
-        model.pair_friction[list(b.randomized_pairs), :2] = float(world.friction)
+    b = engine.setup.bindings
+    model.pair_friction[:] = world_pair_friction(engine.base_pair_friction, b.randomized_pairs, world.friction, HOST)
     data = mujoco.MjData(model)
     data.qpos[list(b.arm_qpos)] = world.arm_qpos
     for k, slot in enumerate(b.slots):
@@ -81,7 +81,7 @@ class NativeEpisode:
 
     def __init__(self, engine, params, world, model: mujoco.MjModel, record: bool = False):
         self.engine, self.world, self.model, self.record = engine, world, model, record
-        spec = engine.spec
+        spec = engine.setup
         self.params = np.asarray(params, float)
         self.data = initial_data(engine, model, world)
         tool_pos, tool_quat = self.tool_pose()
@@ -106,7 +106,7 @@ class NativeEpisode:
 
     # -- observation ------------------------------------------------------------------------
     def tool_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        site = self.engine.spec.ctrl.site_id
+        site = self.engine.setup.ctrl.site_id
         quat = np.zeros(4)
         mujoco.mju_mat2Quat(quat, self.data.site_xmat[site])
         return self.data.site_xpos[site].copy(), quat
@@ -114,7 +114,7 @@ class NativeEpisode:
     def slot_poses(self) -> tuple[np.ndarray, np.ndarray]:
         pos = np.array(self.world.object_pos, float)
         quat = np.array(self.world.object_quat, float)
-        for k, slot in enumerate(self.engine.spec.bindings.slots):
+        for k, slot in enumerate(self.engine.setup.bindings.slots):
             if slot.how == FREE:
                 pos[k], quat[k] = self.data.xpos[slot.body_id], self.data.xquat[slot.body_id]
         return pos, quat
@@ -131,7 +131,7 @@ class NativeEpisode:
             return False
         if np.any(np.abs(data.qvel) >= MAX_QVEL):
             return False
-        return all(data.qpos[s.qpos_adr + 2] > MIN_OBJECT_Z for s in self.engine.spec.bindings.slots if s.how == FREE)
+        return all(data.qpos[s.qpos_adr + 2] > MIN_OBJECT_Z for s in self.engine.setup.bindings.slots if s.how == FREE)
 
     # -- one tick ---------------------------------------------------------------------------
     def begin_tick(self) -> None:
@@ -160,11 +160,11 @@ class NativeEpisode:
 
     def plain_steps(self) -> None:
         """The tick's control steps one at a time: reference, numpy controller, ``mj_step``."""
-        model, data, bb, cfg = self.model, self.data, self.bb, self.engine.spec.ctrl
+        model, data, bb, cfg = self.model, self.data, self.bb, self.engine.setup.ctrl
         cstate = self.cstate
-        sensors = list(self.engine.spec.bindings.force_sensors)
+        sensors = list(self.engine.setup.bindings.force_sensors)
         force_sum = force_peak = 0.0
-        for _ in range(self.engine.spec.steps_per_tick):
+        for _ in range(self.engine.setup.steps_per_tick):
             ref_pos, ref_quat = bb.reference()
             command = np.concatenate([ref_pos, ref_quat, bb.wrench, bb.stiffness])
             tau, cstate = native_impedance_control(cfg, model, data, command, self.nullspace_target, cstate)
@@ -193,8 +193,8 @@ class NativeEpisode:
         slot_pos, slot_quat = self.slot_poses()
         force_sum, force_peak = self.tick_force
         self.force_sum, self.force_peak = self.force_sum + force_sum, max(self.force_peak, force_peak)
-        obs = NativeObservation(tool_pos, tool_quat, self.bb.reference()[0], slot_pos, slot_quat,
-                                self.cstate.wrench, root == Status.SUCCESS, force_sum / self.engine.spec.steps_per_tick)
+        obs = Observation(tool_pos, tool_quat, self.bb.reference()[0], slot_pos, slot_quat,
+                                self.cstate.wrench, root == Status.SUCCESS, force_sum / self.engine.setup.steps_per_tick)
         raw = [term.raw(obs) for term in self.engine.terms]
         self.totals += raw
         if self.record:
@@ -206,7 +206,7 @@ class NativeEpisode:
 
     # -- the end ----------------------------------------------------------------------------
     def result(self) -> EpisodeResult:
-        engine, spec = self.engine, self.engine.spec
+        engine, spec = self.engine, self.engine.setup
         totals = self.totals
         if self.diverged:
             totals = np.array([term.worst_raw * spec.ticks for term in engine.terms])
@@ -232,5 +232,5 @@ class NativeEpisode:
 
     def _success(self):
         slot_pos, slot_quat = self.slot_poses()
-        spec = self.engine.spec
-        return success(spec.success, self.data.site_xpos[spec.ctrl.site_id].copy(), slot_pos, slot_quat)
+        spec = self.engine.setup
+        return success(spec.success, self.data.site_xpos[spec.ctrl.site_id].copy(), slot_pos, slot_quat, HOST)

@@ -12,8 +12,11 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from mjxskill.ebt.nodes import Node, Status
-from mjxskill.engine.native.motion import LinearMotion, plane_basis, quat_mul, spiral_step
 from mjxskill.ebt.primitives import SPIRAL_NORMAL, LeafRegistry, goal_orientation
+from mjxskill.engine.common.arrays import HOST
+from mjxskill.engine.common.leaf_inputs import LeafInput, force_inputs, leaf_input, spiral_inputs, wait_ticks
+from mjxskill.engine.common.rotations import quat_mul
+from mjxskill.engine.native.motion import LinearMotion, plane_basis, spiral_step
 
 TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # rotation by pi about y: the tool's z along world -z
 
@@ -89,13 +92,14 @@ EffectFn = Callable[[NativeBlackboard, bool, np.ndarray], None]
 
 
 def _input(leaf: Node, name: str, index: dict) -> Callable[[np.ndarray], float]:
-    if name in leaf.params:
-        i = index.get(leaf.params[name])
-        if i is None:
-            raise ValueError(f"leaf {leaf.name!r}: input {name!r} names parameter {leaf.params[name]!r}, which is not learnable here")
-        return lambda params: float(params[i])
-    value = float(leaf.args.get(name, 0.0))
-    return lambda params: value
+    """A leaf input as a function of the parameter vector (``leaf_inputs.leaf_input``)."""
+    return _reader(leaf_input(leaf, name, index))
+
+
+def _reader(source: LeafInput) -> Callable[[np.ndarray], float]:
+    if source.index is not None:
+        return lambda params: float(params[source.index])
+    return lambda params: source.value
 
 
 def _running(bb, tool_pos, live):
@@ -125,8 +129,8 @@ def tool_down_aligned(current_quat, object_yaw: float, tilt=None) -> np.ndarray:
         roll, pitch = tilt
         about_x = [math.cos(roll / 2), math.sin(roll / 2), 0.0, 0.0]
         about_y = [math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0]
-        down = quat_mul(quat_mul(about_y, about_x), down)
-    return quat_mul([math.cos(target / 2), 0.0, 0.0, math.sin(target / 2)], down)
+        down = quat_mul(quat_mul(about_y, about_x, HOST), down, HOST)
+    return quat_mul([math.cos(target / 2), 0.0, 0.0, math.sin(target / 2)], down, HOST)
 
 
 def build_native_leaves(leaves: list[Node], parameter_names, slot_of: dict, nominal_pos: np.ndarray,
@@ -201,9 +205,8 @@ def _change_stiffness(i: int, leaf, ctx: _Context):
 @LEAF_PROGRAMS.register
 def _apply_force(i: int, leaf, ctx: _Context):
     index = ctx.index
-    base = np.asarray(leaf.args.get("wrench", (0.0,) * 6), float)
-    overrides = [(axis, _input(leaf, f"force_{c}", index)) for axis, c in enumerate("xyz")
-                 if f"force_{c}" in leaf.params or f"force_{c}" in leaf.args]
+    base, sources = force_inputs(leaf, index)
+    overrides = [(axis, _reader(source)) for axis, source in sources]
 
     def apply_force(bb, fresh, params):
         wrench = base.copy()
@@ -216,8 +219,7 @@ def _apply_force(i: int, leaf, ctx: _Context):
 
 @LEAF_PROGRAMS.register
 def _overlay_spiral(i: int, leaf, ctx: _Context):
-    index = ctx.index
-    radius, velocity, pitch = (_input(leaf, k, index) for k in ("radius", "path_velocity", "pitch"))
+    radius, velocity, pitch = (_reader(source) for source in spiral_inputs(leaf, ctx.index))
     axes = plane_basis(leaf.args.get("normal", SPIRAL_NORMAL))
 
     def overlay(bb, fresh, params):
@@ -244,7 +246,7 @@ def _ee_pose_distance(i: int, leaf, ctx: _Context):
 @LEAF_PROGRAMS.register
 def _wait(i: int, leaf, ctx: _Context):
     tick_seconds = ctx.tick_seconds
-    ticks = int(np.ceil(float(leaf.args["seconds"]) / tick_seconds - 1e-9))
+    ticks = wait_ticks(leaf, tick_seconds)
 
     def waited(bb, tool_pos, live):
         return Status.SUCCESS if live and bb.leaf_ticks[i] >= ticks else Status.RUNNING

@@ -27,10 +27,10 @@ def run_lockstep(engine, params: np.ndarray, worlds) -> list[EpisodeResult]:
     shape (N,), numpy fields), stepped together. Returns the N results in order."""
     n = len(params)
     episodes = [
-        NativeEpisode(engine, params[i], _world(worlds, i), engine.model.__copy__()) for i in range(n)
+        NativeEpisode(engine, params[i], _world(worlds, i), engine.mj_model.__copy__()) for i in range(n)
     ]
-    spec, cfg = engine.spec, engine.spec.ctrl
-    site, steps, nv = cfg.site_id, spec.steps_per_tick, engine.model.nv
+    spec, cfg = engine.setup, engine.setup.ctrl
+    site, steps, nv = cfg.site_id, spec.steps_per_tick, engine.mj_model.nv
     for t in range(spec.ticks):
         alive = [e for e in episodes if not e.diverged]
         if not alive:
@@ -73,7 +73,7 @@ def _control_steps(episodes: list[NativeEpisode], cfg, site: int, steps: int, nv
     ]
     # The measured contact force: the tool's touch sensors, which mj_step computes; one read per
     # episode and step (of the sensor when there is one, as there is for a single tool body).
-    sensors = list(episodes[0].engine.spec.bindings.force_sensors) if episodes else []
+    sensors = list(episodes[0].engine.setup.bindings.force_sensors) if episodes else []
     readings = [e.data.sensordata[sensors[0]:sensors[0] + 1] if len(sensors) == 1 else None for e in episodes]
     force = np.zeros((steps, m))
     for k in range(steps):

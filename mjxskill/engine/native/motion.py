@@ -13,52 +13,21 @@ import math
 
 import numpy as np
 
+from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.motion import AxisLimits, MotionLimits
+from mjxskill.engine.common.rotations import quat_conj, quat_mul, quat_to_rotvec, rotvec_to_quat
 
 
-def quat_mul(a, b) -> np.ndarray:
-    """Hamilton product a * b of (4,) quaternions (w x y z)."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return np.array(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ]
-    )
 
 
-def quat_conj(q) -> np.ndarray:
-    return np.array([q[0], -q[1], -q[2], -q[3]])
 
 
-def quat_to_rotvec(q) -> np.ndarray:
-    """(3,) rotation vector of unit quaternion q (4,), the shorter of q and -q."""
-    q = -np.asarray(q, float) if q[0] < 0 else np.asarray(q, float)
-    s = math.sqrt(q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
-    scale = 2.0 / max(q[0], 1e-12) if s < 1e-9 else 2.0 * math.atan2(s, q[0]) / s
-    return q[1:] * scale
 
 
-def rotvec_to_quat(r) -> np.ndarray:
-    """(4,) unit quaternion of rotation vector r (3,)."""
-    angle = math.sqrt(r[0] ** 2 + r[1] ** 2 + r[2] ** 2)
-    scale = 0.5 if angle < 1e-9 else math.sin(0.5 * angle) / angle
-    return np.array([math.cos(0.5 * angle), r[0] * scale, r[1] * scale, r[2] * scale])
 
 
-def quat_rotate(q, v) -> np.ndarray:
-    """(3,) v rotated by unit quaternion q (4,): q v q*."""
-    u = np.asarray(q[1:], float)
-    t = 2.0 * np.cross(u, v)
-    return np.asarray(v, float) + q[0] * t + np.cross(u, t)
 
 
-def quat_angle(a, b) -> float:
-    """Angle (rad) of the rotation between unit quaternions a and b (4,)."""
-    return 2.0 * math.acos(min(abs(float(np.dot(a, b))), 1.0))
 
 
 def _shape_constant(lim: AxisLimits) -> float:
@@ -100,23 +69,8 @@ def trapezoid_positions(t: np.ndarray, distance: float, duration: float, speed: 
     return np.where(t < t_acc, 0.5 * lim.acc * t**2, np.where(t < duration - t_dec, cruise, braking))
 
 
-def rotvec_to_quat_rows(r: np.ndarray) -> np.ndarray:
-    """``rotvec_to_quat`` of every row of r (n, 3): (n, 4)."""
-    angle = np.sqrt(np.sum(r**2, axis=1))
-    scale = np.where(angle < 1e-9, 0.5, np.sin(0.5 * angle) / np.where(angle < 1e-9, 1.0, angle))
-    return np.concatenate([np.cos(0.5 * angle)[:, None], r * scale[:, None]], axis=1)
 
 
-def quat_mul_rows_by(a: np.ndarray, b) -> np.ndarray:
-    """Hamilton products a[i] * b of (n, 4) quaternions with one (4,) quaternion."""
-    aw, ax, ay, az = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
-    bw, bx, by, bz = b
-    return np.stack([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ], axis=1)
 
 
 class LinearMotion:
@@ -131,7 +85,7 @@ class LinearMotion:
         self.limits = limits
         self.delta = self.goal_pos - self.start_pos
         self.length = float(np.linalg.norm(self.delta))
-        self.rotvec = quat_to_rotvec(quat_mul(self.goal_quat, quat_conj(self.start_quat)))
+        self.rotvec = quat_to_rotvec(quat_mul(self.goal_quat, quat_conj(self.start_quat, HOST), HOST), HOST)
         self.angle = float(np.linalg.norm(self.rotvec))
         self.duration = max(min_duration(self.length, limits.translation), min_duration(self.angle, limits.rotation))
         self.speed_pos = cruise_speed(self.length, self.duration, limits.translation)
@@ -149,7 +103,7 @@ class LinearMotion:
         else:
             frac_rot = 1.0
         pos = self.start_pos + frac_pos * self.delta
-        quat = quat_mul(rotvec_to_quat(frac_rot * self.rotvec), self.start_quat)
+        quat = quat_mul(rotvec_to_quat(frac_rot * self.rotvec, HOST), self.start_quat, HOST)
         return pos, quat
 
     def at_times(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -164,12 +118,12 @@ class LinearMotion:
         else:
             frac_rot = np.ones_like(t)
         pos = self.start_pos + frac_pos[:, None] * self.delta
-        quat = quat_mul_rows_by(rotvec_to_quat_rows(frac_rot[:, None] * self.rotvec), self.start_quat)
+        quat = quat_mul(rotvec_to_quat(frac_rot[:, None] * self.rotvec, HOST), self.start_quat, HOST)
         return pos, quat
 
 
 def plane_basis(normal) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors (3,) spanning the plane normal to ``normal`` (3,) (as sim.motion)."""
+    """Two unit vectors (3,) spanning the plane normal to ``normal`` (3,) (as ``mjxskill.engine.mjx.motion``)."""
     n = np.asarray(normal, float) / np.linalg.norm(normal)
     helper = np.array([0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
     e1 = np.cross(helper, n)

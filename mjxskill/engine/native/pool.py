@@ -102,7 +102,7 @@ class WorkerPool:
         self.procs = []
         self._stop = weakref.finalize(self, _stop_workers, self.procs, self._dir)
         model_path = Path(self._dir.name) / "model.mjb"
-        mujoco.mj_saveModel(engine.model, str(model_path), None)
+        mujoco.mj_saveModel(engine.mj_model, str(model_path), None)
         message = json.dumps(recipe(engine, model_path)).encode()
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
         try:

@@ -30,9 +30,11 @@ import numpy as np
 from mjxskill.ebt.interpreter import Interpreter
 from mjxskill.engine.native.episode import NativeEpisode
 from mjxskill.engine.native.leaves import build_native_leaves
-from mjxskill.engine.native.rewards import build_native_terms
+from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import nominal_poses
+from mjxskill.engine.common.rewards import build_terms
 from mjxskill.engine.common.types import EpisodeResult, RolloutOutput, episode_setup, objective_matrix, summarize
+from mjxskill.engine.protocol import RolloutBase
 from mjxskill.engine.common.worlds import Worlds, make_sampler, sample_worlds, worlds_per_config
 
 
@@ -52,7 +54,7 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-class NativeRollout:
+class NativeRollout(RolloutBase):
     """The episodes of ``task`` in ``scn`` on native MuJoCo (arguments as ``compile_rollout``;
     nothing is compiled). workers: processes ``run_worlds`` splits a call's episodes over
     (default: one per core; 1 runs them in this process). Results do not depend on it."""
@@ -70,52 +72,29 @@ class NativeRollout:
             mj_model = build_model(scn)
         seconds = scn.episode_seconds if episode_seconds is None else float(episode_seconds)
         self.scenario, self.task = scn, task
-        self.episode_seconds = seconds
         self.start_configs = None if start_configs is None else np.asarray(start_configs)
         self.workers = default_workers() if workers is None else max(1, int(workers))
         self._pool = None
         # The scenario and skill library files as this engine read them: workers rebuild from
         # them and check they are unchanged.
         self.scenario_sha256 = sources_sha256(scn)
-        self.spec = episode_setup(scn, task, mj_model, seconds)
+        self.setup = episode_setup(scn, task, mj_model, seconds)
         self.worlds = scn.randomization.n_worlds if worlds is None else int(worlds)
-        self.sampler = make_sampler(scn, self.spec.bindings, start_configs)
+        self.sampler = make_sampler(scn, self.setup.bindings, start_configs)
         sampler, n_worlds = self.sampler, self.worlds
         # The compiled rollout's sampling program, written the same way: the same worlds, bit for bit.
         self._sample = jax.jit(lambda key, batch: sample_worlds(sampler, key, (batch, n_worlds)), static_argnums=1)
-        self.model = mj_model
-        self.base_pair_friction = self.model.pair_friction.copy()
+        self.mj_model = mj_model
+        self.base_pair_friction = mj_model.pair_friction.copy()
         self.tree = task.tree
         self.leaf_ids = [i for i, n in enumerate(Interpreter(self.tree).nodes) if n.is_leaf]
         self.leaf_position = {nid: k for k, nid in enumerate(self.leaf_ids)}
-        nominal_pos, nominal_quat = nominal_poses(self.spec.bindings)
+        nominal_pos, nominal_quat = nominal_poses(self.setup.bindings)
         self.programs = build_native_leaves(
-            self.tree.leaves(), task.parameter_names, self.spec.bindings.slot_of, nominal_pos, nominal_quat, 1.0 / scn.bt_hz
+            self.tree.leaves(), task.parameter_names, self.setup.bindings.slot_of, nominal_pos, nominal_quat, 1.0 / scn.bt_hz
         )
-        self.terms = build_native_terms(scn, self.spec.bindings.slot_of)
+        self.terms = build_terms(scn, self.setup.bindings.slot_of, HOST)
         self.objective_matrix = objective_matrix(self.terms, len(scn.objective_names), np.float64)
-        self.reward_names = tuple(t.name for t in self.terms)
-
-    @property
-    def parameter_names(self) -> tuple[str, ...]:
-        return self.task.parameter_names
-
-    @property
-    def bounds(self) -> np.ndarray:
-        """(2, P) lower and upper bounds of the learnable parameters."""
-        return self.task.bounds
-
-    @property
-    def objective_names(self) -> tuple[str, ...]:
-        return self.scenario.objective_names
-
-    @property
-    def mj_model(self) -> mujoco.MjModel:
-        return self.model
-
-    @property
-    def control_steps_per_episode(self) -> int:
-        return self.spec.ticks * self.spec.steps_per_tick
 
     def sample_worlds(self, key, batch: int) -> Worlds:
         """The (batch, W) worlds for ``batch`` parameter sets drawn from ``key``: the same as
@@ -134,8 +113,8 @@ class NativeRollout:
         ``rollout.types.EpisodeResult``. With ``record``, returns (result, TickRecord of numpy
         arrays with a leading (T,) axis) like the compiled rollout's ``trace`` (T: ticks run;
         fewer if the world diverged)."""
-        episode = NativeEpisode(self, params, world, self.model, record=record)
-        for t in range(self.spec.ticks):
+        episode = NativeEpisode(self, params, world, self.mj_model, record=record)
+        for t in range(self.setup.ticks):
             episode.begin_tick()
             episode.plain_steps()
             if not episode.end_tick(t):
@@ -152,15 +131,6 @@ class NativeRollout:
         rollout's worlds for the same key)."""
         params = self.check_params(params)
         return self.run_worlds(params, self.sample_worlds(key, len(params)))
-
-    def check_params(self, params) -> np.ndarray:
-        params = np.atleast_2d(np.asarray(params, np.float64))
-        n = len(self.parameter_names)
-        if params.ndim != 2 or params.shape[1] != n:
-            raise ValueError(f"params must have shape (B, {n}) in the order {list(self.parameter_names)}, got {params.shape}")
-        if not np.all(np.isfinite(params)):
-            raise ValueError(f"params must be finite, got {params}")
-        return params
 
     def run_worlds(self, params, worlds: Worlds, *, plain: bool = False) -> RolloutOutput:
         """Rolls out (B, P) ``params`` in ``worlds`` of leading shape (B, W) or (W,) (the same
@@ -206,8 +176,8 @@ class NativeRollout:
         from mjxskill.engine.native.episode import NativeEpisode
 
         world = jax.tree.map(lambda x: np.asarray(x)[0, 0], self.sample_worlds(jax.random.key(0), 1))
-        episode = NativeEpisode(self, self.task.defaults, world, self.model.__copy__())
-        for t in range(min(self.spec.ticks, 5)):
+        episode = NativeEpisode(self, self.task.defaults, world, self.mj_model.__copy__())
+        for t in range(min(self.setup.ticks, 5)):
             episode.begin_tick()
             episode.plain_steps()
             episode.end_tick(t)
