@@ -32,6 +32,28 @@ class RunError(UserError):
     """A run directory (or a file in it) that cannot be used as asked."""
 
 
+class SettingError(RunError):
+    """A setting value a new run cannot take (``mjxskill.training.configure``), with what a
+    caller needs to word it its own way (the command line names the flag the value came from):
+    ``name``, a run setting (``mjxskill.runs.settings``) or ``"optimizer_options"``; ``value``;
+    ``given``, whether the caller gave it (False: the scenario's default); ``problem``, why not."""
+
+    def __init__(self, message: str, *, name: str, value, given: bool, problem: str):
+        super().__init__(message)
+        self.name, self.value, self.given, self.problem = name, value, given, problem
+
+
+class ResumeConflict(RunError):
+    """Values given for resuming a run that are not the run's own (``mjxskill.training.configure``):
+    ``run``, the run directory; ``conflicts``, one ``(name, given, the run's own)`` per value
+    refused, ``name`` being a run setting, ``"optimizer_options"`` or ``"prior"`` (given: the
+    run the prior was to come from; the run's own: its stored prior)."""
+
+    def __init__(self, message: str, *, run, conflicts: tuple[tuple[str, object, object], ...]):
+        super().__init__(message)
+        self.run, self.conflicts = run, tuple(conflicts)
+
+
 class CommandError(UserError):
     """A command's flags or arguments that cannot be honoured (e.g. an unwritable folder)."""
 
@@ -42,4 +64,5 @@ class Notice(UserWarning):
     ``prog: warning: message`` line."""
 
 
-__all__ = ["CommandError", "GoalError", "Notice", "PlanError", "RunError", "ScenarioError", "UserError"]
+__all__ = ["CommandError", "GoalError", "Notice", "PlanError", "ResumeConflict", "RunError", "ScenarioError", "SettingError",
+           "UserError"]

@@ -9,7 +9,7 @@ import yaml
 from scipy.stats import kstest
 
 from mjxskill import gp
-from mjxskill.cli.train import Progress
+from mjxskill.cli.progress import Progress
 from mjxskill.training.loop import train
 from mjxskill.runs.run_dir import EVALUATIONS, RunConfig
 from test_train_loop import CONFIG, Recorder, new_run, toy_objective

@@ -7,7 +7,7 @@ import pytest
 from mjxskill.errors import Notice
 from mjxskill.gp import hypervolume
 from mjxskill.runs.run_dir import EVALUATIONS, OPTIMIZER_STATE, PARETO, Run, read_csv
-from mjxskill.cli.train import Progress
+from mjxskill.cli.progress import Progress
 from mjxskill.training.front import hypervolume_history, hypervolume_reference
 from mjxskill.training.loop import BatchResult, train
 from test_run_dir import make_config

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from cli_helpers import error_line, invoke
-from mjxskill.cli.train import build_parser, resolve_config, resumed_config
-from mjxskill.errors import CommandError, RunError
+from mjxskill.errors import ResumeConflict, RunError
 from mjxskill.gp import Prior
 from mjxskill.runs.evaluations_csv import Evaluations
 from mjxskill.training.front import pareto_mask_of
 from mjxskill.training.loop import train
+from mjxskill.training.configure import new_run_config, resumed_run_config
 from mjxskill.training.priors import PRIOR_FROM_STD_FRACTION, prior_from_run
 from mjxskill.runs.run_config import RunConfig, optimizer_config
 from mjxskill.runs.run_dir import EVALUATIONS, Run
@@ -102,11 +102,10 @@ def test_resume_refuses_a_prior_other_than_the_runs_own(tmp_path, capsys):
     run = run_with_front(tmp_path, "run", make_config(prior=prior_from_run(earlier.path, config.parameter_names,
                                                                               config.bounds)))
     other = run_with_front(tmp_path, "other", config, seed=2)
-    same = build_parser().parse_args(["push", "--resume", str(run.path), "--prior-from", str(earlier.path)])
-    assert resumed_config(same).prior == run.config().prior
-    different = build_parser().parse_args(["push", "--resume", str(run.path), "--prior-from", str(other.path)])
-    with pytest.raises(CommandError, match="with the prior it started with"):
-        resumed_config(different)
+    assert resumed_run_config(run.path, prior_from=earlier.path).prior == run.config().prior
+    with pytest.raises(ResumeConflict, match="with the prior it started with") as refused:
+        resumed_run_config(run.path, prior_from=other.path)
+    assert refused.value.conflicts == (("prior", other.path, run.config().prior),)
     code, stderr = invoke(capsys, "train", "push", "--resume", run.path, "--prior-from", other.path)
     error_line(code, stderr, "train", "drop --prior-from")
 
@@ -128,7 +127,7 @@ def test_the_scenarios_prior_is_the_default_and_prior_from_overrides_it(tmp_path
     path = tmp_path / "push.yaml"
     path.write_text(shipped_text("push").replace("manual_parameters:\n", PRIORS, 1))
     scn, task = scenario_and_task(str(path), None)
-    config = resolve_config(build_parser().parse_args([str(path), "--budget", "60"]), scn, task)
+    config = new_run_config(scn, task, str(path), {"budget": 60})
     lo, hi = np.asarray(task.bounds)
     assert task.parameter_names[0] == "Push.offset_x_start" and task.parameter_names[3] == "Push.offset_y_goal"
     assert config.prior["mean"] == [[-0.03, 0.0, 0.0, -0.1]]
@@ -137,12 +136,11 @@ def test_the_scenarios_prior_is_the_default_and_prior_from_overrides_it(tmp_path
     earlier = run_with_front(tmp_path, "earlier", make_config(parameter_names=task.parameter_names,
                                                               parameter_units=task.parameter_units,
                                                               bounds=(tuple(map(float, lo)), tuple(map(float, hi)))))
-    over = resolve_config(build_parser().parse_args([str(path), "--budget", "60", "--prior-from", str(earlier.path)]),
-                          scn, task)
+    over = new_run_config(scn, task, str(path), {"budget": 60}, prior_from=earlier.path)
     assert over.prior["mean"] == prior_from_run(earlier.path, task.parameter_names, task.bounds)["mean"]
     assert over.prior["source"].endswith("overrides the scenario's parameter_priors")
     plain, plain_task = scenario_and_task("push", None)
-    assert resolve_config(build_parser().parse_args(["push"]), plain, plain_task).prior is None  # shipped: none
+    assert new_run_config(plain, plain_task, "push").prior is None  # shipped: none
 
 
 def test_the_header_says_which_prior_the_run_uses():

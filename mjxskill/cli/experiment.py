@@ -20,7 +20,8 @@ from typing import Sequence
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
-from mjxskill.cli.train import Progress, add_setting_arguments, resolve_config, resumed_config
+from mjxskill.cli.progress import Progress
+from mjxskill.cli.run_settings import add_setting_arguments, new_config, resumed_config
 from mjxskill.engine.build import build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 
@@ -108,7 +109,7 @@ def _main(args: argparse.Namespace) -> int:
     scn, task = scenario_and_task(args.task, args.goal)
     if args.repeats is None:
         args.repeats = scn.optimizer.repetitions
-    config = resolve_config(args, scn, task)
+    config = new_config(args, scn, task)
     protocol = Protocol(per_config=args.per_config or EVALUATION_DEFAULTS["per_config"],
                         random_sets=EVALUATION_DEFAULTS["random"] if args.random is None else args.random,
                         max_force=args.max_force,

@@ -73,6 +73,18 @@ def prior_from_run(path: Path | str, parameter_names, bounds) -> dict:
             "mean": mean.tolist(), "std": std.tolist(), "weights": [1.0 / k] * k}
 
 
+def run_prior(scn, task, prior_from: Path | str | None = None) -> dict | None:
+    """The prior of a new run of ``task``: the one of the run in ``prior_from`` (over the
+    scenario's, and saying so) or, without it, the scenario's (None: none)."""
+    own = scenario_prior(scn, task)
+    if prior_from is None:
+        return own
+    prior = prior_from_run(prior_from, task.parameter_names, task.bounds)
+    if own is not None:
+        prior["source"] += "; overrides the scenario's parameter_priors"
+    return prior
+
+
 def describe_prior(prior: dict | None) -> str:
     """One line for the run's header."""
     if prior is None:
@@ -81,4 +93,4 @@ def describe_prior(prior: dict | None) -> str:
 
 
 __all__ = ["FLAT_STD_FACTOR", "MAX_COMPONENTS", "PRIOR_FROM_STD_FRACTION", "describe_prior", "prior_from_run",
-           "scenario_prior"]
+           "run_prior", "scenario_prior"]
