@@ -1,11 +1,15 @@
 """Process-wide JAX settings that must be in place before JAX creates a backend.
 
-Why this exists: on jax 0.7-0.10, XLA's CPU *fusion emitters* make `jax.vmap` over MJX
-kinematics roughly 2000x slower (17 control steps/s instead of 33,600 at batch 8, and a 50 s
-instead of 8 s compile; see ../shared/spec/reference.md). The flag only affects the CPU
-backend, so it is harmless on GPUs, but it must be in ``XLA_FLAGS`` before jax initialises
-its CPU client. ``mjxskill/__init__.py`` therefore calls :func:`configure_xla_flags` before
-anything imports jax.
+XLA's CPU *fusion emitters* make ``jax.vmap`` over MJX kinematics about 2000x slower: a
+vmapped rollout of a 7-DOF arm (``lax.scan`` of ``mjx.step``, batch 8) ran at 17 control
+steps/s with them and at 33,600 with ``--xla_cpu_use_fusion_emitters=false``, and compiled
+in 50 s instead of 8 s; results agree to float32 rounding (jax 0.10.2, mujoco 4.0.0,
+mujoco-mjx 3.17.0 on the project's 2-core CPU; seen on jax 0.7.2 through 0.10.2, not on
+0.6.2; ``benchmarks/NOTES.md``, section "14. XLA's CPU fusion emitters: vmapped MJX ~2000x
+slower"). XLA reads ``XLA_FLAGS`` once, when jax creates its CPU client, so the flag must be
+in the environment before that: ``mjxskill/__init__.py`` calls :func:`configure_xla_flags`
+on import, before any of its modules imports jax. The flag concerns XLA's CPU backend
+only: computations on a GPU are unaffected.
 
 Compiling MJX code costs tens of seconds on a 2-core CPU, so the persistent compilation
 cache is on by default (``MJXSKILL_CACHE_DIR`` moves it, ``MJXSKILL_CACHE_DIR=off`` turns it
@@ -39,11 +43,13 @@ def configure_xla_flags(environ: "os._Environ[str] | dict[str, str]" = os.enviro
     """Adds ``--xla_cpu_use_fusion_emitters=false`` to ``XLA_FLAGS`` unless the user set it.
 
     A user's own setting of the same flag (either value) wins; other flags are kept as they are.
+    When ``environ`` is ``os.environ``, also sets ``OPENBLAS_NUM_THREADS=1`` unless it is set.
     Returns the resulting ``XLA_FLAGS`` string.
     """
     # Single-threaded BLAS for the GP's LAPACK calls: on small shared machines OpenBLAS's thread
-    # pool made a 448x448 Cholesky vary from 2 to 700 ms (measured by the GP benchmark); XLA
-    # has its own thread pool for the rollouts. A user's own setting wins.
+    # pool spins against other processes and makes a 448 x 448 Cholesky take from 2 to 700 ms
+    # (benchmarks/RESULTS.md, "Optimizer overhead"); XLA has its own thread pool for the
+    # rollouts. A user's own setting wins.
     if environ is os.environ:
         environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     flags = environ.get("XLA_FLAGS", "")

@@ -2,8 +2,9 @@
 
 EI of a Gaussian N(mu, sigma^2) below the incumbent ``best`` (minimization) is
 ``sigma * h(z)`` with ``z = (best - mu) / sigma`` and ``h(z) = phi(z) + z Phi(z)``.
-For z far below 0, h(z) underflows in float64 (already at z ~ -40) and a plain log-EI has
-zero gradient there; the form below stays finite and accurate down to z = -1e300.
+h(z) underflows in float64 near z = -40, where a plain log(EI) is -inf with a zero gradient;
+:func:`log_h` computes log h(z) without forming h(z), so log-EI keeps a value and a gradient
+far from the incumbent (its value is finite for z above about -1.3e154, where z**2 overflows).
 """
 
 from __future__ import annotations
@@ -26,13 +27,18 @@ def _log1mexp(x):
 
 
 def log_h(z: jnp.ndarray) -> jnp.ndarray:
-    """log(phi(z) + z Phi(z)), elementwise, any shape.
+    """log(phi(z) + z Phi(z)), elementwise.
 
     Three regions as in Ament et al. (2023), eq. (9): direct for z > -1; for
     -1/sqrt(eps) < z <= -1 the exact identity h(z) = phi(z) (1 - |z| Phi(z)/phi(z)) written
     with the scaled complementary error function erfcx; below that its asymptote
-    -z^2/2 - log(2 pi)/2 - 2 log|z|. Each branch gets inputs inside its own domain so that
-    `where` never differentiates through a NaN.
+    -z^2/2 - log(2 pi)/2 - 2 log|z|. Each branch is evaluated on inputs clipped into its own
+    region, so the `where` that picks one never differentiates through another's NaN.
+
+    Args:
+      z: standardized improvement, any shape.
+    Returns:
+      log h(z), the shape of z.
     """
     z_hi = jnp.maximum(z, -1.0)
     hi = jnp.log(jnp.exp(-0.5 * z_hi**2 - _C1) + z_hi * jnp.exp(log_ndtr(z_hi)))
@@ -44,7 +50,15 @@ def log_h(z: jnp.ndarray) -> jnp.ndarray:
 
 
 def log_ei(mean: jnp.ndarray, variance: jnp.ndarray, best) -> jnp.ndarray:
-    """log E[max(best - f, 0)] for f ~ N(mean, variance) (minimization), elementwise."""
+    """log E[max(best - f, 0)] for f ~ N(mean, variance) (minimization), elementwise.
+
+    Args:
+      mean, variance: posterior moments, broadcastable shapes (the variance is floored at
+        1e-24 so that sigma > 0).
+      best: the incumbent, a scalar or broadcastable to mean.
+    Returns:
+      log-EI, the broadcast shape.
+    """
     sigma = jnp.sqrt(jnp.maximum(variance, 1e-24))
     z = (best - mean) / sigma
     return log_h(z) + jnp.log(sigma)

@@ -7,8 +7,9 @@ constant while the data grows (no recompiles within a size bucket).
 
 Conventions: inputs are scaled to the unit cube, targets standardized (zero mean, unit
 variance over the real rows). Hyperparameters are log-parameterized above a floor, with the
-Gamma priors BoTorch used for Matern 5/2 GPs on such data (lengthscale Gamma(3, 6),
-outputscale Gamma(2, 0.15), noise variance Gamma(1.1, 0.05)).
+Gamma priors BoTorch used for Matern 5/2 GPs on such data before its 0.12 (lengthscale
+Gamma(3, 6), outputscale Gamma(2, 0.15), noise variance Gamma(1.1, 0.05)), or the
+dimension-scaled LogNormal lengthscale prior (:func:`log_prior`).
 
 All functions expect float64 arrays and must run with x64 enabled (``jax.enable_x64(True)``);
 they do not switch it on themselves so that the rest of the process stays float32.
@@ -53,19 +54,23 @@ class GPPosterior(NamedTuple):
 
 
 def lengthscales(p: GPParams) -> jnp.ndarray:
+    """(d,) lengthscales, in unit-cube coordinates."""
     return LENGTHSCALE_FLOOR + jnp.exp(p.raw_lengthscales)
 
 
 def outputscale(p: GPParams) -> jnp.ndarray:
+    """() signal variance, in standardized units."""
     return OUTPUTSCALE_FLOOR + jnp.exp(p.raw_outputscale)
 
 
 def noise(p: GPParams) -> jnp.ndarray:
+    """() noise variance, in standardized units."""
     return NOISE_FLOOR + jnp.exp(p.raw_noise)
 
 
 def params_from_values(ls, os, nv, mean=0.0) -> GPParams:
-    """Raw parameters for given constrained values (each above its floor)."""
+    """Raw parameters for given constrained values: lengthscales ``ls`` (d,), outputscale
+    ``os``, noise variance ``nv`` (each above its floor) and constant mean ``mean``."""
     f64 = lambda v: jnp.asarray(v, jnp.float64)
     return GPParams(
         raw_lengthscales=jnp.log(f64(ls) - LENGTHSCALE_FLOOR),
@@ -76,7 +81,8 @@ def params_from_values(ls, os, nv, mean=0.0) -> GPParams:
 
 
 def default_params(d: int) -> GPParams:
-    """Start of the fit: the priors' modes (lengthscale 1/3, outputscale ~0.15, noise 5e-3)."""
+    """Where every fit starts: lengthscales 1/3 (the mode of their Gamma(3, 6) prior),
+    outputscale 1 (the standardized targets' variance), noise variance 1e-3, mean 0."""
     return params_from_values(jnp.full((d,), 1.0 / 3.0), 1.0, 1e-3)
 
 
@@ -120,8 +126,9 @@ def log_marginal_likelihood(p: GPParams, x, y, mask) -> jnp.ndarray:
 
     The value is the usual Cholesky form. Its gradient is the closed form
     dL/dtheta = 0.5 sum((a a^T - K^-1) * dK/dtheta), dL/dmean = sum(a), a = K^-1 (y - mean),
-    attached through a surrogate with the same gradient: reverse-mode through the
-    Cholesky factorization cost ~6x the value on CPU, this ~2.5x.
+    attached through a surrogate with the same gradient, because reverse-mode autodiff through
+    the Cholesky factorization costs several times more on a CPU (benchmarks/RESULTS.md,
+    "Figures once quoted in mjxskill/gp's comments").
     """
     cov = _padded_cov(p, x, mask)
     chol = jnp.linalg.cholesky(cov)
@@ -144,7 +151,8 @@ def fit_loss(p: GPParams, x, y, mask, prior: str = "gamma") -> jnp.ndarray:
 
 
 def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "gamma") -> GPParams:
-    """MAP hyperparameters by L-BFGS from several starts (the prior modes plus random draws).
+    """MAP hyperparameters by ``n_steps`` L-BFGS steps from ``n_starts`` starts:
+    :func:`default_params` and ``n_starts - 1`` random lengthscales.
 
     Args:
       x: (n, d) float64 unit-cube inputs; y: (n,) float64 standardized targets;
@@ -155,7 +163,7 @@ def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "
     """
     d = x.shape[1]
     base = default_params(d)
-    # Random starts: lengthscales log-uniform over [0.05, 2], other parameters at the modes.
+    # Random starts: lengthscales log-uniform over [0.05, 2], the rest as in default_params.
     n_rand = n_starts - 1
     rand_ls = jnp.exp(jax.random.uniform(key, (n_rand, d), jnp.float64, jnp.log(0.05), jnp.log(2.0)))
     starts = jax.tree.map(
@@ -186,15 +194,16 @@ def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "
         (p, _), _ = jax.lax.scan(step, (p0, opt.init(p0)), None, length=n_steps)
         return p, loss(p)
 
-    # lax.map, not vmap: under vmap the line search's lax.cond branches all execute (select),
-    # which made the fit ~10x slower on CPU.
+    # lax.map, not vmap: under vmap the line search's lax.cond becomes a select that runs every
+    # branch, which makes the fit many times slower on a CPU.
     finals, losses = jax.lax.map(run, starts)
     best = jnp.argmin(losses)
     return jax.tree.map(lambda a: a[best], finals)
 
 
 def condition(p: GPParams, x, y, mask) -> GPPosterior:
-    """Factorizes the training covariance. x (n, d), y (n,), mask (n,) bool."""
+    """Conditions the GP with hyperparameters ``p`` on x (n, d), y (n,), mask (n,) bool: the
+    training covariance is factorized once here for every later :func:`predict`."""
     cov = _padded_cov(p, x, mask)
     chol = jnp.linalg.cholesky(cov)
     k_inv = jsl.cho_solve((chol, True), jnp.eye(x.shape[0], dtype=x.dtype))
@@ -216,9 +225,9 @@ def symmetric_quadratic_form(k: jnp.ndarray, a: jnp.ndarray) -> jnp.ndarray:
     variance's k K^-1 k^T).
 
     Its gradient in k is 2 (k a) g, the product the value already computed: autodiff, which
-    cannot know that a is symmetric, would multiply by a^T once more. That second (b, n) x
-    (n, n) product was half the cost of each acquisition gradient step at n = 400
-    (benchmarks/gp_overhead.py).
+    cannot know that a is symmetric, would multiply by a^T once more, a second (b, n) x (n, n)
+    product in every acquisition gradient step (benchmarks/RESULTS.md, "Hypervolume
+    scalarizations, per-objective GPs", Overhead).
     """
     return jnp.sum((k @ a) * k, axis=-1)
 

@@ -70,8 +70,7 @@ def _to_directions(u: jnp.ndarray, m: int) -> jnp.ndarray:
     where a simple map exists, so an even set of points stays an even set of directions:
     m = 2 by angle (u (..., 1)), m = 3 by Archimedes' hat-box map (height and azimuth,
     u (..., 2)); otherwise the normalized |normal quantile| of u (..., m), which keeps each
-    direction uniform but not the set's evenness (measured: barely less variance than
-    independent directions at m = 4)."""
+    direction uniform but not the set's evenness."""
     if m == 2:
         angle = 0.5 * jnp.pi * u[..., 0]
         return jnp.stack([jnp.cos(angle), jnp.sin(angle)], axis=-1)
@@ -196,13 +195,14 @@ def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.nda
     # The k x s (direction, draw) pairs on one flat axis, each pair's (1 - f_i) / lambda_i
     # written as (1 - mean_i) / lambda_i - sd_i z_i / lambda_i from two (pairs,) vectors per
     # objective, and the min over the m objectives unrolled: every array then has the pairs
-    # on its minor axis. The direct (b, k, s, m) form, with m = 2 or 3 innermost, ran 4-7
-    # times slower on CPU (benchmarks/RESULTS.md).
+    # on its minor axis. The direct (b, k, s, m) form, with m = 2 or 3 innermost, runs several
+    # times slower on a CPU (benchmarks/RESULTS.md, "A given reference point: 2048
+    # directions, a posterior draw each", "A faster estimate").
     inv = jnp.broadcast_to((1.0 / lam)[:, None], (k, s, m)).reshape(k * s, m)
     slope = draws.reshape(k * s, m) * inv  # z_i / lambda_i
     best = jnp.broadcast_to(jnp.broadcast_to(best, (k,))[:, None], (k, s)).reshape(k * s)
-    # Materialized before the (b, k s) loop: fused into it, their broadcasts cost index
-    # arithmetic per element (the ask of q = 8 at n = 400 about 0.1 s slower).
+    # Materialized before the (b, k s) loop: fused into it, their broadcasts would cost index
+    # arithmetic per element of it.
     inv, slope, best = jax.lax.optimization_barrier((inv, slope, best))
     sd = jnp.sqrt(jnp.maximum(variance, 0.0))
     t = None

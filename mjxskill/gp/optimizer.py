@@ -12,8 +12,8 @@ Static shapes: the model sees the training set padded to the next multiple of
 ``config.acquisition.bucket`` rows, so the proposal compiles once per bucket, not once per batch.
 
 A parameter prior (``MOBOConfig.prior``, gp/prior.py) shapes the warm-up (a fraction of its
-points drawn from the prior) and weights the acquisition (piBO); without one, every proposal is
-the one this optimizer made before priors existed.
+points drawn from the prior) and weights the acquisition (piBO); without one, the prior's
+settings (``prior_share``, ``pibo_beta``) change no proposal.
 
 Non-finite objective values (a crashed rollout) are kept in the state and on disk; the
 model sees them as the worst value observed for that objective (1 after normalization),
@@ -150,6 +150,7 @@ class MOBOResult(NamedTuple):
 
 
 def init(config: MOBOConfig) -> MOBOState:
+    """The state of a run that has observed nothing yet."""
     return MOBOState(
         config,
         np.zeros((0, config.dim), np.float64),

@@ -2,9 +2,10 @@
 
 ``Prior(mean, std, weights=None)``: a mixture of K components, each a product over the d
 dimensions of Gaussians (mean, standard deviation in the parameter's units) truncated to the
-bounds. ``mean`` and ``std`` are (d,) for one component or (K, d); ``weights`` (K,) positive and
-summing to 1 (default: equal); ``std`` may be one number for all. An operator's belief is one component; a prior built from an
-earlier run's Pareto front is one component per Pareto solution.
+bounds. ``mean`` and ``std`` are (d,) for one component or (K, d); ``weights`` (K,) positive
+and summing to 1 (default: equal); ``std`` may be one number for all. An operator's belief is
+one component; a prior built from an earlier run's Pareto front is one component per Pareto
+solution.
 
 The optimizer uses it twice (Hvarfner et al. 2022, piBO):
 
@@ -16,7 +17,8 @@ The optimizer uses it twice (Hvarfner et al. 2022, piBO):
   ``log_acq(x) + (beta / n) * log belief(x)`` (``AcquisitionSettings.pibo_beta``;
   ``proposal.prior_weighted``).
   Early on the prior steers the search; as data accumulate the model's EI dominates, so a
-  misleading prior costs evaluations but not the final front.
+  misleading prior costs evaluations but not the final front (measured: benchmarks/RESULTS.md,
+  "Parameter priors (piBO)").
 
 The proposal sees the prior in unit-cube coordinates (``UnitPrior``, arrays traced by the
 jitted proposal: a changed prior with the same number of components does not retrace). Its
@@ -153,6 +155,7 @@ def _log_mass(mean: np.ndarray, std: np.ndarray, lo, hi) -> np.ndarray:
 
 
 def unit_prior(prior: Prior, bounds) -> UnitPrior:
+    """The prior in the unit cube of the (2, d) ``bounds``, as the jitted proposal takes it."""
     lo, hi = np.asarray(bounds, dtype=np.float64)
     mean = (np.asarray(prior.mean) - lo) / (hi - lo)
     std = np.asarray(prior.std) / (hi - lo)

@@ -2,48 +2,41 @@
 
 Element j of the batch scalarizes the objectives its own random way (``settings.scalarization``):
 
-* "hypervolume" (default): random hypervolume scalarizations about a reference point
-  (Golovin and Zhang 2020; ``hypervolume_scalarization.py``). Most elements average
-  ``n_directions`` quasi-random directions, a Monte Carlo estimate of the expected hypervolume
-  improvement; the last ``single_direction_share`` of the batch follow one direction each
-  (the paper's single random scalarization), scalarized about the observed front's own
-  reference point (``single_direction_reference="front"``);
-* "chebyshev": augmented Chebyshev on a flat Dirichlet weight w_j (ParEGO; the paper's
-  scalarization and the default until issue 19).
+* "hypervolume": random hypervolume scalarizations about a reference point (Golovin and
+  Zhang 2020; ``hypervolume_scalarization.py``). Most elements average ``n_directions``
+  quasi-random directions, a Monte Carlo estimate of the expected hypervolume improvement;
+  the last ``single_direction_share`` of the batch follow one direction each (a single
+  random scalarization), about the observed front's own reference point when
+  ``single_direction_reference="front"``;
+* "chebyshev": augmented Chebyshev on a flat Dirichlet weight w_j (ParEGO).
 
 Two models of the scalarization, combined by ``settings.model``:
 
 * "scalarized": a GP fitted to the element's scalarized values (details below);
-* "per_objective" (default): one GP per objective (standardized), shared by all elements;
-  the acquisition is the log-EI of the scalarization of quasi-random posterior draws
-  (``scalarized_posterior.py``, ``hypervolume_scalarization.log_ei_hv_draws``), its
-  incumbent the best scalarized posterior mean at the observed points
-  (``incumbent="posterior_mean"``) and its variance deflated by the fitted noise;
+* "per_objective": one GP per objective (standardized), shared by all elements; the
+  acquisition is the log-EI of the scalarization of quasi-random posterior draws
+  (``scalarized_posterior.py``, ``hypervolume_scalarization.log_ei_hv_draws``). Its incumbent
+  is the best scalarized observed value or, with ``incumbent="posterior_mean"``, the best
+  scalarized posterior mean at the observed points, and with ``variance="deflated"`` its
+  variance excludes the fitted noise, so that re-evaluating an observed point offers no
+  spurious improvement;
 * "hybrid": the first ceil(q/2) elements scalarized, the rest per-objective, all in one
-  greedy sequence (the default with Chebyshev scalarizations: on BraninCurrin it raised the
-  median final hypervolume to 56.1 from 54.5-54.7 and 53.8-54.6).
+  greedy sequence.
 
-With the hypervolume defaults (64 directions sharing 16 draws) and the problem's reference
-point given, the median final hypervolume over 10 seeds is BoTorch qLogNEHVI's on ZDT1, above
-it on DTLZ2 and 0.2 below on BraninCurrin. With the reference point given the defaults take
-2048 directions per averaging element, each with its own posterior draw
-(``draw_pairing="per_direction"``, the pairs from one joint Sobol set;
-``settings.GIVEN_REFERENCE_DEFAULTS``), and reach qLogNEHVI's median on BraninCurrin too
-(benchmarks/RESULTS.md).
-The per-objective model gets trapped on one edge of BraninCurrin far less often once its
-incumbent and variance stop rewarding re-evaluations and the pending points count at their
-believed values (1 seed of 10, where the generation-1 per-objective model lost 5).
+The defaults (``settings.AcquisitionSettings``, and ``settings.GIVEN_REFERENCE_DEFAULTS``
+when the reference point is given) and the measurements that chose them:
+benchmarks/RESULTS.md, "Multi-objective BO quality".
 
 Scalarized model: the targets are element j's scalarized values, standardized (the augmented
 Chebyshev of the normalized objectives, or for hypervolume scalarizations the anchored
 Chebyshev value of its first direction, the smoother m-th root). While the padded
 training set is small (at most ``per_element_fit_max_rows`` rows) each element gets its own
-GP hyperparameter fit: on BraninCurrin that raised the median final hypervolume from 51.4
-(one shared fit) to 53.9 (4 seeds, see benchmarks/RESULTS.md). Above that size one fit on
-the first scalarization is shared by the batch, because q fits of O(n^3) each would
-dominate the proposal time; and above ``fit_max_rows`` real rows the hyperparameters are
-fitted on a random subset of that size (subset-of-data estimation). The posterior always
-conditions on every row.
+GP hyperparameter fit (RESULTS.md, 'Previous defaults (model = "scalarized")'). Above that
+size one fit on the first scalarization is shared by the batch, because q fits of O(n^3)
+each would dominate the proposal time. For either model, when the padded training set has
+more than ``fit_max_rows`` rows the hyperparameters are fitted on a random subset of at most
+that many real rows (subset-of-data estimation). The posterior always conditions on every
+row.
 
 Kriging believer: element j conditions on the points already chosen for elements < j with
 its own posterior mean as their value. That leaves its mean unchanged and shrinks its
@@ -161,7 +154,11 @@ class Scalarization(NamedTuple):
 
 def _scalarization(y_norm, mask, ref, key, q: int, settings: AcquisitionSettings) -> Scalarization:
     """The q elements' random scalarizations: augmented Chebyshev on Dirichlet weights, or
-    hypervolume scalarizations on uniform directions (``hypervolume_scalarization.py``)."""
+    hypervolume scalarizations on uniform directions (``hypervolume_scalarization.py``).
+
+    y_norm: (n, m) normalized objectives (minimized); mask: (n,) bool real rows; ref: (m,)
+    reference point in y_norm's units; key: PRNG key of the weights or directions.
+    """
     m = y_norm.shape[1]
     k = settings.n_directions
     paired = settings.draw_pairing == "per_direction"

@@ -4,11 +4,12 @@ With one GP per objective, the objectives at a point x are independent Gaussians
 f_i ~ N(mu_i, var_i) (normalized scale). Their scalarization s = cheb_w(f) is a max of
 Gaussians plus a linear term, not Gaussian. Two estimates of its log-EI:
 ``log_ei_draws``, a quasi-Monte Carlo average of the softplus-smoothed improvement over
-fixed draws (like BoTorch's qLogNParEGO, but with the observed incumbent, the problems
-being noiseless; the default), and the analytic log-EI of the moment-matched Gaussian
-N(E[s], Var[s]) from ``chebyshev_moments``. Where one weighted objective dominates, s is
-nearly linear in f and the Gaussian is nearly exact; where two compete it keeps the max's
-upward shift of the mean and its variance.
+fixed draws (like BoTorch's qLogNParEGO; ``ei="draws"``, the default), and the analytic
+log-EI of the moment-matched Gaussian N(E[s], Var[s]) from ``chebyshev_moments``
+(``ei="moments"``). Where one weighted objective dominates, s is nearly linear in f and the
+Gaussian is nearly exact; where two compete it keeps the max's upward shift of the mean and
+its variance. The incumbent ``best`` is the caller's (``proposal.py``: the best observed
+value or the best posterior mean at the observed points, ``AcquisitionSettings.incumbent``).
 
 Both are quasi-Monte Carlo averages over one fixed set of standard normal draws
 (scrambled Sobol points mapped through the normal quantile, fixed seed): the same draws at
@@ -76,8 +77,8 @@ _EXP_BELOW = -30.0  # softplus(z) = log1p(exp(z)): exp(z) itself below this, to 
 
 def log_mean_softplus(z: jnp.ndarray, axis) -> jnp.ndarray:
     """log mean(softplus(z)) over ``axis``, stable for any z, with one exp and one log1p per
-    element (``logsumexp`` of ``_log_softplus`` takes four transcendentals, and over the many
-    (draw, direction) pairs of a hypervolume acquisition they dominated the proposal's time).
+    element where ``logsumexp`` of ``_log_softplus`` takes four transcendentals: a
+    hypervolume acquisition evaluates it over every (direction, draw) pair at every point.
 
     With z' = min(z, 30) and c = max z' over the axis: softplus(z) = log1p(e^c e^(z' - c)) +
     max(z - 30, 0) to a relative e^-30; where c < -30 every term is e^z to a relative e^-30,

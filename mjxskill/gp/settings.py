@@ -16,7 +16,7 @@ import dataclasses
 import math
 from typing import Mapping
 
-# Allowed values of the string settings (first: what each choice means is in proposal.py).
+# Allowed values of the string settings (what each means: the field comments below).
 CHOICES = {
     "scalarization": ("chebyshev", "hypervolume"),
     "directions": ("independent", "quasi_random"),
@@ -35,15 +35,17 @@ CHOICES = {
 
 @dataclasses.dataclass(frozen=True)
 class AcquisitionSettings:
-    """Settings of the model-based proposal (hashable: part of the compile cache key)."""
+    """Settings of the model-based proposal (hashable: part of the compile cache key).
+
+    The defaults were chosen by measurement against BoTorch's qLogNEHVI and uniform random
+    search: benchmarks/RESULTS.md, "Multi-objective BO quality" (the sections named below).
+    """
 
     # The random scalarization of each batch element: "chebyshev" (augmented Chebyshev of
     # objectives normalized by their observed range, flat Dirichlet weights; ParEGO) or
     # "hypervolume" (Golovin and Zhang's hypervolume scalarization about a reference point,
-    # uniform directions; hypervolume_scalarization.py). The default since issue 19: with the
-    # other defaults below the median final hypervolume (10 seeds, given reference point) is
-    # BoTorch qLogNEHVI's on ZDT1, above it on DTLZ2 and 0.2 below on BraninCurrin
-    # (benchmarks/RESULTS.md, "Multi-objective BO quality").
+    # uniform directions; hypervolume_scalarization.py). RESULTS.md, "Hypervolume
+    # scalarizations, per-objective GPs".
     scalarization: str = "hypervolume"
     alpha: float = 0.05  # augmented Chebyshev coefficient
     # Where the reference point comes from when MOBOConfig.ref_point is None: "warmup" (the
@@ -53,29 +55,27 @@ class AcquisitionSettings:
     # infer_reference_point).
     reference: str = "warmup"
     ref_margin: float = 0.1
-    # Directions averaged per batch element by the per-objective model's hypervolume
-    # scalarization (1: one random scalarization per element; more: a Monte Carlo estimate of
-    # the expected hypervolume improvement over that many random directions). In the end
-    # phase of a run the improvement left is in the gaps between front points, each crossed
-    # by the directions that pass through it: 64 directions leave one or two per gap on
-    # BraninCurrin. With a given reference point 2048 (one posterior draw each,
-    # draw_pairing="per_direction") raise its median final hypervolume from 58.50 to 58.73 and
-    # are the defaults there (GIVEN_REFERENCE_DEFAULTS below); about a reference inferred from
-    # the warm-up they lose 0.34, and in the regret about that reference (what train reports)
-    # gain on ZDT1 what they lose on BraninCurrin (RESULTS.md), so 64 stay the defaults.
+    # Directions per batch element of the hypervolume scalarization (1: one random
+    # scalarization per element; k > 1: their average, a k-direction Monte Carlo estimate of
+    # the expected hypervolume improvement; the scalarized model uses the first only). Late in
+    # a run the improvement left lies in the gaps between front points, each crossed only by
+    # the directions that pass through it. More directions pay off when the reference point is
+    # the one the run is judged by (given: GIVEN_REFERENCE_DEFAULTS below), not about one
+    # inferred from the warm-up (RESULTS.md, "A given reference point: 2048 directions, a
+    # posterior draw each" and "What a run reports").
     n_directions: int = 64
     # How an element's n_directions are drawn: "independent" (uniform, independently) or
     # "quasi_random" (a randomized Sobol set per element: the same expectation, far less
     # variance; hypervolume_scalarization.quasi_random_directions).
     directions: str = "quasi_random"
     # The share of the batch's elements (the last ones) that follow a single random direction
-    # each (the paper's random scalarization) rather than averaging n_directions: they
-    # refine where one direction points, the averaging elements chase the hypervolume.
+    # each rather than averaging n_directions (only when n_directions > 1): they refine where
+    # one direction points, the averaging elements chase the hypervolume.
     single_direction_share: float = 0.25
     # Their reference point: the run's ("global") or the observed front's nadir plus
-    # ref_margin of its extent ("front"; hypervolume_scalarization.front_reference).
-    # "front" measured best on ZDT1 (120.60 vs 120.52) and DTLZ2, "global" on BraninCurrin
-    # (58.53 vs 58.49; 10 seeds each, RESULTS.md).
+    # ref_margin of its extent ("front"; hypervolume_scalarization.front_reference), which
+    # spreads their directions over the front's trade-off (RESULTS.md, "Hypervolume
+    # scalarizations, per-objective GPs", table "What moved it").
     single_direction_reference: str = "front"
     # Objective values beyond the reference point: "log" compressed (1 + log u in reference
     # units; a heavy tail of bad values no longer sets the GP's mean and scale) or "linear".
@@ -83,19 +83,22 @@ class AcquisitionSettings:
     bucket: int = 64  # training sets are padded to a multiple of this many rows (one compile per bucket)
     n_raw: int = 1024  # random candidates scored per batch element
     n_restarts: int = 10  # best candidates refined by projected Adam
-    n_opt_steps: int = 100
+    n_opt_steps: int = 100  # Adam steps per restart
     learning_rate: float = 0.02  # unit-cube coordinates per Adam step
     final_learning_rate: float = 2e-4  # cosine-decayed to this by the last step (equal: constant)
-    fit_starts: int = 2
+    fit_starts: int = 2  # L-BFGS starts per GP fit (gp.fit)
     # GP hyperparameter prior (gp.log_prior): "gamma" (Matern 5/2 with BoTorch's former Gamma
     # priors) or "lognormal" (the dimension-scaled LogNormal lengthscale prior).
     prior: str = "lognormal"
-    fit_steps: int = 50
+    fit_steps: int = 50  # L-BFGS steps per start
     # One GP fit per batch element while the padded training set has at most this many
-    # rows, one shared fit above (a fit costs O(n^3), q of them dominate the proposal time).
+    # rows, one shared fit above (a fit costs O(n^3), q of them dominate the proposal time;
+    # per-element fits: RESULTS.md, 'Previous defaults (model = "scalarized")').
     per_element_fit_max_rows: int = 128
     # Hyperparameters are fitted on a random subset of at most this many real rows (the
-    # posterior still conditions on all of them): a fit on 448 rows took ~4 s on 2 cores.
+    # posterior still conditions on all of them): a fit's L-BFGS steps each factorize the
+    # n x n covariance, and on every row of a long run they dominate the proposal
+    # (RESULTS.md, "Optimizer overhead").
     fit_max_rows: int = 128
     # Which model each batch element uses (see proposal.py): "scalarized" (a GP on the
     # element's scalarization), "per_objective" (a GP per objective, scalarized draws),
@@ -121,7 +124,7 @@ class AcquisitionSettings:
     # The per-objective model's incumbent: the best scalarized "observed" value, or the best
     # of the model's "posterior_mean" at the observed points (where a fitted noise lets the
     # mean pass below an observed optimum, the observed incumbent makes re-evaluating that
-    # point look like an improvement: measured on ZDT1, a fifth of the proposals repeated it).
+    # point look like an improvement).
     incumbent: str = "posterior_mean"
     # The per-objective posterior variance the acquisition sees: "latent" (noise excluded)
     # or "deflated" (minus the fitted noise variance as well: ~0 at observed points of a
@@ -129,7 +132,8 @@ class AcquisitionSettings:
     # of the incumbent a spurious EI).
     variance: str = "deflated"
     # Per-objective acquisition: "draws" (quasi-MC log-EI) or "moments" (log-EI of the
-    # moment-matched Gaussian); tau is the softplus width of "draws" (normalized units).
+    # moment-matched Gaussian); tau is the softplus width of "draws", in the units of the
+    # scalarized values.
     ei: str = "draws"
     tau: float = 1e-3
     # With a parameter prior (MOBOConfig.prior, gp/prior.py; without one these two change
@@ -140,8 +144,8 @@ class AcquisitionSettings:
     # pibo_beta / n after n observations (piBO; 0: the prior shapes the warm-up only). The
     # uniform part bounds how far a wrong prior can push the acquisition down: a product
     # prior's log-density falls without bound away from its mean and grows with the
-    # dimension (about -111 nats at ZDT1's good region for a misleading prior at d = 6),
-    # the mixture's never below log(1 - prior_share).
+    # dimension, the mixture's never below log(1 - prior_share) (RESULTS.md, "Parameter
+    # priors (piBO)").
     # Settings, not Prior fields: they say how the optimizer uses a prior (a search policy,
     # typed and checked like every acquisition setting and set by --optimizer-option), where
     # the Prior says only where the operator believes good values lie. pibo_beta never enters
@@ -166,11 +170,12 @@ class AcquisitionSettings:
         return dataclasses.asdict(self)
 
 
-# The defaults of each generation, as changes from today's (the last one: AcquisitionSettings()).
-# A run records the generation it began with (mjxskill.runs.run_config) and resumes with
-# it, so a change of the defaults does not change the optimizer in the middle of a run.
-# Generation 1, until issue 19: log-EI on augmented Chebyshev scalarizations (ParEGO), the
-# hybrid model.
+# The defaults of each generation, as changes from AcquisitionSettings() (the newest
+# generation, GENERATION, changes nothing). A run stores the generation it began with
+# (``optimizer_defaults`` in its config.yaml, mjxskill.runs.run_config; a config.yaml without
+# it means 1) and resumes with it, so a later change of the defaults never changes the
+# optimizer of a run in progress. Generation 1: log-EI on augmented Chebyshev scalarizations
+# (ParEGO) with the hybrid model (RESULTS.md, "Generation 1 defaults").
 DEFAULTS_BY_GENERATION = {
     1: {"scalarization": "chebyshev", "n_directions": 1, "directions": "independent", "single_direction_share": 0.0,
         "single_direction_reference": "global", "final_learning_rate": 0.02, "prior": "gamma", "model": "hybrid",
@@ -179,20 +184,19 @@ DEFAULTS_BY_GENERATION = {
 }
 GENERATION = max(DEFAULTS_BY_GENERATION)
 
-# What a given reference point changes (MOBOConfig.ref_point; from generation 2): 2048
+# What a given reference point (MOBOConfig.ref_point) changes, from generation 2 on: 2048
 # directions, each with its own posterior draw, paired by one joint Sobol set. With the
 # reference given, the hypervolume the acquisition estimates is the one the run is judged by,
-# and more directions resolve the front's gaps better: BraninCurrin's median final hypervolume
-# rose from 58.50 to 58.73 (every seed of 10 higher; BoTorch qLogNEHVI 58.73), ZDT1 and DTLZ2
-# level (RESULTS.md, "A given reference point"). About a reference inferred
-# from the warm-up (every robot run) the same settings lost 0.34 on BraninCurrin (9 seeds of
-# 10 lower), so there the defaults stay.
+# and more directions resolve the gaps between front points; about a reference inferred from
+# the warm-up (every robot run) they do worse, so the plain defaults stay there (RESULTS.md,
+# "A given reference point: 2048 directions, a posterior draw each").
 GIVEN_REFERENCE_DEFAULTS = {"n_directions": 2048, "n_draws": 1, "draw_pairing": "per_direction"}
 
 
 def acquisition_defaults(generation: int = GENERATION, reference_given: bool = False) -> "AcquisitionSettings":
-    """The default settings of one generation (ValueError naming an unknown one); with
-    ``reference_given``, those of a run whose reference point is known in advance."""
+    """The default settings of ``generation`` (a key of DEFAULTS_BY_GENERATION); with
+    ``reference_given``, those of a run whose reference point is known in advance (from
+    generation 2 on). Raises ValueError naming an unknown generation."""
     if generation not in DEFAULTS_BY_GENERATION:
         raise ValueError(f"unknown generation of acquisition defaults {generation!r}; known: "
                          f"{', '.join(map(str, DEFAULTS_BY_GENERATION))}")
