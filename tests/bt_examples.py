@@ -13,7 +13,8 @@ def press(force_z: float = -7.0) -> dict:
 
 
 def push_tree(force_z: float = -7.0) -> N.Node:
-    """SkiREIL's Push skill: SerialStar of two ParallelFs blocks (reference.md)."""
+    """SkiREIL's Push skill: SerialStar of two ParallelFs blocks, each a linear motion with changed
+    stiffness, the second also pressing down."""
     return N.serial_star(
         "Push",
         N.parallel_fs(
