@@ -54,6 +54,11 @@ class ResumeConflict(RunError):
         self.run, self.conflicts = run, tuple(conflicts)
 
 
+class RequestError(UserError, ValueError):
+    """A request to the explore page's server that is malformed: a value that is not a number or
+    an integer, a body that is not a JSON object (``mjxskill.explore.server``; answered 400)."""
+
+
 class CommandError(UserError):
     """A command's flags or arguments that cannot be honoured (e.g. an unwritable folder)."""
 
@@ -64,5 +69,5 @@ class Notice(UserWarning):
     ``prog: warning: message`` line."""
 
 
-__all__ = ["CommandError", "GoalError", "Notice", "PlanError", "ResumeConflict", "RunError", "ScenarioError", "SettingError",
-           "UserError"]
+__all__ = ["CommandError", "GoalError", "Notice", "PlanError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
+           "SettingError", "UserError"]

@@ -6,6 +6,7 @@ from mjxskill.evaluation.render import default_gl
 
 default_gl()  # MUJOCO_GL=egl when headless; must precede the first import of mujoco
 
+import errno  # noqa: E402
 import os  # noqa: E402
 import re  # noqa: E402
 import socket  # noqa: E402
@@ -22,6 +23,7 @@ from explore_server import get_json, request, serving  # noqa: E402
 from mjxskill.errors import RunError  # noqa: E402
 from mjxskill.explore.solutions import Solutions  # noqa: E402
 from mjxskill.explore.data import runs_in  # noqa: E402
+from mjxskill.explore.server import Explorer, make_explore_server  # noqa: E402
 from mjxskill.evaluation.selection import choose  # noqa: E402
 
 
@@ -194,6 +196,9 @@ def test_a_port_in_use_is_one_error_line_naming_it(push_run, capsys):
         taken.listen()
         port = taken.getsockname()[1]
         assert main([str(push_run.path), "--port", str(port)]) == 2
+        with pytest.raises(OSError) as refused:  # the library's own: the command line words it
+            make_explore_server(Explorer(push_run.path), "127.0.0.1", port)
+        assert refused.value.errno == errno.EADDRINUSE
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"mjxskill.explore: error: port {port} on 127.0.0.1 is in use; choose another with --port N (0: any free port)"]
 

@@ -7,7 +7,7 @@ default_gl()  # MUJOCO_GL=egl when headless; must precede the first import of mu
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from mjxskill.errors import CommandError  # noqa: E402
+from mjxskill.errors import RunError  # noqa: E402
 from mjxskill.runs.run_dir import Evaluations  # noqa: E402
 from mjxskill.evaluation.selection import choose, export_document  # noqa: E402
 from test_run_dir import make_config  # noqa: E402
@@ -36,7 +36,7 @@ FRONT = Evaluations(
 )
 def test_choose_by_constraint(max_force, min_success, expected):
     if expected is None:
-        with pytest.raises(CommandError, match="no Pareto solution meets --max-force 8, --min-success 0.7"):
+        with pytest.raises(RunError, match="no Pareto solution meets --max-force 8, --min-success 0.7"):
             choose(FRONT, max_force, min_success)
     else:
         assert choose(FRONT, max_force, min_success) == expected
@@ -58,7 +58,7 @@ VALIDATED = np.array([np.nan, 0.9, np.nan, 0.4])
 )
 def test_a_validated_solution_goes_first_by_its_validation_success(max_force, min_success, expected):
     if expected is None:
-        with pytest.raises(CommandError, match="no Pareto solution meets --min-success 0.95"):
+        with pytest.raises(RunError, match="no Pareto solution meets --min-success 0.95"):
             choose(FRONT, max_force, min_success, VALIDATED)
     else:
         assert choose(FRONT, max_force, min_success, VALIDATED) == expected
@@ -131,7 +131,7 @@ def test_a_force_limit_on_a_run_without_measured_forces_is_refused():
     # a run written before contact forces were measured: its commanded force is no measure of
     # what the tool did, so --max-force says so instead of choosing by it
     old = Evaluations(*FRONT[:4], np.full(4, np.nan), np.full(4, np.nan), FRONT.peak_commanded_force)
-    with pytest.raises(CommandError, match="written before contact forces were measured"):
+    with pytest.raises(RunError, match="written before contact forces were measured"):
         choose(old, 5.0)
     assert choose(old, None, 0.5) == 3
 

@@ -9,12 +9,14 @@ The page, its API and what it writes: ``mjxskill.explore``.
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 from pathlib import Path
 from typing import Sequence
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
+from mjxskill.errors import CommandError
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
@@ -40,7 +42,13 @@ def _main(args: argparse.Namespace) -> int:
     from mjxskill.explore.solutions import Solutions
 
     explorer = Explorer(args.run, Solutions(args.run, per_config=args.per_config, seed=args.seed))
-    server = make_explore_server(explorer, args.host, args.port)
+    try:
+        server = make_explore_server(explorer, args.host, args.port)
+    except OSError as err:
+        if err.errno == errno.EADDRINUSE:
+            raise CommandError(f"port {args.port} on {args.host} is in use; choose another with --port N "
+                               "(0: any free port)") from None
+        raise CommandError(f"cannot listen on {args.host}:{args.port}: {err.strerror or err}") from None
     host = f"[{args.host}]" if ":" in args.host else args.host
     print(f"exploring {args.run} at http://{host}:{server.server_port}/ (Ctrl-C stops)", flush=True)
     if args.host not in LOOPBACK:

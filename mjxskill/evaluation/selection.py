@@ -23,14 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
-from mjxskill.errors import CommandError
+from mjxskill.errors import RunError
 
 
 def choose(front, max_force: float | None = None, min_success: float | None = None, validated=None) -> int:
     """Row of ``front`` (Evaluations) meeting the limits with the best success rate, ties by
     the first objective. ``validated``: (len(front),) validation success rates, NaN where a row
     has none; a validated row meeting the limits goes first, by that rate (then the training
-    success, the first objective), and is held to ``min_success`` by it. Raises CommandError when
+    success, the first objective), and is held to ``min_success`` by it. Raises RunError when
     no row meets them."""
     validated = np.full(len(front), np.nan) if validated is None else np.asarray(validated, np.float64)
     has_validation = ~np.isnan(validated)
@@ -39,7 +39,7 @@ def choose(front, max_force: float | None = None, min_success: float | None = No
     # A NaN (a diverged world) meets no limit: it is not known to be within it.
     if max_force is not None:
         if len(front) and np.all(np.isnan(front.peak_contact_force)):
-            raise CommandError("--max-force limits the measured contact force, and this run has none (it was "
+            raise RunError("--max-force limits the measured contact force, and this run has none (it was "
                                "written before contact forces were measured; its commanded force is "
                                "peak_commanded_force); pick with --pick K or --min-success, or train it again")
         ok &= front.peak_contact_force <= max_force
@@ -48,7 +48,7 @@ def choose(front, max_force: float | None = None, min_success: float | None = No
     if not ok.any():
         limits = ", ".join(f"{name} {value:g}" for name, value in (("--max-force", max_force), ("--min-success", min_success))
                            if value is not None)
-        raise CommandError(f"no Pareto solution meets {limits or 'the limits'}: the front's {len(front)} rows have "
+        raise RunError(f"no Pareto solution meets {limits or 'the limits'}: the front's {len(front)} rows have "
                            f"peak contact forces {_span(front.peak_contact_force, '{:.1f}', ' N')} and success rates "
                            f"{_span(success, '{:.0%}', '')}"
                            + (" (the validation's where a row has one)" if has_validation.any() else ""))
@@ -67,7 +67,7 @@ def best_unvalidated(front, max_force: float | None, min_success: float | None, 
         return None
     try:
         return int(rows[choose(front.take(rows), max_force, min_success)])
-    except CommandError:
+    except RunError:
         return None
 
 
@@ -118,5 +118,5 @@ def write_export(doc: dict, folder: Path) -> list[Path]:
             (folder / name).write_text(text)
             paths.append(folder / name)
     except OSError as err:
-        raise CommandError(f"cannot write the export to {str(folder)!r}: {err.strerror}") from None
+        raise RunError(f"cannot write the export to {str(folder)!r}: {err.strerror}") from None
     return paths

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjxskill.errors import CommandError, RunError
+from mjxskill.errors import RunError
 from mjxskill.runs.run_dir import CONFIG, PARETO, Evaluations, Run, RunConfig
 from mjxskill.runs.layout import OPTIMIZER_RUNS, RANDOM_RUNS, directory_kind
 
@@ -150,10 +150,10 @@ def hypervolume_document(entries: list[RunEntry]) -> dict:
 def point(entries: list[RunEntry], run: int, index: int) -> tuple[RunEntry, Evaluations]:
     """The run entry and the one-row Evaluations of point ``(run, index)``."""
     if not 0 <= run < len(entries):
-        raise CommandError(f"run {run}: this directory holds runs 0-{len(entries) - 1}")
+        raise RunError(f"run {run}: this directory holds runs 0-{len(entries) - 1}")
     ev = entries[run].evaluations()
     if not 0 <= index < len(ev):
-        raise CommandError(f"evaluation {index}: run {run} has rows 0-{len(ev) - 1}")
+        raise RunError(f"evaluation {index}: run {run} has rows 0-{len(ev) - 1}")
     return entries[run], ev.take(slice(index, index + 1))
 
 
@@ -169,7 +169,7 @@ def choose_document(entries: list[RunEntry], max_force: float | None, min_succes
     for f in fronts[1:]:
         union = union.concat(f)
     if len(union) == 0:
-        raise CommandError("the Pareto front is empty (no evaluations yet)")
+        raise RunError("the Pareto front is empty (no evaluations yet)")
     rates, _ = validated_union((e.run, f) for e, f in zip(entries, fronts))  # as select reads them
     j = choose(union, max_force, min_success, rates)
     run = int(owners[j])

@@ -14,7 +14,7 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from mjxskill.errors import CommandError
+from mjxskill.errors import RunError
 from mjxskill.explore.data import RunEntry, evaluation_rows
 from mjxskill.explore.solutions import Solutions
 
@@ -26,14 +26,14 @@ def export_solution(entry: RunEntry, k: int, solutions: Solutions | None = None)
 
     front = entry.front()
     if not 0 <= k < len(front):
-        raise CommandError(f"Pareto row {k}: {entry.run.path} has rows 0-{len(front) - 1}" if len(front)
+        raise RunError(f"Pareto row {k}: {entry.run.path} has rows 0-{len(front) - 1}" if len(front)
                            else f"{entry.run.path} has an empty Pareto front")
     doc = export_document(entry.config, front, k, entry.run.path, row_validation(*validated_union([(entry.run, front)]), k))
     folder = entry.run.path / f"selected-{k}"
     for name, text in export_texts(doc).items():
         path = folder / name
         if path.is_file() and path.read_text() != text:
-            raise CommandError(f"{path} already holds another export; move it away, or export with "
+            raise RunError(f"{path} already holds another export; move it away, or export with "
                                f"python -m mjxskill.select {entry.run.path} --pick {k} --out FOLDER")
     written = [str(p) for p in write_export(doc, folder)]
     if solutions is not None:

@@ -23,7 +23,6 @@ run directory. Bad input to the API answers 400 with ``{"error": message}``.
 
 from __future__ import annotations
 
-import errno
 import json
 import socket
 import socketserver
@@ -32,7 +31,7 @@ from wsgiref.simple_server import WSGIRequestHandler, WSGIServer, make_server
 
 import bottle
 
-from mjxskill.errors import CommandError, UserError
+from mjxskill.errors import RequestError, RunError, UserError
 from mjxskill.explore.data import (
     choose_document,
     evaluations_document,
@@ -89,16 +88,16 @@ def _limit(name: str) -> float | None:
     try:
         return float(text)
     except ValueError:
-        raise CommandError(f"{name} must be a number, got {text!r}") from None
+        raise RequestError(f"{name} must be a number, got {text!r}") from None
 
 
 def _body() -> dict:
     try:
         doc = json.loads(bottle.request.body.read() or b"{}")
     except ValueError:
-        raise CommandError("the request body is not JSON") from None
+        raise RequestError("the request body is not JSON") from None
     if not isinstance(doc, dict):
-        raise CommandError("the request body must be a JSON object")
+        raise RequestError("the request body must be a JSON object")
     return doc
 
 
@@ -111,7 +110,7 @@ def _int(doc, name: str, default: int | None = None) -> int:
         except ValueError:
             pass
     if isinstance(value, bool) or not isinstance(value, int):
-        raise CommandError(f"{name} must be an integer, got {value!r}")
+        raise RequestError(f"{name} must be an integer, got {value!r}")
     return value
 
 
@@ -154,7 +153,7 @@ def build_app(explorer: Explorer) -> bottle.Bottle:
         doc, entries = _body(), explorer.entries()
         run = _int(doc, "run")
         if not 0 <= run < len(entries):
-            raise CommandError(f"run {run}: this directory holds runs 0-{len(entries) - 1}")
+            raise RunError(f"run {run}: this directory holds runs 0-{len(entries) - 1}")
         return export_solution(entries[run], _int(doc, "k"), explorer.solutions)
 
     return app
@@ -175,11 +174,7 @@ class _QuietHandler(WSGIRequestHandler):
 
 def make_explore_server(explorer: Explorer, host: str = "127.0.0.1", port: int = 0) -> WSGIServer:
     """A server bound to ``host:port`` (0: a free port; ``server.server_port`` tells which),
-    not yet serving: call ``serve_forever()``. A port in use or a bad host is a CommandError."""
+    not yet serving: call ``serve_forever()``. A port in use or a bad host is the OSError of
+    binding the socket (errno EADDRINUSE for a port in use), which the command line words."""
     server_class = _IPv6Server if ":" in host else _ThreadingServer
-    try:
-        return make_server(host, port, build_app(explorer), server_class=server_class, handler_class=_QuietHandler)
-    except OSError as err:
-        if err.errno == errno.EADDRINUSE:
-            raise CommandError(f"port {port} on {host} is in use; choose another with --port N (0: any free port)") from None
-        raise CommandError(f"cannot listen on {host}:{port}: {err.strerror or err}") from None
+    return make_server(host, port, build_app(explorer), server_class=server_class, handler_class=_QuietHandler)

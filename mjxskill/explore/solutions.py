@@ -30,7 +30,7 @@ from typing import Callable
 
 import numpy as np
 
-from mjxskill.errors import CommandError, UserError
+from mjxskill.errors import RunError, UserError
 from mjxskill.runs.atomic_write import write_json
 from mjxskill.explore.data import RunEntry, number, numbers
 
@@ -209,7 +209,7 @@ class Solutions:
 
         n_known = len(rollout.scenario.robot.start_configs)
         if not 0 <= job.config_index < n_known:
-            raise CommandError(f"start configuration {job.config_index}: the task has known ones 0-{n_known - 1}")
+            raise RunError(f"start configuration {job.config_index}: the task has known ones 0-{n_known - 1}")
         if self._no_video is not None:
             return f"the per-world results are ready; no video: {self._no_video}"
         fmt = "mp4" if shutil.which("ffmpeg") else "png"
