@@ -307,12 +307,7 @@ def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None
         ref = jnp.ones((y_norm.shape[1],), y_norm.dtype)
     scal = _scalarization(y_norm, mask, ref, k_w, q, settings)
     k_fit, k_subset = jax.random.split(k_fit)
-    if n > settings.fit_max_rows:  # static
-        # A uniformly random subset of the real rows (padding rows score -inf).
-        scores = jnp.where(mask, jax.random.uniform(k_subset, (n,)), -jnp.inf)
-        _, rows = jax.lax.top_k(scores, settings.fit_max_rows)
-    else:
-        rows = jnp.arange(n)
+    rows = _fit_rows(mask, k_subset, settings)
 
     def fit(y):
         return gpm.fit(x[rows], y[rows], mask[rows], k_fit, n_starts=settings.fit_starts, n_steps=settings.fit_steps,
@@ -320,55 +315,85 @@ def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None
 
     acq_keys = jax.random.split(k_acq, q)
     fantasies = (jnp.full((q, d), 0.5, jnp.float64), jnp.zeros((q,), bool))
-
     n_scal = {"scalarized": q, "per_objective": 0, "hybrid": (q + 1) // 2}[settings.model]  # static
     points = []
     params = None
     if n_scal > 0:
-        targets = jax.vmap(lambda s: standardize(s, mask))(scal.targets)  # (q, n)
-        if n > settings.per_element_fit_max_rows:  # static: decided once per size bucket
-            params = jax.tree.map(lambda a: jnp.broadcast_to(a, (n_scal,) + a.shape), fit(targets[0]))
-        else:
-            params = jax.lax.map(fit, targets[:n_scal])
-        posts_s = jax.vmap(lambda p, y: gpm.condition(p, x, y, mask))(params, targets[:n_scal])
-
-        def choose_s(carry, j):
-            fant, fant_mask = carry
-            post = jax.tree.map(lambda a: a[j], posts_s)
-            acq = prior_weighted(_acquisition_for_element(post, targets[j], fant, fant_mask), prior, prior_weight,
-                                 settings.prior_share)
-            xj = _maximize(acq, acq_keys[j], d, settings)
-            return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
-
-        fantasies, pts = jax.lax.scan(choose_s, fantasies, jnp.arange(n_scal))
+        fantasies, pts, params = _scalarized_points(x, mask, scal, fit, fantasies, acq_keys, n_scal, prior,
+                                                    prior_weight, settings)
         points.append(pts)
     if n_scal < q:
-        space = scal.space
-        cnt = jnp.maximum(jnp.sum(mask), 1)
-        y_mean = jnp.sum(jnp.where(mask[:, None], space, 0.0), axis=0) / cnt
-        y_var = jnp.sum(jnp.where(mask[:, None], (space - y_mean) ** 2, 0.0), axis=0) / jnp.maximum(cnt - 1, 1)
-        y_sd = jnp.sqrt(jnp.where(y_var > 1e-18, y_var, 1.0))
-        y_std = jax.vmap(lambda col: standardize(col, mask), in_axes=1)(space)  # (m, n)
-        params_o = jax.lax.map(fit, y_std)
-        posts_o = jax.vmap(lambda p, y: gpm.condition(p, x, y, mask))(params_o, y_std)
-        if settings.incumbent == "posterior_mean":  # static
-            # The model's own values at the observed points: a fitted noise lets its mean sit
-            # below an observed optimum, and an incumbent from the observations then gives
-            # re-evaluating that point an improvement that is not there.
-            fitted = jax.vmap(lambda post: gpm.predict(post, x)[0])(posts_o).T * y_sd + y_mean  # (n, m)
-            best = scal.incumbents(fitted, mask)
-        else:
-            best = scal.incumbents(space, mask)
-
-        def choose_o(carry, j):
-            fant, fant_mask = carry
-            acq = _acquisition_per_objective(posts_o, y_mean, y_sd, partial(scal.log_ei, j, best[j]), fant, fant_mask,
-                                             settings.variance == "deflated")
-            acq = prior_weighted(acq, prior, prior_weight, settings.prior_share)
-            xj = _maximize(acq, acq_keys[j], d, settings)
-            return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
-
-        _, pts = jax.lax.scan(choose_o, fantasies, jnp.arange(n_scal, q))
+        pts, params_o = _per_objective_points(x, mask, scal, fit, fantasies, acq_keys, range(n_scal, q), prior,
+                                              prior_weight, settings)
         points.append(pts)
         params = params_o if params is None else params
     return jnp.concatenate(points, axis=0), params
+
+
+def _fit_rows(mask, key, settings: AcquisitionSettings):
+    """The rows the hyperparameters are fitted on: every row, or, above ``fit_max_rows`` (n, static),
+    a uniformly random subset of the real ones (padding rows score -inf)."""
+    n = mask.shape[0]
+    if n > settings.fit_max_rows:  # static
+        scores = jnp.where(mask, jax.random.uniform(key, (n,)), -jnp.inf)
+        _, rows = jax.lax.top_k(scores, settings.fit_max_rows)
+        return rows
+    return jnp.arange(n)
+
+
+def _scalarized_points(x, mask, scal: Scalarization, fit, fantasies, acq_keys, n_scal: int, prior, prior_weight,
+                       settings: AcquisitionSettings):
+    """The batch's first ``n_scal`` points, each from a GP fitted to its own scalarization's
+    values. Returns (fantasies with them added, points (n_scal, d), the GPs' parameters)."""
+    d = x.shape[1]
+    targets = jax.vmap(lambda s: standardize(s, mask))(scal.targets)  # (q, n)
+    if x.shape[0] > settings.per_element_fit_max_rows:  # static: decided once per size bucket
+        params = jax.tree.map(lambda a: jnp.broadcast_to(a, (n_scal,) + a.shape), fit(targets[0]))
+    else:
+        params = jax.lax.map(fit, targets[:n_scal])
+    posts_s = jax.vmap(lambda p, y: gpm.condition(p, x, y, mask))(params, targets[:n_scal])
+
+    def choose_s(carry, j):
+        fant, fant_mask = carry
+        post = jax.tree.map(lambda a: a[j], posts_s)
+        acq = prior_weighted(_acquisition_for_element(post, targets[j], fant, fant_mask), prior, prior_weight,
+                             settings.prior_share)
+        xj = _maximize(acq, acq_keys[j], d, settings)
+        return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
+
+    fantasies, pts = jax.lax.scan(choose_s, fantasies, jnp.arange(n_scal))
+    return fantasies, pts, params
+
+
+def _per_objective_points(x, mask, scal: Scalarization, fit, fantasies, acq_keys, elements: range, prior,
+                          prior_weight, settings: AcquisitionSettings):
+    """The batch's points ``elements`` from one GP per objective, each maximizing the log-EI of
+    its scalarization of their posterior. Returns (points (len(elements), d), the GPs' parameters)."""
+    d = x.shape[1]
+    space = scal.space
+    cnt = jnp.maximum(jnp.sum(mask), 1)
+    y_mean = jnp.sum(jnp.where(mask[:, None], space, 0.0), axis=0) / cnt
+    y_var = jnp.sum(jnp.where(mask[:, None], (space - y_mean) ** 2, 0.0), axis=0) / jnp.maximum(cnt - 1, 1)
+    y_sd = jnp.sqrt(jnp.where(y_var > 1e-18, y_var, 1.0))
+    y_std = jax.vmap(lambda col: standardize(col, mask), in_axes=1)(space)  # (m, n)
+    params_o = jax.lax.map(fit, y_std)
+    posts_o = jax.vmap(lambda p, y: gpm.condition(p, x, y, mask))(params_o, y_std)
+    if settings.incumbent == "posterior_mean":  # static
+        # The model's own values at the observed points: a fitted noise lets its mean sit
+        # below an observed optimum, and an incumbent from the observations then gives
+        # re-evaluating that point an improvement that is not there.
+        fitted = jax.vmap(lambda post: gpm.predict(post, x)[0])(posts_o).T * y_sd + y_mean  # (n, m)
+        best = scal.incumbents(fitted, mask)
+    else:
+        best = scal.incumbents(space, mask)
+
+    def choose_o(carry, j):
+        fant, fant_mask = carry
+        acq = _acquisition_per_objective(posts_o, y_mean, y_sd, partial(scal.log_ei, j, best[j]), fant, fant_mask,
+                                         settings.variance == "deflated")
+        acq = prior_weighted(acq, prior, prior_weight, settings.prior_share)
+        xj = _maximize(acq, acq_keys[j], d, settings)
+        return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
+
+    _, pts = jax.lax.scan(choose_o, fantasies, jnp.arange(elements.start, elements.stop))
+    return pts, params_o
