@@ -15,7 +15,8 @@ from mjxskill.explore.solutions import Solutions
 @contextlib.contextmanager
 def serving(path, solutions: Solutions | None = None):
     """Yields the base URL of a server over the run directory ``path``."""
-    server = make_explore_server(Explorer(path, solutions), "127.0.0.1", 0)
+    explorer = Explorer(path, solutions)
+    server = make_explore_server(explorer, "127.0.0.1", 0)
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()
     try:
@@ -24,6 +25,7 @@ def serving(path, solutions: Solutions | None = None):
         server.shutdown()
         server.server_close()
         thread.join()
+        explorer.close()
 
 
 def request(base: str, path: str, body: dict | None = None) -> tuple[int, bytes, str]:

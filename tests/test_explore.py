@@ -332,6 +332,53 @@ def test_export_copies_the_rendering_the_page_made(tmp_path):
         assert all((copied / Path(f).name).read_bytes() == (cache / f).read_bytes() for f in doc["video"]["files"])
 
 
+def test_a_point_is_rolled_out_on_the_runs_own_engine(tmp_path, monkeypatch):
+    import dataclasses
+
+    import mjxskill.engine.build as build
+    from mjxskill.explore.solutions import build_for
+
+    entry = runs_in(make_push_run(tmp_path / "push-0").path)[0]
+    asked = []
+    monkeypatch.setattr(build, "build_rollout", lambda scn, task, engine, **settings: asked.append((engine, settings)))
+    for engine in ("native", "mjx"):
+        build_for(dataclasses.replace(entry, config=dataclasses.replace(entry.config, engine=engine)))
+    settings = {"worlds": 1, "episode_seconds": entry.config.episode_seconds}
+    assert asked == [("native", settings), ("mjx", settings)]
+
+
+class Closable:
+    """A rollout that fails at once (no scenario) and counts its closes."""
+
+    def __init__(self):
+        self.closed = 0
+
+    def __call__(self, entry):
+        return self
+
+    def close(self):
+        self.closed += 1
+
+
+def test_closing_the_explorer_closes_the_rollouts_it_built(tmp_path):
+    run = make_push_run(tmp_path / "push-0")
+    entry, ev = runs_in(run.path)[0], run.evaluations()
+    rollout = Closable()
+    solutions = Solutions(run.path, rollout, per_config=1)
+    solutions.start(0, entry, 0, ev.params[0], 0)
+    for _ in range(600):
+        if (doc := solutions.status(0, entry, 0, ev.params[0], 0))["job"]["state"] == "failed":
+            break
+        threading.Event().wait(0.05)
+    assert doc["job"]["state"] == "failed" and rollout.closed == 0  # built, kept for the next point
+    solutions.close()
+    assert rollout.closed == 1
+    solutions._worker.join(timeout=30)
+    assert not solutions._worker.is_alive()  # the worker ended too
+    solutions.close()
+    assert rollout.closed == 1  # each rollout once
+
+
 NO_DISPLAY_SCRIPT = """
 import sys, time
 sys.path.insert(0, sys.argv[1])

@@ -121,7 +121,7 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
             validation = _validate(args, sub, sub_config, ev, rollout, settings) if repeated else None
             results.append((sub, sub_config, ev, validation))
     finally:
-        getattr(rollout, "close", lambda: None)()
+        rollout.close()
     if repeated:
         print(_pool(run, config, results, args.max_force))
     return 0
@@ -212,7 +212,7 @@ def _experiment(args: argparse.Namespace) -> int:
                     print(f"validated the pick's candidates of seed {seed}" if validated else
                           f"the validation of seed {seed} is current: reused")
         finally:
-            getattr(rollout, "close", lambda: None)()
+            rollout.close()
         print(write_report(exp))
     return 0
 

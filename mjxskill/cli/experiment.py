@@ -139,8 +139,9 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
     print(f"engine: {config.engine} ({why})", flush=True)
     cli.interrupt.set_message(f"interrupted: every finished batch and evaluated chunk is in {exp.path}; continue with "
                               f"python -m mjxskill.experiment {args.task} --resume {exp.path}")
+    # A Ctrl-C while it is built: nothing new is trained yet, and mjxskill.cli.run says where the experiment is
+    rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds)
     try:
-        rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds)
         exp.add_session(time.monotonic() - started, config.engine)
 
         def progress_for(run_config):
@@ -155,8 +156,7 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
     except KeyboardInterrupt:  # the report of what is finished; every batch and chunk is on disk already
         return cli.interrupt.stopped("mjxskill.experiment", lambda: write_report(exp))
     finally:
-        if "rollout" in locals():
-            getattr(rollout, "close", lambda: None)()
+        rollout.close()  # the native engine's worker processes; nothing on MJX
     print(f"done in {time.monotonic() - started:.0f} s; report in {exp.path / 'report.md'}")
     return 0
 

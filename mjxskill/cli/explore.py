@@ -60,6 +60,7 @@ def _main(args: argparse.Namespace) -> int:
         pass
     finally:
         server.server_close()
+        explorer.close()
     return 0
 
 

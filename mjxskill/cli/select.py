@@ -146,14 +146,16 @@ def _main(args: argparse.Namespace) -> int:
     if args.config_index >= n_known:
         raise CommandError(f"--config-index {args.config_index}: the task has known start configurations 0-{n_known - 1}")
     rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
-    world = render_world(rollout, args.config_index, args.seed)
-    print(f"rendering from start configuration {args.config_index} ({config.engine} engine) ...", flush=True)
     try:
+        world = render_world(rollout, args.config_index, args.seed)
+        print(f"rendering from start configuration {args.config_index} ({config.engine} engine) ...", flush=True)
         paths = render_episode(rollout, front.params[k], world, folder / ("episode" if args.format == "mp4" else "frames"),
                                args.format, *args.size)
     except RenderUnavailable as err:
         print(f"{build_parser().prog}: rendering skipped: {err}", file=sys.stderr)
         return 1
+    finally:
+        rollout.close()
     print(f"wrote {paths[0]}" if len(paths) == 1 else f"wrote {len(paths)} frames to {paths[0].parent}")
     return 0
 

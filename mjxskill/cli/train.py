@@ -84,12 +84,12 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
                               f"python -m mjxskill.train {args.task} --resume {run.path}")
     runs = run.sub_runs(config) if config.repeats > 1 else [run]
     sub, sub_config = run, config
-    try:
-        from mjxskill.training import report
+    from mjxskill.training import report
 
-        rollout = build_rollout(scn, task, resolve_engine(config.engine)[0], worlds=config.worlds,
-                                episode_seconds=config.episode_seconds)
-        started = time.monotonic()
+    # A Ctrl-C while it is built: nothing is trained yet, and mjxskill.cli.run says where the run is
+    rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds)
+    started = time.monotonic()
+    try:
         for sub in runs:
             with sub.lock() if sub is not run else contextlib.nullcontext():
                 sub_config = sub.config()
@@ -98,14 +98,10 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
                 ev = train(sub, sub_config, evaluate, progress=Progress(sub_config.budget, args.quiet, label))
                 report.write_run_figures(sub, sub_config, ev)
                 print(report.summary(sub, sub_config, ev), flush=True)
-    except KeyboardInterrupt:
-        from mjxskill.training import report
-
-        # figures of what is done; the CSV already holds every finished batch
+    except KeyboardInterrupt:  # figures of what is done; the CSV already holds every finished batch
         return cli.interrupt.stopped("mjxskill.train", lambda: report.write_run_figures(sub, sub_config, sub.evaluations(sub_config)))
     finally:
-        if "rollout" in locals():
-            getattr(rollout, "close", lambda: None)()  # the native engine's worker processes
+        rollout.close()  # the native engine's worker processes; nothing on MJX
     if config.repeats > 1:
         print(report.write_repeats(run, config, runs), flush=True)
     print(f"done in {time.monotonic() - started:.0f} s; results in {run.path}")

@@ -58,6 +58,10 @@ class Explorer:
     def entries(self):
         return runs_in(self.path)  # read again on every request: a run may be training on
 
+    def close(self) -> None:
+        """Closes the on-demand rollouts (after the server stopped serving)."""
+        self.solutions.close()
+
 
 def _json(status: int, doc: dict) -> bottle.HTTPResponse:
     return bottle.HTTPResponse(json.dumps(doc), status, {"Content-Type": "application/json"})

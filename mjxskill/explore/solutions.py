@@ -11,9 +11,12 @@ start configuration, ``evaluation_worlds``), and rendered in the world ``select`
     RUN/explore/evaluation-<index>/known-<c>.json    what was rendered, in which world
 
 Each file records the parameters it was computed for; a file whose parameters are not the
-row's (the run was cut and re-trained) is computed again. One worker thread runs the jobs one
-after another (a compiled rollout is not shared between threads; the CPU is the limit anyway);
-the server only reads the jobs' progress, so it never waits for a compile.
+row's (the run was cut and re-trained) is computed again. The rollouts run on the run's own
+engine (``config.engine``: the native engine for a run trained on it, MJX for one trained on
+MJX) and are closed with the explorer (``Solutions.close``: the native engine's worker
+processes). One worker thread runs the jobs one after another (a rollout is not shared between
+threads; the CPU is the limit anyway); the server only reads the jobs' progress, so it never
+waits for a compile.
 """
 
 from __future__ import annotations
@@ -37,17 +40,18 @@ from mjxskill.explore.data import RunEntry, number, numbers
 FORMAT = "mjxskill.explore/1"
 CACHE = "explore"
 
-# (run entry) -> a rollout with scenario, worlds_per_config, run_worlds, trace and mj_model
+# (run entry) -> a rollout with scenario, worlds_per_config, run_worlds, trace, mj_model and close
 RolloutFactory = Callable[[RunEntry], object]
 
 
-def compile_for(entry: RunEntry):
-    """The run's compiled rollout (one world per parameter set; worlds are passed explicitly)."""
-    from mjxskill.engine.mjx import compile_rollout
+def build_for(entry: RunEntry):
+    """The run's rollout on the run's own engine (one world per parameter set; worlds are passed
+    explicitly)."""
+    from mjxskill.engine.build import build_rollout
     from mjxskill.runs.run_task import load_run_task
 
     scn, task = load_run_task(entry.run, entry.config)
-    return compile_rollout(scn, task, worlds=1, episode_seconds=entry.config.episode_seconds)
+    return build_rollout(scn, task, entry.config.engine, worlds=1, episode_seconds=entry.config.episode_seconds)
 
 
 @dataclass
@@ -87,7 +91,7 @@ def read_cached(path: Path, params: np.ndarray, **settings) -> dict | None:
 class Solutions:
     """The on-demand rollouts of the points of the runs under ``root`` (see the module doc)."""
 
-    def __init__(self, root: Path, rollout_factory: RolloutFactory = compile_for, *, per_config: int = 5, seed: int = 0,
+    def __init__(self, root: Path, rollout_factory: RolloutFactory = build_for, *, per_config: int = 5, seed: int = 0,
                  size: tuple[int, int] = (640, 480)):
         self.root = Path(root)
         self.rollout_factory = rollout_factory
@@ -97,6 +101,7 @@ class Solutions:
         self._queue: queue.Queue[Job] = queue.Queue()
         self._rollouts: dict[tuple, object] = {}
         self._worker: threading.Thread | None = None
+        self._closed = False
         # Why this process cannot render, once it failed to: the GL backend is fixed when mujoco
         # is imported, and after a failed mjr_makeContext another attempt aborts the process
         # (same thread) or hangs holding the GIL (another thread).
@@ -145,6 +150,17 @@ class Solutions:
                 self._worker.start()
         return self.status(run, entry, index, params, config_index)
 
+    def close(self) -> None:
+        """The explorer's end: the worker takes no further job and every rollout built is closed
+        (the native engine's worker processes). A job under way is not waited for."""
+        with self._lock:
+            rollouts, self._rollouts = list(self._rollouts.values()), {}
+            self._closed = True
+            if self._worker is not None:
+                self._queue.put(None)  # the worker ends after the job it runs
+        for rollout in rollouts:
+            rollout.close()
+
     # -- the worker ---------------------------------------------------------------------------
     def _set(self, job: Job, stage: str, fraction: float) -> None:
         with self._lock:
@@ -153,6 +169,8 @@ class Solutions:
     def _work(self) -> None:
         while True:
             job = self._queue.get()
+            if job is None:  # closed
+                return
             with self._lock:
                 job.state, job.stage, job.started = "running", "starting", time.monotonic()
             try:
@@ -168,11 +186,18 @@ class Solutions:
 
     def _rollout(self, job: Job):
         config = job.entry.config
-        key = (config.scenario, config.goal, config.episode_seconds)
-        if key not in self._rollouts:
+        key = (config.scenario, config.goal, config.episode_seconds, config.engine)
+        with self._lock:
+            rollout = self._rollouts.get(key)
+        if rollout is None:
             self._set(job, "loading the scenario and building the rollout", 0.02)
-            self._rollouts[key] = self.rollout_factory(job.entry)
-        return self._rollouts[key]
+            rollout = self.rollout_factory(job.entry)
+            with self._lock:
+                if self._closed:  # the explorer ended while this one was built
+                    rollout.close()
+                    raise RuntimeError("the explorer was closed")
+                self._rollouts[key] = rollout
+        return rollout
 
     def _run(self, job: Job) -> str:
         folder = self.folder(job.entry, job.index)
