@@ -18,7 +18,7 @@ from sim_rollouts import (  # noqa: E402
     load_scene, make_scripted_rollout, make_task, native_tool_poses, put_worlds, tool_target_posture)
 
 from mjxskill.sim import postures  # noqa: E402
-from mjxskill.sim.scene import HOLE_TOP  # noqa: E402
+from scenes import HOLE_TOP  # noqa: E402
 
 ALL_STARTS = np.vstack([postures.PUSH_STARTS, postures.PUSH_EVAL_STARTS, postures.PEG_STARTS,
                         postures.PEG_EVAL_STARTS])

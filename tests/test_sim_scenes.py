@@ -10,7 +10,8 @@ import pytest
 from mujoco import mjx
 
 from mjxskill.sim import load_scene, postures, scene_path
-from mjxskill.sim.scene import ARM_JOINTS, HOLE_CLEARANCE, HOLE_DEPTH, HOLE_TOP
+from mjxskill.sim.scene import ARM_JOINTS
+from scenes import HOLE_CLEARANCE, HOLE_DEPTH, HOLE_TOP
 
 JOINT_Z = [0.1575, 0.36, 0.5645, 0.78, 0.9645, 1.18, 1.261]
 AXES = [[0, 0, 1], [0, 1, 0], [0, 0, 1], [0, -1, 0], [0, 0, 1], [0, 1, 0], [0, 0, 1]]

@@ -1,6 +1,6 @@
 """Loading and validating a scenario YAML (the digital twin) into an immutable ``Scenario``.
 
-``load_scenario("push")`` reads ``assets/scenarios/push.yaml``; ``load_scenario(path)`` any file.
+``load_scenario("push")`` reads the shipped ``assets/scenarios/push.yaml``; ``load_scenario(path)`` any file.
 Every invalid file fails with one ``ScenarioError`` naming the file, the key path and the line.
 Loading plans nothing: ``mjxskill.task.plan_task`` turns a goal into a plan, an eBT and the
 learnable parameters. This module reads the top level, the PDDL vocabulary (types,
@@ -23,8 +23,10 @@ from mjxskill.scenario.schema import (
 from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.scenario.sections import optimizer, randomization, rewards, success
 from mjxskill.scenario.skills import manual_parameters, parameter_priors, skill, skill_fields
+from mjxskill.sim.scene import asset_path
 
-SCENARIO_DIR = Path(__file__).resolve().parents[2] / "assets" / "scenarios"
+# the shipped scenarios (mjxskill.assets: the checkout's assets/, or inside the installed package)
+SCENARIO_DIR = asset_path("scenarios")
 
 __all__ = ["SCENARIO_DIR", "ScenarioError", "available_scenarios", "load_scenario", "scenario_path"]
 

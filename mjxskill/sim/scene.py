@@ -1,40 +1,56 @@
-"""Where the MJCF scenes live and how to load them (host side, native MuJoCo)."""
+"""Where the shipped assets live (scenarios, skill library, MJCF scenes), how to load a scene
+(host side, native MuJoCo) and the names every scene gives the arm."""
 
 from __future__ import annotations
 
+from importlib.resources import files
 from pathlib import Path
 
 import mujoco
 
-# assets/ sits next to the package in the source tree (pyproject ships *.xml as package data
-# only inside packages, so an installed copy must run from a checkout: README, "Using the library").
-ASSETS_DIR = Path(__file__).resolve().parents[2] / "assets"
+# The shipped assets are the package mjxskill.assets: pyproject.toml maps it onto the checkout's
+# top-level assets/, so a wheel carries them inside mjxskill/ and an editable install reads the
+# checkout's folder.
+ASSETS_PACKAGE = "mjxskill.assets"
 SCENES = ("push", "peg")
 
 ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 8))
 TOOL_SITE = "tool"
-# The push scene: object centroid height when resting on the table (prism 0.07 m high).
-PUSH_OBJECT_BODY = "object"
-PUSH_GOAL_BODY = "goal"
-# Peg scene: mocap body of the box with the hole; the hole's top above the box frame.
-PEG_BOX_BODY = "box"
-HOLE_TOP = 0.05
-HOLE_DEPTH = 0.04
-HOLE_CLEARANCE = 0.0015
+
+
+def asset_path(*parts: str) -> Path:
+    """Path of a shipped asset, e.g. ``asset_path("scenarios", "push.yaml")``; ``asset_path()``
+    is the assets folder (it may not exist).
+
+    Found through ``importlib.resources``: inside the installed package for ``pip install .``,
+    the checkout's ``assets/`` for ``pip install -e .``. mjxskill imported from a source tree
+    it was not installed from (``python -m`` in a checkout's root, ``PYTHONPATH``) has no
+    ``mjxskill.assets``: the tree's own ``assets/`` serve then.
+    """
+    try:
+        root = files(ASSETS_PACKAGE)
+    except ModuleNotFoundError as err:
+        if err.name != ASSETS_PACKAGE:
+            raise
+        root = Path(__file__).resolve().parents[2] / "assets"
+        if not (root / "__init__.py").is_file():
+            raise ModuleNotFoundError(
+                f"mjxskill's assets ({ASSETS_PACKAGE}) are not installed and {Path(__file__).resolve().parents[1]} "
+                f"has no assets/ beside it: reinstall mjxskill (pip install . or, from a checkout, pip install -e .)",
+                name=ASSETS_PACKAGE,
+            ) from None
+    if not isinstance(root, Path):  # a zip import: MuJoCo and the scenario loader read files
+        raise RuntimeError(f"mjxskill's assets must be files on disk, not {root!r}: install mjxskill unzipped")
+    return root.joinpath(*parts)
 
 
 def scene_path(name: str) -> Path:
-    """Path of ``assets/<name>.xml``; ``name`` is one of :data:`SCENES`."""
+    """Path of the shipped scene ``<name>.xml``; ``name`` is one of :data:`SCENES`."""
     if name not in SCENES:
         raise ValueError(f"unknown scene {name!r}; expected one of {SCENES}")
-    return ASSETS_DIR / f"{name}.xml"
+    return asset_path(f"{name}.xml")
 
 
 def load_scene(name: str) -> mujoco.MjModel:
-    """Native MjModel of scene ``name`` ('push' or 'peg')."""
+    """Native MjModel of the shipped scene ``name`` ('push' or 'peg'), as its MJCF file has it."""
     return mujoco.MjModel.from_xml_path(str(scene_path(name)))
-
-
-def arm_qpos_addresses(model: mujoco.MjModel) -> tuple[int, ...]:
-    """qpos addresses of joint1..joint7 (the arm is first in every scene: 0..6)."""
-    return tuple(int(model.jnt_qposadr[model.joint(name).id]) for name in ARM_JOINTS)
