@@ -94,11 +94,7 @@ def main(argv=None) -> dict:
     native.close()
     compiled = compile_rollout(scn, task, worlds=args.worlds, episode_seconds=args.seconds)
     t0 = time.perf_counter()
-    # One parameter set per call: on the CPU (jax 0.10.2) a call of 300 or more episodes
-    # (6 sets x 50 worlds) never finished here, every XLA thread parked on a condition variable
-    # with no CPU used, while 100 (2 x 50) ran; see NOTES.md section 13.
-    calls = [jax.tree.map(np.asarray, compiled.run_worlds(params[i:i + 1], worlds)) for i in range(len(params))]
-    out_mjx = jax.tree.map(lambda *xs: np.concatenate(xs), *calls)
+    out_mjx = jax.tree.map(np.asarray, compiled.run_worlds(params, worlds))
     mjx_s = time.perf_counter() - t0
     print(f"native {native_s:.0f} s, MJX {mjx_s:.0f} s (compile included), load average {os.getloadavg()[0]:.2f}")
 

@@ -11,6 +11,14 @@ in the environment before that: ``mjxskill/__init__.py`` calls :func:`configure_
 on import, before any of its modules imports jax. The flag concerns XLA's CPU backend
 only: computations on a GPU are unaffected.
 
+XLA's CPU *YNN fusion* hangs calls of a few hundred MJX episodes: a call of 6 sets x 60 worlds
+(push, 0.1 or 0.4 s episodes) sat at 0 % CPU past its 240-300 s timeout, every XLA thread
+parked, and finished (137 s under load 6.8, compile included) with
+``--xla_cpu_experimental_ynn_fusion_type=`` (no fusion types), which ``configure_xla_flags``
+therefore sets too. It is jax issue 39257 (jaxlib 0.10.2 and 0.11.0 on x86-64 Linux: rank-7/8
+broadcast-multiply-reduce kernels); ``benchmarks/NOTES.md``, section "13. Found on the way:
+large MJX calls on the CPU never finish", has the evidence.
+
 Compiling MJX code costs tens of seconds on a 2-core CPU, so the persistent compilation
 cache is on by default (``MJXSKILL_CACHE_DIR`` moves it, ``MJXSKILL_CACHE_DIR=off`` turns it
 off). It is switched on where compiling starts (``compile_rollout``) and by the commands
@@ -26,6 +34,10 @@ from pathlib import Path
 
 CPU_FUSION_FLAG = "--xla_cpu_use_fusion_emitters"
 CPU_FUSION_SETTING = f"{CPU_FUSION_FLAG}=false"
+YNN_FUSION_FLAG = "--xla_cpu_experimental_ynn_fusion_type"
+YNN_FUSION_SETTING = f"{YNN_FUSION_FLAG}="
+# what configure_xla_flags adds, each unless the user set that flag
+CPU_SETTINGS = ((CPU_FUSION_FLAG, CPU_FUSION_SETTING), (YNN_FUSION_FLAG, YNN_FUSION_SETTING))
 HOST_DEVICES_FLAG = "--xla_force_host_platform_device_count"
 
 
@@ -40,9 +52,10 @@ def with_host_devices(flags: str, devices: int, *, keep_users: bool = False) -> 
 
 
 def configure_xla_flags(environ: "os._Environ[str] | dict[str, str]" = os.environ) -> str:
-    """Adds ``--xla_cpu_use_fusion_emitters=false`` to ``XLA_FLAGS`` unless the user set it.
+    """Adds ``--xla_cpu_use_fusion_emitters=false`` and ``--xla_cpu_experimental_ynn_fusion_type=``
+    to ``XLA_FLAGS`` (``CPU_SETTINGS``), each unless the user set that flag.
 
-    A user's own setting of the same flag (either value) wins; other flags are kept as they are.
+    A user's own setting of either flag (any value) wins; other flags are kept as they are.
     When ``environ`` is ``os.environ``, also sets ``OPENBLAS_NUM_THREADS=1`` unless it is set.
     Returns the resulting ``XLA_FLAGS`` string.
     """
@@ -53,9 +66,10 @@ def configure_xla_flags(environ: "os._Environ[str] | dict[str, str]" = os.enviro
     if environ is os.environ:
         environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     flags = environ.get("XLA_FLAGS", "")
-    if CPU_FUSION_FLAG not in flags:
-        flags = f"{flags} {CPU_FUSION_SETTING}".strip()
-        environ["XLA_FLAGS"] = flags
+    for flag, setting in CPU_SETTINGS:
+        if flag not in flags:
+            flags = f"{flags} {setting}".strip()
+    environ["XLA_FLAGS"] = flags
     if "jax" in sys.modules and environ is os.environ:
         # The flag is read when the CPU client is created, which is lazy: importing jax
         # earlier is fine as long as no computation ran yet. We cannot detect that cheaply,
