@@ -61,15 +61,25 @@ def _table(head: list[str], rows: list[list[str]]) -> list[str]:
 
 
 def markdown(s: dict, figures: bool = True) -> str:
+    """report.md from the summary ``s`` (``stats.summarize``); ``figures``: link the plots."""
+    sections = (_header, _paper_section, _success_section, _picked_section, _fronts_section, _hypervolume_section,
+                _wall_time_section, _protocol_section)
+    return "\n".join(line for section in sections for line in section(s, figures))
+
+
+def _header(s: dict, figures: bool) -> list[str]:
     p, st = s["protocol"], s["status"]
     scale = (st["repetitions"], p["budget"], p["worlds"])
-    lines = [f"# Experiment: {s['task']}", "",
-             f"{st['repetitions_done']} of {st['repetitions']} repetitions finished"
-             + ("." if st["repetitions_done"] == st["repetitions"] else " (the report covers the finished ones)."),
-             f"Protocol {scale[0]} repetitions x {scale[1]} evaluations x {scale[2]} worlds"
-             + (f", smaller than the paper's {PAPER_PROTOCOL[0]} x {PAPER_PROTOCOL[1]} x {PAPER_PROTOCOL[2]}."
-                if any(a < b for a, b in zip(scale, PAPER_PROTOCOL)) else ", the paper's."), ""]
-    lines += ["## Side by side with the paper", ""]
+    return [f"# Experiment: {s['task']}", "",
+            f"{st['repetitions_done']} of {st['repetitions']} repetitions finished"
+            + ("." if st["repetitions_done"] == st["repetitions"] else " (the report covers the finished ones)."),
+            f"Protocol {scale[0]} repetitions x {scale[1]} evaluations x {scale[2]} worlds"
+            + (f", smaller than the paper's {PAPER_PROTOCOL[0]} x {PAPER_PROTOCOL[1]} x {PAPER_PROTOCOL[2]}."
+               if any(a < b for a, b in zip(scale, PAPER_PROTOCOL)) else ", the paper's."), ""]
+
+
+def _paper_section(s: dict, figures: bool) -> list[str]:
+    lines = ["## Side by side with the paper", ""]
     rows = []
     for row in s["paper"]:
         if "ours_known" in row:
@@ -84,8 +94,12 @@ def markdown(s: dict, figures: bool = True) -> str:
     lines += _table(["quantity", "paper", "ours"], rows)
     lines += ["", "The paper's success rates are the real robot's over known and unseen start configurations; ours "
               "are simulated, per start configuration group. Times to success are over the successful worlds.", ""]
+    return lines
 
-    lines += ["## Success rates", ""] + ([f"![success rates]({SUCCESS})", ""] if figures else [])
+
+def _success_section(s: dict, figures: bool) -> list[str]:
+    p = s["protocol"]
+    lines = ["## Success rates", ""] + ([f"![success rates]({SUCCESS})", ""] if figures else [])
     rows = []
     for g, m in s["groups"].items():
         tests = s["mann_whitney"].get(g, {})
@@ -99,10 +113,12 @@ def markdown(s: dict, figures: bool = True) -> str:
               f"{p['per_config']} worlds: the picked group has one candidate per repetition, so R repetitions give R x C "
               "samples (C start configurations); one sample per repetition would be too few. Samples of a repetition share "
               "its worlds and are not independent.", ""]
-    lines += _finding(s)
+    return lines + _finding(s)
 
-    lines += ["## Picked solutions", "", f"Rule: {s['pick_rule']}.", ""]
-    names = list(p["parameters"])
+
+def _picked_section(s: dict, figures: bool) -> list[str]:
+    lines = ["## Picked solutions", "", f"Rule: {s['pick_rule']}.", ""]
+    names = list(s["protocol"]["parameters"])
     validated = s.get("training_pick", {}).get("validated", False)
     rows = [[str(r["seed"]), _num(r["pareto_row"], "{}"), _num(r["bound_N"], "{:.2f} N")]
             + ([_num(r["parameters"][n], "{:.4g}") for n in names] + [_pct(r["training_success"])]
@@ -113,24 +129,31 @@ def markdown(s: dict, figures: bool = True) -> str:
             for r in s["picked"]]
     lines += _table(["seed", "Pareto row", "bound", *(n.split(".")[-1] for n in names), "training success",
                      *(["validation success"] if validated else []), "commanded force [N]", "known", "unseen"], rows)
-    lines += [""] + _validation_effect(s)
+    return lines + [""] + _validation_effect(s)
 
+
+def _fronts_section(s: dict, figures: bool) -> list[str]:
     f = s["front_size"]
-    lines += ["## Pareto fronts", ""] + ([f"![Pareto fronts]({FRONTS})", ""] if figures else [])
-    lines += [f"Front size: optimizer {_num(f['mean'], '{:.2f}')} +- {_num(f['sd'], '{:.2f}')} (mean +- sd over "
-              f"repetitions; per seed {f['per_repetition']}); random search {_num(f['random_search']['mean'], '{:.2f}')} "
-              f"+- {_num(f['random_search']['sd'], '{:.2f}')} ({f['random_search']['per_repetition']}).", ""]
+    return ["## Pareto fronts", ""] + ([f"![Pareto fronts]({FRONTS})", ""] if figures else []) + [
+        f"Front size: optimizer {_num(f['mean'], '{:.2f}')} +- {_num(f['sd'], '{:.2f}')} (mean +- sd over "
+        f"repetitions; per seed {f['per_repetition']}); random search {_num(f['random_search']['mean'], '{:.2f}')} "
+        f"+- {_num(f['random_search']['sd'], '{:.2f}')} ({f['random_search']['per_repetition']}).", ""]
 
+
+def _hypervolume_section(s: dict, figures: bool) -> list[str]:
     hv = s["hypervolume"]
-    lines += ["## Hypervolume", ""] + ([f"![hypervolume]({HYPERVOLUME})", ""] if figures else [])
+    lines = ["## Hypervolume", ""] + ([f"![hypervolume]({HYPERVOLUME})", ""] if figures else [])
     if hv["optimizer"]:
         lines += _table(["seed", "optimizer", "random search"],
                         [[str(r["seed"]), f"{a:.4f}", f"{b:.4f}"] for r, a, b in zip(s["picked"], hv["optimizer"], hv["random_search"])])
         lines += ["", f"Final hypervolume in the {hv['space']}; reference point {hv['reference_point']}. Optimizer vs "
                   f"random search, Mann-Whitney U over the repetitions: p = {_p(hv['mann_whitney_p_final'])} (with R "
                   "repetitions per side the smallest possible two-sided p is 2 / C(2R, R)).", ""]
+    return lines
 
-    lines += ["## Wall time", ""]
+
+def _wall_time_section(s: dict, figures: bool) -> list[str]:
+    lines = ["## Wall time", ""]
     rows = []
     for seed, kinds in s["wall_time"].items():
         o, r = kinds["optimizer"], kinds["random_search"]
@@ -142,14 +165,17 @@ def markdown(s: dict, figures: bool = True) -> str:
     lines += _table(["seed", "optimizer run (evaluations)", "of it simulation", "random search run", "evaluation",
                      "validation", "repetition"], rows)
     sessions = s["sessions"]
-    lines += ["", f"{len(sessions)} session(s); start-up (planning, engine start, compilation) "
-              + ", ".join(f"{x['startup_seconds']:.0f} s ({x['engine']}, {x['cpus']} CPUs)" for x in sessions)
-              + ". Times are this machine's, shared with other work while they ran.", ""]
-    lines += ["## Protocol", ""]
+    return lines + ["", f"{len(sessions)} session(s); start-up (planning, engine start, compilation) "
+                    + ", ".join(f"{x['startup_seconds']:.0f} s ({x['engine']}, {x['cpus']} CPUs)" for x in sessions)
+                    + ". Times are this machine's, shared with other work while they ran.", ""]
+
+
+def _protocol_section(s: dict, figures: bool) -> list[str]:
+    p = s["protocol"]
+    lines = ["## Protocol", ""]
     lines += _table(["setting", "value"], [[k, f"`{v}`"] for k, v in p.items() if k != "parameters"])
-    lines += ["", "Parameters: " + ", ".join(f"{n} in [{v['bounds'][0]:g}, {v['bounds'][1]:g}] {v['unit']}"
-                                             for n, v in p["parameters"].items()) + ".", ""]
-    return "\n".join(lines)
+    return lines + ["", "Parameters: " + ", ".join(f"{n} in [{v['bounds'][0]:g}, {v['bounds'][1]:g}] {v['unit']}"
+                                                   for n, v in p["parameters"].items()) + ".", ""]
 
 
 def _validation_effect(s: dict) -> list[str]:
