@@ -43,6 +43,8 @@ def test_each_engine_satisfies_the_protocol(push, engine):
     finally:
         rollout.close()
     rollout.close()  # twice is harmless
+    with build_rollout(scn, task, engine, worlds=1, episode_seconds=0.2, workers=1) as again:
+        assert isinstance(again, Rollout)
 
 
 def test_the_protocol_names_every_method_both_engines_share():

@@ -79,7 +79,8 @@ class Rollout(Protocol):
 
 class RolloutBase:
     """What both engines derive the same way from ``task``, ``scenario`` and ``setup`` (the
-    attributes of ``Rollout``); ``PARAMS_DTYPE`` is the engine's float type for parameters."""
+    attributes of ``Rollout``), and ``with rollout:`` closing it; ``PARAMS_DTYPE`` is the
+    engine's float type for parameters."""
 
     PARAMS_DTYPE = np.float64
 
@@ -107,6 +108,12 @@ class RolloutBase:
     @property
     def control_steps_per_episode(self) -> int:
         return self.setup.ticks * self.setup.steps_per_tick
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     def check_params(self, params) -> np.ndarray:
         """``params`` as a (B, P) array of finite values (one (P,) vector is a batch of one)."""

@@ -188,9 +188,3 @@ class NativeRollout(RolloutBase):
         if self._pool is not None:
             self._pool.close()
             self._pool = None
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
