@@ -91,6 +91,21 @@ def tick(ct: CompiledTree, state: BTState, leaf_status: jax.Array) -> tuple[BTSt
         active: (L,) bool, the leaves ticked this tick.
     """
     leaf_status = jnp.asarray(leaf_status)
+    _check_inputs(ct, state, leaf_status)
+    walk = _Walk(ct, _sanitized(ct, leaf_status), state.memory.astype(jnp.int32))
+    root_status = walk.visit(0, jnp.bool_(True))
+    live = _live(ct, walk.enabled, walk.status)
+    new_state = BTState(
+        memory=jnp.where(live, jnp.stack(walk.new_memory), 0),
+        node_status=jnp.where(jnp.stack(walk.enabled), jnp.stack(walk.status), NOT_TICKED),
+        live=live,
+    )
+    active = jnp.stack([walk.enabled[int(nid)] for nid in ct.leaf_ids])
+    return new_state, root_status, active
+
+
+def _check_inputs(ct: CompiledTree, state: BTState, leaf_status: jax.Array) -> None:
+    """Raises ValueError unless ``leaf_status`` is (L,) integer and every state field is (n,)."""
     if leaf_status.shape != (ct.num_leaves,):
         raise ValueError(
             f"leaf_status has shape {leaf_status.shape}; this tree has {ct.num_leaves} leaves, so it "
@@ -101,109 +116,142 @@ def tick(ct: CompiledTree, state: BTState, leaf_status: jax.Array) -> tuple[BTSt
     for field, value in zip(state._fields, state):
         if value.shape != (ct.num_nodes,):
             raise ValueError(f"state.{field} has shape {value.shape}; this tree needs ({ct.num_nodes},)")
-    # One vectorised pass maps out-of-range values to FAILURE (see the module docstring).
+
+
+def _sanitized(ct: CompiledTree, leaf_status: jax.Array) -> jax.Array:
+    """(L,) int32 ``leaf_status`` with out-of-range values mapped to FAILURE in one vectorised
+    pass (see the module docstring)."""
     leaf_status = leaf_status.astype(jnp.int32)
     is_condition = ct.kind[ct.leaf_ids] == int(Kind.CONDITION)
     valid = jnp.where(is_condition, leaf_status == SUCCESS, (leaf_status == SUCCESS) | (leaf_status == RUNNING))
-    leaf_status = jnp.where(valid, leaf_status, FAILURE)
-    memory = state.memory.astype(jnp.int32)
+    return jnp.where(valid, leaf_status, FAILURE)
 
-    n = ct.num_nodes
-    enabled: list = [None] * n  # traced bool per node: ticked this tick
-    status: list = [None] * n  # traced int32 per node: valid where enabled
-    new_memory: list = [None] * n  # traced int32 per node, before halting
 
-    def visit(nid: int, on) -> jax.Array:
-        kind = Kind(int(ct.kind[nid]))
-        kids = ct.children(nid)
-        mem = memory[nid] if kind in _KINDS_WITH_MEMORY else None
+class _Walk:
+    """One tick's trace-time walk of the tree, in pre-order from the root.
+
+    ``visit(nid, on)`` emits node ``nid``'s ops given its ``enabled`` flag ``on`` (is it ticked
+    this tick?), recursing into its children through the visitor of its kind (``_VISITORS``),
+    and records per node: ``enabled`` (traced bool), ``status`` (traced int32, valid where
+    enabled) and ``new_memory`` (traced int32, before halting). A visitor returns the node's
+    status and new memory (0 for kinds without memory); ``mem`` is the node's memory, None for
+    kinds without it.
+    """
+
+    def __init__(self, ct: CompiledTree, leaf_status: jax.Array, memory: jax.Array):
+        self.ct, self.leaf_status, self.memory = ct, leaf_status, memory
+        n = ct.num_nodes
+        self.enabled: list = [None] * n
+        self.status: list = [None] * n
+        self.new_memory: list = [None] * n
+
+    def visit(self, nid: int, on) -> jax.Array:
+        kind = Kind(int(self.ct.kind[nid]))
+        mem = self.memory[nid] if kind in _KINDS_WITH_MEMORY else None
+        out, new_mem = _VISITORS[kind](self, nid, kind, on, mem)
+        self.enabled[nid] = on
+        self.status[nid] = jnp.asarray(out, jnp.int32)
+        self.new_memory[nid] = jnp.asarray(new_mem, jnp.int32)
+        return self.status[nid]
+
+    def leaf(self, nid, kind, on, mem):
+        return self.leaf_status[int(self.ct.leaf_index[nid])], 0
+
+    def serial(self, nid, kind, on, mem):
+        """Sequences go on while children succeed, selectors while they fail; the starred kinds
+        resume from the child that was running (children before it count as done)."""
+        go_on = SUCCESS if kind in (Kind.SEQUENCE, Kind.SERIAL_STAR) else FAILURE
+        has_memory = kind in (Kind.SERIAL_STAR, Kind.SELECTOR_STAR)
+        going = on
+        out = go_on
         new_mem = 0
+        for i, cid in enumerate(self.ct.children(nid)):
+            child_on = going & (mem <= i) if has_memory else going
+            s = self.visit(cid, child_on)
+            stop = child_on & (s != go_on)
+            out = jnp.where(stop, s, out)
+            if has_memory:
+                new_mem = jnp.where(stop & (s == RUNNING), i, new_mem)
+            going = going & ~stop
+        return out, new_mem
 
-        if kind in (Kind.ACTION, Kind.CONDITION):
-            out = leaf_status[int(ct.leaf_index[nid])]
-        elif kind in (Kind.SEQUENCE, Kind.SERIAL_STAR, Kind.SELECTOR, Kind.SELECTOR_STAR):
-            # Sequences go on while children succeed, selectors while they fail; the starred
-            # kinds resume from the child that was running (children before it count as done).
-            go_on = SUCCESS if kind in (Kind.SEQUENCE, Kind.SERIAL_STAR) else FAILURE
-            has_memory = kind in (Kind.SERIAL_STAR, Kind.SELECTOR_STAR)
-            going = on
-            out = go_on
-            for i, cid in enumerate(kids):
-                child_on = going & (mem <= i) if has_memory else going
-                s = visit(cid, child_on)
-                stop = child_on & (s != go_on)
-                out = jnp.where(stop, s, out)
-                if has_memory:
-                    new_mem = jnp.where(stop & (s == RUNNING), i, new_mem)
-                going = going & ~stop
-        elif kind == Kind.PARALLEL:
-            done = mem
-            going = on
-            failed = False
-            running = False
-            for i, cid in enumerate(kids):
-                child_on = going & (((done >> i) & 1) == 0)
-                s = visit(cid, child_on)
-                failed = failed | (child_on & (s == FAILURE))
-                running = running | (child_on & (s == RUNNING))
-                done = jnp.where(child_on & (s == SUCCESS), done | (1 << i), done)
-                going = going & ~failed  # the children after a failure are not ticked
-            out = jnp.where(failed, FAILURE, jnp.where(running, RUNNING, SUCCESS))
-            new_mem = done
-        elif kind == Kind.PARALLEL_FS:
-            going = on
-            out = RUNNING
-            for cid in kids:
-                s = visit(cid, going)
-                stop = going & (s != RUNNING)
-                out = jnp.where(stop, s, out)
-                going = going & ~stop
-        elif kind == Kind.INVERTER:
-            s = visit(kids[0], on)
-            out = jnp.where(s == SUCCESS, FAILURE, jnp.where(s == FAILURE, SUCCESS, s))
-        elif kind == Kind.FORCE_SUCCESS:
-            s = visit(kids[0], on)
-            out = jnp.where(s == FAILURE, SUCCESS, s)
-        elif kind in (Kind.REPEAT, Kind.RETRY):
-            # Repeat counts successes, Retry failures; below n, the node restarts its (finished)
-            # child on the next tick and reports RUNNING.
-            counted = SUCCESS if kind == Kind.REPEAT else FAILURE
-            s = visit(kids[0], on)
-            runs = mem + 1
-            restart = (s == counted) & (runs < int(ct.count[nid]))
-            out = jnp.where(restart, RUNNING, s)
-            new_mem = jnp.where(restart, runs, mem)
-        elif kind == Kind.TIMEOUT:
-            ticks = mem + 1
-            s = visit(kids[0], on)
-            fire = (s == RUNNING) & (ticks >= int(ct.count[nid]))
-            out = jnp.where(fire, FAILURE, s)
-            new_mem = ticks
-        else:  # pragma: no cover - Kind is closed
-            raise AssertionError(kind)
+    def parallel(self, nid, kind, on, mem):
+        """First-fail Parallel: ticks the children that have not succeeded since it started."""
+        done = mem
+        going = on
+        failed = False
+        running = False
+        for i, cid in enumerate(self.ct.children(nid)):
+            child_on = going & (((done >> i) & 1) == 0)
+            s = self.visit(cid, child_on)
+            failed = failed | (child_on & (s == FAILURE))
+            running = running | (child_on & (s == RUNNING))
+            done = jnp.where(child_on & (s == SUCCESS), done | (1 << i), done)
+            going = going & ~failed  # the children after a failure are not ticked
+        return jnp.where(failed, FAILURE, jnp.where(running, RUNNING, SUCCESS)), done
 
-        enabled[nid] = on
-        status[nid] = jnp.asarray(out, jnp.int32)
-        new_memory[nid] = jnp.asarray(new_mem, jnp.int32)
-        return status[nid]
+    def parallel_fs(self, nid, kind, on, mem):
+        """First-stop Parallel: the first child that does not return RUNNING decides."""
+        going = on
+        out = RUNNING
+        for cid in self.ct.children(nid):
+            s = self.visit(cid, going)
+            stop = going & (s != RUNNING)
+            out = jnp.where(stop, s, out)
+            going = going & ~stop
+        return out, 0
 
-    root_status = visit(0, jnp.bool_(True))
+    def inverter(self, nid, kind, on, mem):
+        s = self.visit(self.ct.children(nid)[0], on)
+        return jnp.where(s == SUCCESS, FAILURE, jnp.where(s == FAILURE, SUCCESS, s)), 0
 
-    # Halting: a node keeps its memory only if it was ticked and it and all its ancestors
-    # returned RUNNING. Parents come before children in pre-order, so one pass suffices.
-    live_flags: list = [None] * n
-    for nid in range(n):
+    def force_success(self, nid, kind, on, mem):
+        s = self.visit(self.ct.children(nid)[0], on)
+        return jnp.where(s == FAILURE, SUCCESS, s), 0
+
+    def counted(self, nid, kind, on, mem):
+        """Repeat counts successes, Retry failures; below n, the node restarts its (finished)
+        child on the next tick and reports RUNNING."""
+        counted = SUCCESS if kind == Kind.REPEAT else FAILURE
+        s = self.visit(self.ct.children(nid)[0], on)
+        runs = mem + 1
+        restart = (s == counted) & (runs < int(self.ct.count[nid]))
+        return jnp.where(restart, RUNNING, s), jnp.where(restart, runs, mem)
+
+    def timeout(self, nid, kind, on, mem):
+        """FAILURE once its child has been RUNNING for ``count`` consecutive ticks."""
+        ticks = mem + 1
+        s = self.visit(self.ct.children(nid)[0], on)
+        fire = (s == RUNNING) & (ticks >= int(self.ct.count[nid]))
+        return jnp.where(fire, FAILURE, s), ticks
+
+
+_VISITORS = {
+    Kind.ACTION: _Walk.leaf,
+    Kind.CONDITION: _Walk.leaf,
+    Kind.SEQUENCE: _Walk.serial,
+    Kind.SERIAL_STAR: _Walk.serial,
+    Kind.SELECTOR: _Walk.serial,
+    Kind.SELECTOR_STAR: _Walk.serial,
+    Kind.PARALLEL: _Walk.parallel,
+    Kind.PARALLEL_FS: _Walk.parallel_fs,
+    Kind.INVERTER: _Walk.inverter,
+    Kind.FORCE_SUCCESS: _Walk.force_success,
+    Kind.REPEAT: _Walk.counted,
+    Kind.RETRY: _Walk.counted,
+    Kind.TIMEOUT: _Walk.timeout,
+}
+
+
+def _live(ct: CompiledTree, enabled: list, status: list) -> jax.Array:
+    """(n,) bool, the halting pass: a node keeps its memory only if it was ticked and it and all
+    its ancestors returned RUNNING. Parents come before children in pre-order, so one pass
+    suffices."""
+    live_flags: list = [None] * ct.num_nodes
+    for nid in range(ct.num_nodes):
         parent_live = jnp.bool_(True) if ct.parent[nid] < 0 else live_flags[int(ct.parent[nid])]
         live_flags[nid] = parent_live & enabled[nid] & (status[nid] == RUNNING)
-
-    live = jnp.stack(live_flags)
-    new_state = BTState(
-        memory=jnp.where(live, jnp.stack(new_memory), 0),
-        node_status=jnp.where(jnp.stack(enabled), jnp.stack(status), NOT_TICKED),
-        live=live,
-    )
-    active = jnp.stack([enabled[int(nid)] for nid in ct.leaf_ids])
-    return new_state, root_status, active
+    return jnp.stack(live_flags)
 
 
 def started_leaves(ct: CompiledTree, previous: BTState, active: jax.Array) -> jax.Array:
