@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import heapq
 import math
-from typing import Callable
+from typing import Callable, NamedTuple
 
 from mjxskill.planner.ground import GroundTask
 
@@ -84,6 +84,43 @@ def hmax(task: GroundTask) -> Heuristic:
     return h
 
 
+class _Relaxed(NamedTuple):
+    """LM-cut's view of a ground task: facts and operators by index, negative preconditions
+    dropped. Fact ``start`` is the precondition of operators without one; the last operator is
+    the artificial goal operator (cost 0), which needs every goal fact and adds fact ``goal``."""
+
+    index: dict  # fact -> its index
+    start: int
+    goal: int
+    n_facts: int
+    pre: list  # per operator: its precondition fact indices
+    add: list  # per operator: its add-effect fact indices
+    pre_of: list  # per fact: the operators it is a precondition of
+    achievers: list  # per fact: the operators that add it
+    unit_costs: list  # per operator: 1.0, 0.0 for the goal operator
+
+
+def _relaxed(task: GroundTask) -> _Relaxed:
+    ops = task.operators
+    facts = sorted(task.facts | task.goal_pos | frozenset().union(*(op.pre_pos for op in ops)))
+    index = {f: i for i, f in enumerate(facts)}
+    start, goal = len(facts), len(facts) + 1
+    n_facts = goal + 1
+    pre = [tuple(sorted(index[f] for f in op.pre_pos)) or (start,) for op in ops]
+    add = [tuple(sorted(index[f] for f in op.add)) for op in ops]
+    pre.append(tuple(sorted(index[f] for f in task.goal_pos)) or (start,))
+    add.append((goal,))
+    n_ops = len(pre)
+    pre_of: list[list[int]] = [[] for _ in range(n_facts)]
+    achievers: list[list[int]] = [[] for _ in range(n_facts)]
+    for o in range(n_ops):
+        for f in pre[o]:
+            pre_of[f].append(o)
+        for f in add[o]:
+            achievers[f].append(o)
+    return _Relaxed(index, start, goal, n_facts, pre, add, pre_of, achievers, [1.0] * (n_ops - 1) + [0.0])
+
+
 def lmcut(task: GroundTask) -> Heuristic:
     """LM-cut (Helmert and Domshlak 2009): a sum of disjunctive action landmarks, >= h_max.
 
@@ -95,101 +132,95 @@ def lmcut(task: GroundTask) -> Heuristic:
     ``start`` is the precondition of operators without one, and an artificial goal operator
     needs all goal facts.
     """
-    ops = task.operators
-    facts = sorted(task.facts | task.goal_pos | frozenset().union(*(op.pre_pos for op in ops)))
-    index = {f: i for i, f in enumerate(facts)}
-    start, goal = len(facts), len(facts) + 1
-    n_facts = goal + 1
-    pre = [tuple(sorted(index[f] for f in op.pre_pos)) or (start,) for op in ops]
-    add = [tuple(sorted(index[f] for f in op.add)) for op in ops]
-    pre.append(tuple(sorted(index[f] for f in task.goal_pos)) or (start,))
-    add.append((goal,))
-    n_ops = len(pre)
-    unit_costs = [1.0] * (n_ops - 1) + [0.0]
-    pre_of: list[list[int]] = [[] for _ in range(n_facts)]
-    achievers: list[list[int]] = [[] for _ in range(n_facts)]
-    for o in range(n_ops):
-        for f in pre[o]:
-            pre_of[f].append(o)
-        for f in add[o]:
-            achievers[f].append(o)
+    r = _relaxed(task)
     goal_pos = task.goal_pos
-    stuck_neg_goals = task.goal_neg - frozenset().union(*(op.delete for op in ops))
-
-    def hmax_and_pcf(sources: list[int], cost: list[float]):
-        """h_max of every fact under ``cost`` (Dijkstra) and each operator's pcf: its
-        precondition settled last, which has the largest h_max (ties: heap order)."""
-        value = [math.inf] * n_facts
-        settled = [False] * n_facts
-        missing = [len(p) for p in pre]
-        pcf = [-1] * n_ops
-        queue = [(0.0, f) for f in sources]
-        for f in sources:
-            value[f] = 0.0
-        heapq.heapify(queue)
-        while queue:
-            v, f = heapq.heappop(queue)
-            if settled[f]:
-                continue
-            settled[f] = True
-            for o in pre_of[f]:
-                missing[o] -= 1
-                if missing[o] == 0:
-                    pcf[o] = f
-                    reached = v + cost[o]
-                    for a in add[o]:
-                        if reached < value[a]:
-                            value[a] = reached
-                            heapq.heappush(queue, (reached, a))
-        return value, pcf
+    stuck_neg_goals = task.goal_neg - frozenset().union(*(op.delete for op in task.operators))
 
     def h(state: frozenset) -> float:
         if not stuck_neg_goals.isdisjoint(state):
             return math.inf
         if goal_pos <= state:
             return 0
-        sources = sorted(index[f] for f in state if f in index) + [start]
-        cost = unit_costs.copy()
+        sources = sorted(r.index[f] for f in state if f in r.index) + [r.start]
+        cost = r.unit_costs.copy()
         total = 0.0
         while True:
-            value, pcf = hmax_and_pcf(sources, cost)
-            if value[goal] == math.inf:
+            value, pcf = _hmax_and_pcf(r, sources, cost)
+            if value[r.goal] == math.inf:
                 return math.inf
-            if value[goal] == 0:
+            if value[r.goal] == 0:
                 return round(total)  # unit costs: landmark costs sum to an integer
-            # goal zone: facts reaching the goal through zero-cost justification edges
-            zone = {goal}
-            stack = [goal]
-            while stack:
-                f = stack.pop()
-                for o in achievers[f]:
-                    if cost[o] == 0 and pcf[o] >= 0 and pcf[o] not in zone:
-                        zone.add(pcf[o])
-                        stack.append(pcf[o])
-            # facts reachable from the state without entering the zone; the cut is every
-            # operator leaving that set into the zone
-            by_pcf: dict[int, list[int]] = {}
-            for o in range(n_ops):
-                if pcf[o] >= 0:
-                    by_pcf.setdefault(pcf[o], []).append(o)
-            seen = set(sources)
-            stack = list(sources)
-            cut = set()
-            while stack:
-                f = stack.pop()
-                for o in by_pcf.get(f, ()):
-                    for a in add[o]:
-                        if a in zone:
-                            cut.add(o)
-                        elif a not in seen:
-                            seen.add(a)
-                            stack.append(a)
+            cut = _cut(r, sources, pcf, _goal_zone(r, cost, pcf))
             landmark_cost = min(cost[o] for o in cut)
             total += landmark_cost
             for o in cut:
                 cost[o] -= landmark_cost
 
     return h
+
+
+def _hmax_and_pcf(r: _Relaxed, sources: list[int], cost: list[float]):
+    """h_max of every fact under ``cost`` (Dijkstra) and each operator's pcf: its precondition
+    settled last, which has the largest h_max (ties: heap order); -1 for unreached operators."""
+    value = [math.inf] * r.n_facts
+    settled = [False] * r.n_facts
+    missing = [len(p) for p in r.pre]
+    pcf = [-1] * len(r.pre)
+    queue = [(0.0, f) for f in sources]
+    for f in sources:
+        value[f] = 0.0
+    heapq.heapify(queue)
+    pre_of, add = r.pre_of, r.add
+    while queue:
+        v, f = heapq.heappop(queue)
+        if settled[f]:
+            continue
+        settled[f] = True
+        for o in pre_of[f]:
+            missing[o] -= 1
+            if missing[o] == 0:
+                pcf[o] = f
+                reached = v + cost[o]
+                for a in add[o]:
+                    if reached < value[a]:
+                        value[a] = reached
+                        heapq.heappush(queue, (reached, a))
+    return value, pcf
+
+
+def _goal_zone(r: _Relaxed, cost: list[float], pcf: list[int]) -> set[int]:
+    """The facts that reach the goal through zero-cost justification edges."""
+    zone = {r.goal}
+    stack = [r.goal]
+    while stack:
+        f = stack.pop()
+        for o in r.achievers[f]:
+            if cost[o] == 0 and pcf[o] >= 0 and pcf[o] not in zone:
+                zone.add(pcf[o])
+                stack.append(pcf[o])
+    return zone
+
+
+def _cut(r: _Relaxed, sources: list[int], pcf: list[int], zone: set[int]) -> set[int]:
+    """The landmark: every operator from a fact reachable from ``sources`` without entering the
+    goal ``zone`` (through justification edges) into the zone."""
+    by_pcf: dict[int, list[int]] = {}
+    for o in range(len(pcf)):
+        if pcf[o] >= 0:
+            by_pcf.setdefault(pcf[o], []).append(o)
+    seen = set(sources)
+    stack = list(sources)
+    cut = set()
+    while stack:
+        f = stack.pop()
+        for o in by_pcf.get(f, ()):
+            for a in r.add[o]:
+                if a in zone:
+                    cut.add(o)
+                elif a not in seen:
+                    seen.add(a)
+                    stack.append(a)
+    return cut
 
 
 HEURISTICS = {"blind": blind, "hmax": hmax, "lmcut": lmcut}
