@@ -120,16 +120,42 @@ def run_episode(
     ``record`` is True.
     """
     model = world_model(spec, model, world)
+    carry = _initial_carry(spec, model, template, world)
+    bt_tick = _bt_tick_fn(spec, model, params, world, record)
+    c, trace = jax.lax.scan(bt_tick, carry, jnp.arange(spec.setup.ticks, dtype=jnp.int32))
+    result = _episode_result(spec, c, world)
+    return (result, trace) if record else result
+
+
+def _initial_carry(spec: EpisodeSpec, model: mjx.Model, template: mjx.Data, world: Worlds) -> _Carry:
+    """The scan's carry before the first tick: the world's initial conditions, the reference at
+    the tool's pose, a fresh tree and zero totals."""
     data = initial_data(spec, model, template, world)
     tool_pos, tool_quat = tool_pose(spec.setup.ctrl, model, data)
     bb = init_blackboard(tool_pos, tool_quat, spec.setup.default_stiffness, len(spec.ct.leaves))
     ref = reference_pose(bb)
     ctrl = init_controller_state(data, make_command(ref.pos, ref.quat, bb.wrench, bb.stiffness))
-    nullspace_target = world.arm_qpos
-    dt = spec.setup.ctrl.dt
-    nominal_pos = jnp.asarray(nominal_poses(spec.setup.bindings)[0])
-    n_terms = len(spec.terms)
+    return _Carry(
+        data=data,
+        ctrl=ctrl,
+        bb=bb,
+        bt=init_state(spec.ct),
+        done=jnp.zeros((), bool),
+        status=jnp.int32(Status.RUNNING),
+        done_tick=jnp.int32(-1),
+        diverged=jnp.zeros((), bool),
+        totals=jnp.zeros(len(spec.terms), jnp.float32),
+        peak_commanded_force=jnp.zeros((), jnp.float32),
+        peak_contact_force=jnp.zeros((), jnp.float32),
+        contact_force_sum=jnp.zeros((), jnp.float32),
+    )
 
+
+def _control_step_fn(spec: EpisodeSpec, model: mjx.Model, nullspace_target: jax.Array):
+    """The body of the inner scan, one control step: motion generator -> controller ->
+    ``mjx.step``; its carry is (data, controller state, blackboard, the tool's measured contact
+    force summed and its peak over the tick's steps)."""
+    dt = spec.setup.ctrl.dt
     force_sensors = jnp.asarray(spec.setup.bindings.force_sensors, jnp.int32)
 
     def control_step(carry, _):
@@ -142,20 +168,23 @@ def run_episode(
         force = jnp.sum(data.sensordata[force_sensors])
         return (data, ctrl, advance(bb, dt), force_sum + force, jnp.maximum(force_peak, force)), None
 
+    return control_step
+
+
+def _bt_tick_fn(spec: EpisodeSpec, model: mjx.Model, params: jax.Array, world: Worlds, record: bool):
+    """The body of the outer scan, one BT tick: the tree ticks on its leaves' statuses, the leaf
+    effects set the blackboard, ``steps_per_tick`` control steps run, a diverged world is frozen
+    (module doc), and the tick's rewards are added up; with ``record`` it also returns the
+    tick's TickRecord."""
+    nominal_pos = jnp.asarray(nominal_poses(spec.setup.bindings)[0])
+    control_step = _control_step_fn(spec, model, world.arm_qpos)
+
     def bt_tick(c: _Carry, t):
         tool_pos, tool_quat = tool_pose(spec.setup.ctrl, model, c.data)
         # The skills see the world *model* (the YAML's nominal poses), not the randomized world:
         # that mismatch is what the learned parameters must be robust to.
         leaf_world = LeafWorld(tool_pos, tool_quat, nominal_pos)
-        live = c.bt.live[jnp.asarray(spec.ct.leaf_ids)]
-        leaf_status = spec.leaves.status(c.bb, leaf_world, params, live)
-        bt, root, active = tick(spec.ct, c.bt, leaf_status)
-        started = started_leaves(spec.ct, c.bt, active)
-        # Once the root has finished the tree is no longer ticked: every leaf is idle.
-        active = active & ~c.done
-        bt = _where(c.done, c.bt, bt)
-        root = jnp.where(c.done, c.status, root)
-        bb = spec.leaves.effects(c.bb, active, started, leaf_world, params)
+        bt, root, active, bb = _tick_tree(spec, c, leaf_world, params)
         zero = jnp.zeros((), jnp.float32)
         (data, ctrl, bb, force_sum, force_peak), _ = jax.lax.scan(
             control_step, (c.data, c.ctrl, bb, zero, zero), None, length=spec.setup.steps_per_tick)
@@ -163,21 +192,10 @@ def run_episode(
         healthy = _healthy(spec, data) & ~c.diverged
         data, ctrl, bb = _where(healthy, (data, ctrl, bb), (c.data, c.ctrl, c.bb))
         finished = root != Status.RUNNING
-        tool_pos, tool_quat = tool_pose(spec.setup.ctrl, model, data)
-        slot_pos, slot_quat = slot_poses(spec, data, world)
-        obs = Observation(
-            tool_pos=tool_pos,
-            tool_quat=tool_quat,
-            ref_pos=reference_pose(bb).pos,
-            slot_pos=slot_pos,
-            slot_quat=slot_quat,
-            wrench=ctrl.wrench,
-            bt_succeeded=root == Status.SUCCESS,
-            contact_force=force_sum / spec.setup.steps_per_tick,
-        )
-        raw = raw_rewards(spec.terms, obs, JAX) if n_terms else jnp.zeros(0, jnp.float32)
+        obs = _observation(spec, model, world, data, ctrl, bb, root, force_sum)
+        raw = raw_rewards(spec.terms, obs, JAX) if spec.terms else jnp.zeros(0, jnp.float32)
         totals = c.totals + raw
-        trace = (TickRecord(data.qpos, data.mocap_pos, data.mocap_quat, tool_pos, obs.ref_pos, root, active, raw)
+        trace = (TickRecord(data.qpos, data.mocap_pos, data.mocap_quat, obs.tool_pos, obs.ref_pos, root, active, raw)
                  if record else None)
         return (
             _Carry(
@@ -197,25 +215,49 @@ def run_episode(
             trace,
         )
 
-    carry = _Carry(
-        data=data,
-        ctrl=ctrl,
-        bb=bb,
-        bt=init_state(spec.ct),
-        done=jnp.zeros((), bool),
-        status=jnp.int32(Status.RUNNING),
-        done_tick=jnp.int32(-1),
-        diverged=jnp.zeros((), bool),
-        totals=jnp.zeros(n_terms, jnp.float32),
-        peak_commanded_force=jnp.zeros((), jnp.float32),
-        peak_contact_force=jnp.zeros((), jnp.float32),
-        contact_force_sum=jnp.zeros((), jnp.float32),
+    return bt_tick
+
+
+def _tick_tree(spec: EpisodeSpec, c: _Carry, leaf_world: LeafWorld, params: jax.Array):
+    """The compiled tick on the leaves' statuses, then the active leaves' effects: (tree state,
+    root status, active leaves, blackboard). Once the root has finished the tree is no longer
+    ticked: it keeps its state and status and every leaf is idle."""
+    live = c.bt.live[jnp.asarray(spec.ct.leaf_ids)]
+    leaf_status = spec.leaves.status(c.bb, leaf_world, params, live)
+    bt, root, active = tick(spec.ct, c.bt, leaf_status)
+    started = started_leaves(spec.ct, c.bt, active)
+    active = active & ~c.done
+    bt = _where(c.done, c.bt, bt)
+    root = jnp.where(c.done, c.status, root)
+    bb = spec.leaves.effects(c.bb, active, started, leaf_world, params)
+    return bt, root, active, bb
+
+
+def _observation(spec: EpisodeSpec, model: mjx.Model, world: Worlds, data: mjx.Data, ctrl: ControllerState,
+                 bb: Blackboard, root: jax.Array, force_sum: jax.Array) -> Observation:
+    """What the reward terms see at the end of a tick."""
+    tool_pos, tool_quat = tool_pose(spec.setup.ctrl, model, data)
+    slot_pos, slot_quat = slot_poses(spec, data, world)
+    return Observation(
+        tool_pos=tool_pos,
+        tool_quat=tool_quat,
+        ref_pos=reference_pose(bb).pos,
+        slot_pos=slot_pos,
+        slot_quat=slot_quat,
+        wrench=ctrl.wrench,
+        bt_succeeded=root == Status.SUCCESS,
+        contact_force=force_sum / spec.setup.steps_per_tick,
     )
-    c, trace = jax.lax.scan(bt_tick, carry, jnp.arange(spec.setup.ticks, dtype=jnp.int32))
+
+
+def _episode_result(spec: EpisodeSpec, c: _Carry, world: Worlds) -> EpisodeResult:
+    """The EpisodeResult from the final carry; a diverged world gets each term's worst reward
+    for the whole episode, counts as a failure and has unknown (NaN) contact forces."""
+    n_terms = len(spec.terms)
     worst = jnp.asarray([t.worst_raw * spec.setup.ticks for t in spec.terms], jnp.float32).reshape(n_terms)
     totals = jnp.where(c.diverged, worst, c.totals)
     success, pos_err, rot_err, depth = _success(spec, c.data, world)
-    result = EpisodeResult(
+    return EpisodeResult(
         reward_totals=totals,
         success=success & ~c.diverged,
         diverged=c.diverged,
@@ -230,7 +272,6 @@ def run_episode(
         mean_contact_force=jnp.where(c.diverged, jnp.nan,
                                      c.contact_force_sum / (spec.setup.ticks * spec.setup.steps_per_tick)),
     )
-    return (result, trace) if record else result
 
 
 def _success(spec: EpisodeSpec, data: mjx.Data, world: Worlds):
