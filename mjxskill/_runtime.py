@@ -32,6 +32,8 @@ import sys
 import warnings
 from pathlib import Path
 
+from mjxskill.errors import Notice
+
 CPU_FUSION_FLAG = "--xla_cpu_use_fusion_emitters"
 CPU_FUSION_SETTING = f"{CPU_FUSION_FLAG}=false"
 YNN_FUSION_FLAG = "--xla_cpu_experimental_ynn_fusion_type"
@@ -75,6 +77,7 @@ def configure_xla_flags(environ: "os._Environ[str] | dict[str, str]" = os.enviro
         # earlier is fine as long as no computation ran yet. We cannot detect that cheaply,
         # so only warn when a backend is already live.
         try:
+            # lazy: jax is imported already here; importing it at the top would start it first
             from jax._src import xla_bridge
 
             if xla_bridge.backends_are_initialized():
@@ -98,8 +101,6 @@ def _warn_once(message: str) -> None:
     """A ``Notice`` (the command line prints it as one warning line), once per process."""
     if message not in _warned:
         _warned.add(message)
-        from mjxskill.errors import Notice
-
         warnings.warn(message, Notice, stacklevel=3)
 
 
@@ -139,13 +140,13 @@ def enable_compilation_cache(path: Path | None = None) -> Path | None:
     for name, (value, _) in settings.items():
         os.environ.setdefault(name, value)
     if "jax" in sys.modules:  # jax read its environment already: tell it directly
-        import jax
+        import jax  # lazy: only when jax is imported already (plan never imports it; the flags come first)
 
         if jax.config.jax_compilation_cache_dir != os.environ["JAX_COMPILATION_CACHE_DIR"]:
             for name, (_, parse) in settings.items():
                 jax.config.update(name.lower(), parse(os.environ[name]))
             try:  # a compile before this point decided "no cache" once and for all: decide again
-                from jax._src import compilation_cache
+                from jax._src import compilation_cache  # lazy: as jax above
 
                 compilation_cache.reset_cache()
             except (ImportError, AttributeError):  # private API moved: the cache may stay off

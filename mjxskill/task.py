@@ -15,6 +15,8 @@ import numpy as np
 from mjxskill.ebt.from_plan import LearnableParameter, PlanStep, ground_plan, plan_to_tree
 from mjxskill.ebt.nodes import Node, render
 from mjxskill.errors import PlanError, ScenarioError
+from mjxskill.planner import Unsolvable
+from mjxskill.planner import solve as optimal_solve
 from mjxskill.planner.world_pddl import domain_pddl, goal_literals, problem_pddl
 from mjxskill.scenario.schema import frozen_array, frozen_mapping
 
@@ -81,9 +83,7 @@ def plan_task(scn: "Scenario", goal: str | None = None, *, solve: Solver | None 
     domain = domain_pddl(scn, negative_goal=any(not positive for positive, _, _ in literals))
     problem = problem_pddl(scn, goal)
     if solve is None:
-        from mjxskill.planner import solve
-    from mjxskill.planner import Unsolvable
-
+        solve = optimal_solve
     try:
         plan = tuple(solve(domain, problem))
     except Unsolvable as err:
