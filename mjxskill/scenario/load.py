@@ -23,6 +23,7 @@ from mjxskill.scenario.schema import (
 from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.scenario.sections import optimizer, randomization, rewards, success
 from mjxskill.scenario.skills import manual_parameters, parameter_priors, skill, skill_fields
+from mjxskill.sim.model import build_model
 from mjxskill.sim.scene import asset_path
 
 # the shipped scenarios (mjxskill.assets: the checkout's assets/, or inside the installed package)
@@ -122,8 +123,6 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     check_scene(Path(scn.scene), refs.pop("scene"), refs.pop("robot.tool_site"), refs, geoms)
     # The physics the YAML gives is written into the MJCF model: what cannot be is an error now,
     # naming the entry (mjxskill.sim.model), not a run that silently simulates something else.
-    from mjxskill.sim.model import build_model
-
     build_model(scn)
     return scn
 

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import mujoco
+
 from mjxskill.planner.world_pddl import close_matches
 from mjxskill.scenario.fields import Field
 
@@ -28,8 +30,6 @@ def check_scene(scene: Path, scene_field: Field, tool_site: Field, bodies: dict[
         scene_field.fail(f"the MJCF scene {str(scene)!r} does not exist (paths are relative to the scenario file)")
     if not scene.is_file():
         scene_field.fail(f"the MJCF scene {str(scene)!r} is {'a directory' if scene.is_dir() else 'not a regular file'}, not an MJCF file")
-    import mujoco
-
     try:
         model = mujoco.MjModel.from_xml_path(str(scene))
     except Exception as err:  # noqa: BLE001  (MuJoCo reports every XML and model problem as one exception)

@@ -59,6 +59,7 @@ class Pose:
     @property
     def quat(self) -> np.ndarray:
         """(4,) unit quaternion (w, x, y, z) of ``rpy_deg``."""
+        # lazy: scipy.spatial costs ~0.25 s, and every command's bad-input errors load a scenario
         from scipy.spatial.transform import Rotation
 
         x, y, z, w = Rotation.from_euler("xyz", self.rpy_deg, degrees=True).as_quat()
