@@ -160,7 +160,7 @@ def gp_prior(prior: dict | None):
     """The ``mjxskill.gp.Prior`` of a run's stored prior (None: none); ValueError if it is none."""
     if prior is None:
         return None
-    from mjxskill.gp import Prior
+    from mjxskill.gp import Prior  # lazy: gp imports jax and scipy (~2 s), see optimizer_config
 
     return Prior(mean=prior["mean"], std=prior["std"], weights=prior["weights"])
 
@@ -187,6 +187,7 @@ def _names(field: Field, what: str) -> tuple[str, ...]:
 def _optimizer_generations():
     """(the known generations of gp's acquisition defaults, the current one); imported when
     needed, as gp's settings are elsewhere here."""
+    # lazy: gp imports jax and scipy (~2 s), see optimizer_config
     from mjxskill.gp.settings import DEFAULTS_BY_GENERATION, GENERATION
 
     return tuple(DEFAULTS_BY_GENERATION), GENERATION
@@ -195,6 +196,8 @@ def _optimizer_generations():
 def optimizer_config(config: RunConfig):
     """The ``mjxskill.gp.MOBOConfig`` of a run: its parameter space, batches and seed, and the
     acquisition settings its optimizer options name (gp's defaults for the others)."""
+    # lazy: mjxskill.gp imports jax and scipy (~2 s); every command imports this module (through
+    # runs.run_dir), and its --help and bad-input errors must not pay for them
     from mjxskill.gp import MOBOConfig, acquisition_settings
     from mjxskill.gp.settings import acquisition_defaults
 

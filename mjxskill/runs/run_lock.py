@@ -10,12 +10,15 @@ lock when the holder exits, however it exits (a kill included), so a stale file 
 from __future__ import annotations
 
 import errno
+import fcntl
 import json
 import os
 import socket
 import sys
 import time
 from pathlib import Path
+
+from mjxskill.errors import RunError
 
 LOCK_FILE = ".lock"
 
@@ -40,10 +43,6 @@ class RunLock:
 
 def lock_run(folder: Path) -> RunLock:
     """Takes the writer's lock of the run in ``folder``; RunError if another process holds it."""
-    import fcntl
-
-    from mjxskill.errors import RunError
-
     path = Path(folder) / LOCK_FILE
     try:
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)

@@ -9,14 +9,13 @@ import numpy as np
 
 from mjxskill.errors import RunError
 from mjxskill.runs.run_dir import Run, RunConfig
+from mjxskill.scenario import load_scenario
+from mjxskill.task import plan_task
 
 
 def scenario_and_task(scenario: str, goal: str | None = None):
     """``(Scenario, PlannedTask)`` of ``scenario`` (a name or a YAML path) for ``goal``
     (default: the scenario's)."""
-    from mjxskill.scenario import load_scenario
-    from mjxskill.task import plan_task
-
     scn = load_scenario(scenario)
     return scn, plan_task(scn, goal)
 
@@ -40,9 +39,6 @@ def check_same_task(scn, task, config: RunConfig, where: Path) -> None:
 def load_run_task(run: Run, config: RunConfig, scenario: str | None = None):
     """``(Scenario, PlannedTask)`` a run was trained on (its scenario, or ``scenario`` given
     for it), checked to still match the run."""
-    from mjxskill.scenario import load_scenario
-    from mjxskill.task import plan_task
-
     scn = load_scenario(config.scenario if scenario is None else scenario)
     if scn.name != config.task:
         raise RunError(f"{run.path} is a run of task {config.task!r}, not {scn.name!r}")

@@ -135,6 +135,8 @@ def optimizer_option_value(key: str, value):
     ``AcquisitionSettings`` fields; the run's parameter space, batches and seed are no option.
     gp checks what several options must satisfy together when the run's ``MOBOConfig`` is
     built (``run_config.optimizer_problem``)."""
+    # lazy: mjxskill.gp imports jax and scipy (~2 s); --seed of evaluate and select reads this
+    # module while their parser is built (--help, bad input)
     from mjxskill.gp.settings import setting_value
 
     return setting_value(key, value)
