@@ -157,50 +157,14 @@ def compile_rollout(
         from mjxskill.task import plan_task
 
         task = plan_task(scn)
-    worlds = scn.randomization.n_worlds if worlds is None else int(worlds)
-    if worlds < 1:
-        raise ValueError(f"worlds must be >= 1, got {worlds}")
-    seconds = scn.episode_seconds if episode_seconds is None else float(episode_seconds)
-    if not (seconds > 0 and math.isfinite(seconds)):
-        raise ValueError(f"episode_seconds must be positive, got {episode_seconds}")
-    strategy = default_strategy() if batching is None else batching
-    if strategy not in STRATEGIES:
-        raise ValueError(f"unknown batching strategy {strategy!r}; expected one of {STRATEGIES}")
-
+    worlds, seconds, strategy = _checked_settings(scn, worlds, episode_seconds, batching)
     if mj_model is None:
         from mjxskill.sim.model import build_model
 
         mj_model = build_model(scn)
-    setup = episode_setup(scn, task, mj_model, seconds)
-    ct = compile_tree(task.tree)
-    terms = build_terms(scn, setup.bindings.slot_of, JAX)
-    spec = EpisodeSpec(
-        ct=ct,
-        leaves=build_leaf_programs(ct, task.parameter_names, setup.bindings, scn.robot.default_stiffness, 1.0 / scn.bt_hz),
-        terms=terms,
-        setup=setup,
-    )
-    data = mujoco.MjData(mj_model)
-    mujoco.mj_forward(mj_model, data)
-    # MJX places the model on jax.devices()[0] unless told: under jax.distributed that is process
-    # 0's device, which the other processes cannot use; this process's first device is.
-    device = jax.local_devices()[0]
-    model, template = mjx.put_model(mj_model, device=device), mjx.put_data(mj_model, data, device=device)
-    sampler = make_sampler(scn, setup.bindings, start_configs)
-    weights = objective_matrix(terms, len(scn.objective_names))
-    reward_names = tuple(t.name for t in terms)
-
-    def episode(params, world):
-        return run_episode(spec, model, template, params, world)
-
-    def batched_episodes(params: jax.Array, worlds_: Worlds) -> RolloutOutput:
-        b, w = worlds_.config_index.shape
-        flat_params = jnp.repeat(params, w, axis=0)
-        flat_worlds = jax.tree.map(lambda x: x.reshape((b * w,) + x.shape[2:]), worlds_)
-        # The flat B x W batch is split over all local devices (one device: unchanged).
-        res: EpisodeResult = shard_batch(over_worlds(episode, strategy, chunk))(flat_params, flat_worlds)
-        res = jax.tree.map(lambda x: x.reshape((b, w) + x.shape[1:]), res)
-        return summarize(res, worlds_.config_index, weights, reward_names, xp=jnp)
+    spec = _episode_spec(scn, task, mj_model, seconds)
+    model, template = _device_model(mj_model)
+    sampler = make_sampler(scn, spec.setup.bindings, start_configs)
 
     sample = jax.jit(lambda key, batch: sample_worlds(sampler, key, (batch, worlds)), static_argnums=1)
     trace = jax.jit(lambda params, world: run_episode(spec, model, template, params, world, record=True))
@@ -214,6 +178,68 @@ def compile_rollout(
         strategy=strategy,
         chunk=chunk,
         _sample=sample,
-        _episodes=batched_episodes,
+        _episodes=_batched_episodes_fn(scn, spec, model, template, strategy, chunk),
         _trace=trace,
     )
+
+
+def _checked_settings(scn: Scenario, worlds: int | None, episode_seconds: float | None, batching: str | None):
+    """(W, episode seconds, batching strategy) from ``compile_rollout``'s arguments and the
+    scenario's defaults; ValueError for a bad one."""
+    worlds = scn.randomization.n_worlds if worlds is None else int(worlds)
+    if worlds < 1:
+        raise ValueError(f"worlds must be >= 1, got {worlds}")
+    seconds = scn.episode_seconds if episode_seconds is None else float(episode_seconds)
+    if not (seconds > 0 and math.isfinite(seconds)):
+        raise ValueError(f"episode_seconds must be positive, got {episode_seconds}")
+    strategy = default_strategy() if batching is None else batching
+    if strategy not in STRATEGIES:
+        raise ValueError(f"unknown batching strategy {strategy!r}; expected one of {STRATEGIES}")
+    return worlds, seconds, strategy
+
+
+def _episode_spec(scn: Scenario, task, mj_model: mujoco.MjModel, seconds: float) -> EpisodeSpec:
+    """The traced episode's static description: the compiled tree, its leaf programs, the reward
+    terms and the engine-independent setup."""
+    setup = episode_setup(scn, task, mj_model, seconds)
+    ct = compile_tree(task.tree)
+    terms = build_terms(scn, setup.bindings.slot_of, JAX)
+    return EpisodeSpec(
+        ct=ct,
+        leaves=build_leaf_programs(ct, task.parameter_names, setup.bindings, scn.robot.default_stiffness, 1.0 / scn.bt_hz),
+        terms=terms,
+        setup=setup,
+    )
+
+
+def _device_model(mj_model: mujoco.MjModel) -> tuple[mjx.Model, mjx.Data]:
+    """The MJX model and a data template (kinematics computed) on this process's first device.
+
+    MJX places the model on jax.devices()[0] unless told: under jax.distributed that is process
+    0's device, which the other processes cannot use; this process's first device is."""
+    data = mujoco.MjData(mj_model)
+    mujoco.mj_forward(mj_model, data)
+    device = jax.local_devices()[0]
+    return mjx.put_model(mj_model, device=device), mjx.put_data(mj_model, data, device=device)
+
+
+def _batched_episodes_fn(scn: Scenario, spec: EpisodeSpec, model: mjx.Model, template: mjx.Data, strategy: str,
+                         chunk: int | None) -> Callable:
+    """The unjitted (params (B, P), worlds (B, W)) -> RolloutOutput: the B x W episodes as one
+    flat batch, mapped with ``strategy`` and split over the local devices, then summarized."""
+    weights = objective_matrix(spec.terms, len(scn.objective_names))
+    reward_names = tuple(t.name for t in spec.terms)
+
+    def episode(params, world):
+        return run_episode(spec, model, template, params, world)
+
+    def batched_episodes(params: jax.Array, worlds_: Worlds) -> RolloutOutput:
+        b, w = worlds_.config_index.shape
+        flat_params = jnp.repeat(params, w, axis=0)
+        flat_worlds = jax.tree.map(lambda x: x.reshape((b * w,) + x.shape[2:]), worlds_)
+        # The flat B x W batch is split over all local devices (one device: unchanged).
+        res: EpisodeResult = shard_batch(over_worlds(episode, strategy, chunk))(flat_params, flat_worlds)
+        res = jax.tree.map(lambda x: x.reshape((b, w) + x.shape[1:]), res)
+        return summarize(res, worlds_.config_index, weights, reward_names, xp=jnp)
+
+    return batched_episodes
