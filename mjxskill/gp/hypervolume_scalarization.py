@@ -40,6 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.stats import qmc
 
+from mjxskill.gp.pareto import pareto_mask
 from mjxskill.gp.scalarized_posterior import centred_normal_quantiles, log_mean_softplus
 
 
@@ -222,8 +223,6 @@ def reference_point(y: np.ndarray, margin: float = 0.1) -> np.ndarray:
     Where the front has no extent in an objective (one point), the margin is taken of the
     observed range, or of 1.
     """
-    from mjxskill.gp.pareto import pareto_mask
-
     y = np.asarray(y, np.float64)
     finite = y[np.all(np.isfinite(y), axis=1)]
     if len(finite) == 0:
