@@ -25,7 +25,7 @@ def resolve_engine(name: str, backend: str | None = None) -> tuple[str, str]:
     if name != "auto":
         raise ValueError(f"unknown engine {name!r}; expected one of {', '.join(CHOICES)}")
     if backend is None:
-        import jax
+        import jax  # lazy: ~1 s, and train/evaluate/experiment --help and bad input import this module
 
         backend = jax.default_backend()
     if backend in ("gpu", "cuda", "rocm", "tpu"):
@@ -37,12 +37,13 @@ def build_rollout(scn, task, engine: str, *, worlds: int | None = None, episode_
                   start_configs=None, mj_model=None, workers: int | None = None):
     """The rollout of ``task`` in ``scn`` on ``engine`` ("mjx" or "native"; resolve "auto" first)."""
     if engine == "mjx":
+        # lazy, as the native engine below: a run imports only the engine it runs (MJX ~2 s more than jax)
         from mjxskill.engine.mjx.compiled import compile_rollout
 
         return compile_rollout(scn, task, worlds=worlds, episode_seconds=episode_seconds,
                                start_configs=start_configs, mj_model=mj_model)
     if engine == "native":
-        from mjxskill.engine.native.rollout import NativeRollout
+        from mjxskill.engine.native.rollout import NativeRollout  # lazy: a run imports only the engine it runs
 
         return NativeRollout(scn, task, worlds=worlds, episode_seconds=episode_seconds,
                              start_configs=start_configs, mj_model=mj_model, workers=workers)

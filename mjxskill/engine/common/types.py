@@ -18,6 +18,8 @@ import numpy as np
 from mjxskill.ebt.nodes import Status
 from mjxskill.engine.common.bindings import SceneBindings, bind_scene, referenced_objects
 from mjxskill.sim.controller_config import ControllerConfig
+from mjxskill.sim.model import held_item_size
+from mjxskill.sim.shapes import hole_half_widths
 
 # Divergence containment (both engines): a world whose joints spin faster than MAX_QVEL or whose
 # free objects sink below MIN_OBJECT_Z is marked diverged and frozen at its last good state.
@@ -74,9 +76,6 @@ def success_test(scn, bindings: SceneBindings) -> SuccessTest:
     target = scn.objects[s.target]
     hole_top, hole_half = (0.0, 0.0, 0.0), (0.0, 0.0)
     if s.kind == "inserted":  # the loader checked the target is a box_with_hole
-        from mjxskill.sim.model import held_item_size
-        from mjxskill.sim.shapes import hole_half_widths
-
         hole_top = (0.0, 0.0, float(target.size[2]))
         hole_half = _floats(hole_half_widths(target.extra, held_item_size(scn)), 2)
     tolerance = s.orientation_tolerance_deg

@@ -7,6 +7,8 @@ the native engine (``mjxskill.engine.native``); the compiled engine is ``episode
 importing a shared module does not import MJX.
 """
 
+import importlib
+
 _EXPORTS = {
     "MJXRollout": "mjxskill.engine.mjx.compiled",
     "compile_rollout": "mjxskill.engine.mjx.compiled",
@@ -19,7 +21,5 @@ __all__ = sorted(_EXPORTS)
 
 def __getattr__(name):
     if name in _EXPORTS:
-        import importlib
-
         return getattr(importlib.import_module(_EXPORTS[name]), name)
     raise AttributeError(f"module 'mjxskill.engine.mjx' has no attribute {name!r}")
