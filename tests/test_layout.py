@@ -9,6 +9,8 @@ these rules keep true.
 from __future__ import annotations
 
 import ast
+import io
+import tokenize
 from functools import lru_cache
 from pathlib import Path
 
@@ -212,3 +214,110 @@ def test_modules_stay_small(module):
         return
     doc = ast.get_docstring(ast.parse(path.read_text())) or ""
     assert "longer than" in doc.lower(), f"{path.relative_to(PACKAGE.parent)} has {lines} lines and no docstring saying why"
+
+
+MAX_FUNCTION_LINES = 80
+
+
+@pytest.mark.parametrize("module", sorted(modules()))
+def test_functions_stay_short(module):
+    path = modules()[module]
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            lines = node.end_lineno - node.lineno + 1
+            if lines > MAX_FUNCTION_LINES:
+                doc = ast.get_docstring(node) or ""
+                assert "longer than" in doc.lower(), (
+                    f"{path.relative_to(PACKAGE.parent)}:{node.lineno} {node.name} has {lines} lines and no docstring saying why")
+
+
+# being edited; remove when done: their owners are moving or commenting their local imports
+NOT_YET_CHECKED = {
+    "mjxskill.bt_compiled.tick",
+    "mjxskill.planner.heuristics",
+    "mjxskill.engine.mjx.episode",
+    "mjxskill.engine.mjx.compiled",
+    "mjxskill.engine.native",  # the package and every module under it
+}
+
+
+def _not_yet_checked(module: str) -> bool:
+    return any(module == m or module.startswith(m + ".") for m in NOT_YET_CHECKED)
+
+
+def _local_imports(tree: ast.AST) -> list[ast.stmt]:
+    """Import statements inside a function body (nested ones included), in source order."""
+    found = []
+
+    def visit(node, in_function):
+        for child in ast.iter_child_nodes(node):
+            if in_function and isinstance(child, (ast.Import, ast.ImportFrom)):
+                found.append(child)
+            visit(child, in_function or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)))
+
+    visit(tree, False)
+    return sorted(found, key=lambda n: n.lineno)
+
+
+def _comment_lines(source: str) -> tuple[set[int], set[int]]:
+    """(lines holding a comment, lines holding only a comment)."""
+    any_comment, only_comment = set(), set()
+    code_lines = set()
+    for tok in tokenize.generate_tokens(io.StringIO(source).readline):
+        if tok.type == tokenize.COMMENT:
+            any_comment.add(tok.start[0])
+        elif tok.type not in (tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT, tokenize.ENDMARKER):
+            code_lines.update(range(tok.start[0], tok.end[0] + 1))
+    only_comment = any_comment - code_lines
+    return any_comment, only_comment
+
+
+def uncommented_local_imports(source: str, label: str) -> list[str]:
+    """Function-local imports of ``source`` (``label``: its file) with no comment saying why they are not at the top:
+    a comment on the import's own line(s), or a comment line just above it. An import right
+    below a commented local import shares its comment (a block of lazy imports, one reason)."""
+    any_comment, only_comment = _comment_lines(source)
+    explained: set[int] = set()  # last lines of local imports that have their reason
+    bad = []
+    for node in _local_imports(ast.parse(source, label)):
+        own = any(line in any_comment for line in range(node.lineno, node.end_lineno + 1))
+        above = node.lineno - 1
+        if own or above in only_comment or above in explained:
+            explained.add(node.end_lineno)
+        else:
+            bad.append(f"{label}:{node.lineno}: {ast.get_source_segment(source, node)}")
+    return bad
+
+
+def test_the_comment_rule_sees_what_it_should():
+    sample = (
+        "import os\n"
+        "def f():\n"
+        "    import a  # lazy: why\n"
+        "    import b\n"
+        "def g():\n"
+        "    # lazy: why\n"
+        "    import c\n"
+        "def h():\n"
+        "    x = 1\n"
+        "    import d\n"
+        "    class K:\n"
+        "        def m(self):\n"
+        "            s = '#'; import e\n"
+    )
+    assert uncommented_local_imports(sample, "sample.py") == ["sample.py:10: import d", "sample.py:13: import e"]
+
+
+def test_every_function_local_import_says_why_it_is_local():
+    """Imports sit at the top of their module; one inside a function keeps a comment saying
+    why (start-up cost on a measured path, an order that matters, the engine not run)."""
+    bad = []
+    for name, path in modules().items():
+        if not _not_yet_checked(name):
+            bad += uncommented_local_imports(path.read_text(), str(path.relative_to(PACKAGE.parent)))
+    assert bad == [], "function-local imports without a comment saying why:\n" + "\n".join(bad)
+
+
+def test_not_yet_checked_names_modules_that_exist():
+    for name in NOT_YET_CHECKED:
+        assert name in modules(), name
