@@ -28,6 +28,8 @@ def hypervolume_reference(warmup_objectives: np.ndarray) -> np.ndarray:
 
 def hypervolume_history(ev: Evaluations, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Hypervolume after each batch: (evaluations done (k,), hypervolume (k,))."""
+    # lazy: mjxskill.gp imports jax and scipy (~2 s); the commands' --help and bad-input errors
+    # import this module (through training.loop and training.report), which must not pay for them
     from mjxskill.gp import hypervolume
 
     ends = np.flatnonzero(np.diff(np.append(ev.iteration, -1)) != 0) + 1
@@ -62,6 +64,6 @@ def _warmup_batches(config: RunConfig) -> int:
 
 def pareto_mask_of(ev: Evaluations) -> np.ndarray:
     """(n,) bool: the non-dominated rows (objectives maximized)."""
-    from mjxskill.gp import pareto_mask
+    from mjxskill.gp import pareto_mask  # lazy: gp imports jax and scipy (~2 s), see hypervolume_history
 
     return pareto_mask(-ev.objectives) if len(ev) else np.zeros(0, bool)

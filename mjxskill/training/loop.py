@@ -51,7 +51,7 @@ class Progress(Protocol):
 def rollout_key(seed: int, iteration: int):
     """PRNG key of batch ``iteration``'s worlds: depends only on (seed, batch index), so a
     resumed run draws the same worlds. A stream separate from the optimizer's keys."""
-    import jax
+    import jax  # lazy: ~1 s; train's and experiment's --help and bad-input errors import this module
 
     return jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), 0x0ED0), iteration)
 
@@ -80,7 +80,7 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
     replayed batch by batch in batch order, so every proposal is the one an uninterrupted run
     makes; each new batch is on disk before the next proposal. Returns all evaluations.
     """
-    from mjxskill import gp
+    from mjxskill import gp  # lazy: gp imports jax and scipy (~2 s), as rollout_key's jax
 
     done = resume_batches(run, config)
     shape = (len(config.parameter_names), len(config.objective_names))

@@ -10,18 +10,22 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from mjxskill.runs.run_dir import Evaluations, Run, RunConfig
+from mjxskill.training.front import hypervolume_history, pareto_mask_of, reference_from
 
 OBJECTIVE_UNIT = "reward, larger is better"
 
 
 def pyplot():
     """matplotlib.pyplot on the Agg backend (files only, no display needed)."""
+    # lazy: pyplot costs ~0.4 s; train, select and evaluate import this module for --help and
+    # bad-input errors too
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy, as matplotlib: and after the backend is chosen
 
     return plt
 
@@ -67,8 +71,6 @@ def plot_hypervolume(evaluations: np.ndarray, hv: np.ndarray, config: RunConfig,
 
 def write_run_figures(run: Run, config: RunConfig, ev: Evaluations) -> None:
     """pareto.png and hypervolume.png of one run."""
-    from mjxskill.training.front import hypervolume_history, pareto_mask_of, reference_from
-
     if not len(ev):
         return
     plot_pareto(ev, pareto_mask_of(ev), config, run.path / "pareto.png")
@@ -96,8 +98,6 @@ def front_table(config: RunConfig, front: Evaluations, validated=None) -> str:
 
 
 def summary(run: Run, config: RunConfig, ev: Evaluations) -> str:
-    from mjxskill.training.front import hypervolume_history, pareto_mask_of, reference_from
-
     front = ev.take(pareto_mask_of(ev))
     ref = reference_from(run, config, ev)
     hv = hypervolume_history(ev, ref)[1][-1] if ref is not None and len(ev) else float("nan")
@@ -107,10 +107,6 @@ def summary(run: Run, config: RunConfig, ev: Evaluations) -> str:
 
 def write_repeats(run: Run, config: RunConfig, runs: list[Run]) -> str:
     """Aggregated Pareto plot (one colour per seed) and repeats.yaml; returns a summary line."""
-    import yaml
-
-    from mjxskill.training.front import pareto_mask_of
-
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     cmap = plt.get_cmap("tab10" if len(runs) <= 10 else "tab20")
