@@ -23,6 +23,8 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
+from mjxskill.training.report import pyplot
+
 
 GROUPS = ("pareto", "planner", "random", "manual")
 GROUP_LABELS = {"pareto": "Pareto (learned)", "planner": "planner only", "random": "random", "manual": "operators"}
@@ -92,7 +94,7 @@ def evaluation_worlds(rollout, per_config: int, seed: int):
     """The worlds every candidate runs in: ``per_config`` from each known, then each unseen
     start configuration (configuration-major, leading shape (C * per_config,)). Returns
     (worlds, config_names (C,), known (C,) bool)."""
-    import jax
+    import jax  # lazy: ~1 s; evaluate's --help and bad-input errors import this module
 
     scn = rollout.scenario
     known_cfg, unseen_cfg = np.asarray(scn.robot.start_configs), np.asarray(scn.robot.eval_configs)
@@ -167,7 +169,7 @@ def stars_of(p: float) -> str:
 
 def significance(a: np.ndarray, b: np.ndarray) -> tuple[float, str]:
     """Two-sided Mann-Whitney U p-value of samples a vs b and its stars (``STAR_LEVELS``)."""
-    from scipy.stats import mannwhitneyu
+    from scipy.stats import mannwhitneyu  # lazy: scipy.stats ~0.7 s, as jax in evaluation_worlds
 
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
     if len(a) == 0 or len(b) == 0 or (np.all(a == a[0]) and np.all(b == a[0])):
@@ -187,8 +189,6 @@ def box_plot(samples: dict, reference: str, path: Path, title: str) -> dict:
     """Box plots of ``samples`` (label -> (known samples, unseen samples)), known and unseen
     panels side by side, each group tested against ``reference`` (a label) with its stars above;
     returns the tests {(known|unseen, label): (p, stars)}."""
-    from mjxskill.training.report import pyplot
-
     plt = pyplot()
     labels = list(samples)
     panels = [("known", 0)] + ([("unseen", 1)] if any(len(v[1]) for v in samples.values()) else [])

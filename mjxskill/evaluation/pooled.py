@@ -31,7 +31,15 @@ from typing import NamedTuple
 import numpy as np
 
 from mjxskill.errors import RunError
-from mjxskill.evaluation.baselines import GROUP_LABELS, GROUPS, Evaluation, box_plot, mean_success_seconds, significance
+from mjxskill.evaluation.baselines import (
+    GROUP_LABELS,
+    GROUPS,
+    Evaluation,
+    box_plot,
+    mean_success_seconds,
+    significance,
+    stars_of,
+)
 
 POOLED_GROUPS = ("picked", *GROUPS)
 POOLED_LABELS = {"picked": "picked (learned)", **GROUP_LABELS}
@@ -170,8 +178,6 @@ def plot_pooled(samples: dict, path, title: str) -> dict:
 
 def pooled_table(samples: dict, tests: dict) -> str:
     """Mean success per group and the picked solutions' p-values against each baseline."""
-    from mjxskill.evaluation.baselines import stars_of
-
     means = group_means(samples)
     lines = [f"{'group':<18} {'known':>6} {'unseen':>7}  samples  Mann-Whitney U, picked vs group"]
     for g, (known, unseen) in samples.items():

@@ -43,6 +43,8 @@ def default_gl() -> None:
 
 
 def _camera(model, data):
+    # lazy: mujoco reads MUJOCO_GL once, when imported; default_gl() above must come first, and
+    # select and explore import this module before they call it
     import mujoco
 
     cam = mujoco.MjvCamera()
@@ -62,7 +64,7 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progres
            mocap_pos: np.ndarray | None = None, mocap_quat: np.ndarray | None = None) -> np.ndarray:
     """(T, height, width, 3) uint8 images of the native ``model`` at each row of qpos (T, nq),
     with the mocap bodies at mocap_pos (T, M, 3) and mocap_quat (T, M, 4) (None: the model's)."""
-    import mujoco
+    import mujoco  # lazy: after default_gl(), as in _camera
 
     data = mujoco.MjData(model)
     try:
@@ -91,10 +93,11 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progres
 
 
 def write_png_frames(images: np.ndarray, folder: Path) -> list[Path]:
+    # lazy: matplotlib.pyplot ~0.4 s, for the frames only (select --no-render, the explore page's other jobs)
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy, as matplotlib: and after the backend is chosen
 
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -109,10 +112,11 @@ def write_mp4(images: np.ndarray, path: Path, fps: float) -> Path:
     """Encodes the frames with ffmpeg (through matplotlib's writer)."""
     if shutil.which("ffmpeg") is None:
         raise RenderUnavailable("MP4 needs ffmpeg on the PATH (apt-get install ffmpeg); use --format png for PNG frames")
+    # lazy: matplotlib.pyplot ~0.4 s, for the frames only (select --no-render, the explore page's other jobs)
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy, as matplotlib: and after the backend is chosen
     from matplotlib.animation import FFMpegWriter
 
     h, w = images.shape[1:3]
@@ -132,7 +136,7 @@ def write_mp4(images: np.ndarray, path: Path, fps: float) -> Path:
 def render_world(rollout, config_index: int, seed: int = 0):
     """The one world an episode is rendered in: start configuration ``config_index`` (a known
     one) with the objects randomized from ``seed`` (unbatched fields)."""
-    import jax
+    import jax  # lazy: ~1 s; only a render needs it, and select's --help and --no-render do not
 
     worlds = rollout.worlds_per_config(jax.random.PRNGKey(seed), 1)
     return jax.tree.map(lambda x: x[config_index], worlds)

@@ -22,6 +22,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from mjxskill.errors import RunError
 
@@ -105,8 +106,6 @@ def export_document(config, front, k: int, run_path: Path, validation: tuple[flo
 
 def export_texts(doc: dict) -> dict[str, str]:
     """File name -> text of the export of ``doc``."""
-    import yaml
-
     return {"parameters.yaml": yaml.safe_dump(doc, sort_keys=False), "parameters.json": json.dumps(doc, indent=2) + "\n"}
 
 

@@ -33,6 +33,7 @@ from mjxskill.scenario.fields import read_text
 from mjxskill.runs.atomic_write import write_json
 from mjxskill.evaluation.evaluate_run import FOLDER
 from mjxskill.evaluation.baselines import evaluate_chunk
+from mjxskill.evaluation.pooled import contenders, force_bound
 from mjxskill.runs.run_dir import Evaluations, Run
 
 FILE = "validation.json"
@@ -67,14 +68,12 @@ def _same(a: dict, b: dict) -> bool:
 def in_contention(front: Evaluations, ev, max_force: float | None, n: int) -> list[int]:
     """The Pareto rows a validated pick chooses from: the ``n`` within the pick's force bound
     (from the run's evaluation ``ev``) with the best training success."""
-    from mjxskill.evaluation.pooled import contenders, force_bound
-
     return contenders(front, force_bound(ev, max_force)[0], n)
 
 
 def validation_worlds(rollout, per_config: int, seed: int):
     """``per_config`` worlds from each known start configuration, from ``seed``'s own stream."""
-    import jax
+    import jax  # lazy: ~1 s; evaluate's and select's --help and bad-input errors import this module
 
     known = np.asarray(rollout.scenario.robot.start_configs)
     return rollout.worlds_per_config(jax.random.fold_in(jax.random.PRNGKey(seed), STREAM), per_config, known), len(known)
