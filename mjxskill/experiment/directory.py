@@ -18,6 +18,8 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import yaml
+
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import compose_text, read_text
 from mjxskill.runs.atomic_write import write_json, write_text
@@ -48,8 +50,6 @@ class Protocol:
     validation_candidates: int = 3
 
     def to_yaml(self, task: str) -> str:
-        import yaml
-
         return yaml.safe_dump({"format": FORMAT, "task": task, "per_config": self.per_config,
                                "random_sets": self.random_sets, "max_force": self.max_force,
                                "validation_per_config": self.validation_per_config,

@@ -23,7 +23,9 @@ from mjxskill.experiment.directory import (
     repetition_validation,
     time_key,
 )
+from mjxskill.experiment.report import write_report
 from mjxskill.training.loop import BatchResult, rollout_evaluator, train
+from mjxskill.training.report import write_repeats, write_run_figures
 from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.layout import KINDS
 from mjxskill.evaluation.validation import in_contention, validate
@@ -52,9 +54,7 @@ def train_timed(exp: Experiment, run: Run, rollout, progress_for) -> None:
         with run.lock():
             evaluate = _timed(rollout_evaluator(rollout, config.batch_size, config.seed), clock)
             ev = train(run, config, evaluate, progress=progress_for(config))
-            from mjxskill.training import report
-
-            report.write_run_figures(run, config, ev)
+            write_run_figures(run, config, ev)
     finally:
         if clock["rows"]:
             exp.add_time(key, "train_seconds", time.monotonic() - t0, clock["rows"])
@@ -94,9 +94,6 @@ def run_experiment(exp: Experiment, rollout, task, *, progress_for, log: Callabl
     """Runs (or continues) every repetition of ``exp`` to its end and writes the report after
     each. ``progress_for(config)``: the training loop's progress reporter for a run;
     ``log(text)``: a line for the user; ``evaluation_progress(done, total)`` per chunk."""
-    from mjxskill.experiment.report import write_report
-    from mjxskill.training.report import write_repeats
-
     config, protocol = exp.config(), exp.protocol()
     pairs = exp.runs(config)
     for i, (opt, rnd) in enumerate(pairs):

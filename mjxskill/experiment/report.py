@@ -19,6 +19,7 @@ from __future__ import annotations
 from mjxskill.runs.atomic_write import write_json, write_text
 from mjxskill.evaluation.baselines import stars_of
 from mjxskill.experiment.directory import Experiment
+from mjxskill.experiment.stats import finished_repetitions, summarize
 from mjxskill.experiment.figures import FRONTS, HYPERVOLUME, SUCCESS, plot_fronts, plot_hypervolume
 from mjxskill.evaluation.pooled import POOLED_LABELS, plot_pooled, pooled_samples
 
@@ -27,8 +28,6 @@ PAPER_PROTOCOL = (10, 400, 7)  # repetitions, evaluations, worlds (the paper's e
 
 def write_report(exp: Experiment) -> str:
     """Writes report.json, report.md and the figures; returns a line saying where."""
-    from mjxskill.experiment.stats import finished_repetitions, summarize
-
     summary = summarize(exp)
     config = exp.config()
     reps = finished_repetitions(exp, config, exp.protocol())

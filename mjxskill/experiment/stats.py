@@ -12,6 +12,7 @@ hypervolume is 1.1 ** O. Front sizes: the sample standard deviation (ddof 1) ove
 
 from __future__ import annotations
 
+from dataclasses import asdict
 from typing import NamedTuple
 
 import numpy as np
@@ -155,8 +156,6 @@ def paper_rows(task: str, front: dict, means: dict, force_time: dict) -> list[di
 
 def summarize(exp: Experiment) -> dict:
     """Everything report.json holds (see mjxskill.experiment.report)."""
-    from dataclasses import asdict
-
     config, protocol = exp.config(), exp.protocol()
     reps = finished_repetitions(exp, config, protocol)
     evals, picks = [r.evaluation for r in reps], [r.pick for r in reps]
