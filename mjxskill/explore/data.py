@@ -16,8 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from mjxskill.errors import RunError
+from mjxskill.evaluation.selection import choose
+from mjxskill.evaluation.validation import validated_union
 from mjxskill.runs.run_dir import CONFIG, PARETO, Evaluations, Run, RunConfig
 from mjxskill.runs.layout import OPTIMIZER_RUNS, RANDOM_RUNS, directory_kind
+from mjxskill.training.front import hypervolume_history, reference_from
 
 
 @dataclass(frozen=True)
@@ -111,8 +114,6 @@ def evaluation_rows(ev: Evaluations, front: Evaluations) -> np.ndarray:
 def front_document(entries: list[RunEntry]) -> dict:
     """The rows of every run's pareto.csv with their values (``/api/front``) and their validation
     success (``validated``: None where the row was not validated, as select lists it)."""
-    from mjxskill.evaluation.validation import validated_union
-
     rows = []
     fronts = [entry.front() for entry in entries]
     for r, (entry, front) in enumerate(zip(entries, fronts)):
@@ -136,8 +137,6 @@ def evaluations_document(entries: list[RunEntry]) -> dict:
 
 def hypervolume_document(entries: list[RunEntry]) -> dict:
     """Each run's hypervolume after each batch (empty before its warm-up is complete)."""
-    from mjxskill.training.front import hypervolume_history, reference_from
-
     curves = []
     for r, entry in enumerate(entries):
         ev = entry.evaluations()
@@ -160,9 +159,6 @@ def point(entries: list[RunEntry], run: int, index: int) -> tuple[RunEntry, Eval
 def choose_document(entries: list[RunEntry], max_force: float | None, min_success: float | None) -> dict:
     """The Pareto solution ``select`` picks for these limits among every run's front (a
     validated one first where the runs' picks were validated)."""
-    from mjxskill.evaluation.selection import choose
-    from mjxskill.evaluation.validation import validated_union
-
     fronts = [e.front() for e in entries]
     owners = np.concatenate([np.full(len(f), r) for r, f in enumerate(fronts)])
     union = fronts[0]

@@ -15,15 +15,14 @@ import shutil
 from pathlib import Path
 
 from mjxskill.errors import RunError
+from mjxskill.evaluation.selection import export_document, export_texts, write_export
+from mjxskill.evaluation.validation import row_validation, validated_union
 from mjxskill.explore.data import RunEntry, evaluation_rows
 from mjxskill.explore.solutions import Solutions
 
 
 def export_solution(entry: RunEntry, k: int, solutions: Solutions | None = None) -> dict:
     """Writes ``selected-<k>/`` of ``entry``'s Pareto row ``k``; returns the paths written."""
-    from mjxskill.evaluation.selection import export_document, export_texts, write_export
-    from mjxskill.evaluation.validation import row_validation, validated_union
-
     front = entry.front()
     if not 0 <= k < len(front):
         raise RunError(f"Pareto row {k}: {entry.run.path} has rows 0-{len(front) - 1}" if len(front)

@@ -33,8 +33,12 @@ from typing import Callable
 
 import numpy as np
 
+from mjxskill.engine import build
 from mjxskill.errors import RunError, UserError
+from mjxskill.evaluation.baselines import evaluation_worlds
+from mjxskill.evaluation.render import RenderUnavailable, render_episode, render_world
 from mjxskill.runs.atomic_write import write_json
+from mjxskill.runs.run_task import load_run_task
 from mjxskill.explore.data import RunEntry, number, numbers
 
 FORMAT = "mjxskill.explore/1"
@@ -47,11 +51,8 @@ RolloutFactory = Callable[[RunEntry], object]
 def build_for(entry: RunEntry):
     """The run's rollout on the run's own engine (one world per parameter set; worlds are passed
     explicitly)."""
-    from mjxskill.engine.build import build_rollout
-    from mjxskill.runs.run_task import load_run_task
-
     scn, task = load_run_task(entry.run, entry.config)
-    return build_rollout(scn, task, entry.config.engine, worlds=1, episode_seconds=entry.config.episode_seconds)
+    return build.build_rollout(scn, task, entry.config.engine, worlds=1, episode_seconds=entry.config.episode_seconds)
 
 
 @dataclass
@@ -209,8 +210,6 @@ class Solutions:
         return ""
 
     def _worlds(self, job: Job, rollout) -> dict:
-        from mjxskill.evaluation.baselines import evaluation_worlds
-
         worlds, names, known = evaluation_worlds(rollout, self.per_config, self.seed)
         self._set(job, f"rolling out {len(names) * self.per_config} worlds ({self.per_config} per start configuration; "
                        "the first call compiles: a minute or two on a CPU)", 0.1)
@@ -230,8 +229,6 @@ class Solutions:
                 "configs": configs}
 
     def _render(self, job: Job, rollout, folder: Path) -> str:
-        from mjxskill.evaluation.render import RenderUnavailable, render_episode, render_world
-
         n_known = len(rollout.scenario.robot.start_configs)
         if not 0 <= job.config_index < n_known:
             raise RunError(f"start configuration {job.config_index}: the task has known ones 0-{n_known - 1}")
