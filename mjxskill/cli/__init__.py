@@ -16,6 +16,7 @@ import sys
 import warnings
 from typing import Callable, Sequence
 
+from mjxskill._runtime import enable_compilation_cache
 from mjxskill.cli import interrupt
 from mjxskill.cli.interrupt import EXIT_INTERRUPTED
 from mjxskill.errors import Notice, UserError
@@ -37,8 +38,6 @@ def run(main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentPars
                 default_show(message, category, filename, lineno, file, line)
 
         warnings.showwarning = show
-        from mjxskill._runtime import enable_compilation_cache
-
         try:
             enable_compilation_cache()
             return main(args)

@@ -66,6 +66,8 @@ def setting_type(setting) -> Callable[[str], object]:
 
 def seed_type() -> Callable[[str], int]:
     """``--seed`` of every command: an integer in the range of a run's seed."""
+    # lazy: runs.settings loads the scenario package and mujoco (~0.3 s); plan's and explore's
+    # --help (0.13 s) import this module and never build a --seed
     from mjxskill.runs.settings import SEED
 
     return setting_type(SEED)

@@ -27,6 +27,14 @@ from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.engine.build import CHOICES, build_rollout, resolve_engine
 from mjxskill.errors import CommandError
+from mjxskill.evaluation.baselines import table
+from mjxskill.evaluation.evaluate_run import FOLDER, evaluate_run, evaluation_settings
+from mjxskill.evaluation.pooled import group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
+from mjxskill.evaluation.validation import in_contention, validate, validation_settings
+from mjxskill.experiment.directory import Experiment, is_done, repetition_settings, runs_of
+from mjxskill.runs.layout import directory_kind, experiment_holding
+from mjxskill.runs.run_dir import Run
+from mjxskill.runs.run_task import load_run_task
 from mjxskill.runs.settings import BY_NAME
 
 
@@ -50,8 +58,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _settings(args, config, seed: int) -> dict:
-    from mjxskill.evaluation.evaluate_run import evaluation_settings
-
     engine = resolve_engine(args.engine)[0] if args.engine else config.engine
     return evaluation_settings(args.per_config or 5, 10 if args.random is None else args.random, seed,
                                args.batch_size or config.batch_size, engine, args.episode_seconds or config.episode_seconds)
@@ -75,8 +81,6 @@ def _progress(done: int, total: int) -> None:
 
 
 def _main(args: argparse.Namespace) -> int:
-    from mjxskill.runs.layout import directory_kind, experiment_holding
-
     kind = directory_kind(args.run)
     if kind == "experiment":
         return _experiment(args)
@@ -91,12 +95,6 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def _runs(args: argparse.Namespace, repeated: bool) -> int:
-    from mjxskill.evaluation.evaluate_run import FOLDER, evaluate_run
-    from mjxskill.evaluation.baselines import table
-    from mjxskill.experiment.directory import runs_of
-    from mjxskill.runs.run_dir import Run
-    from mjxskill.runs.run_task import load_run_task
-
     run = Run(args.run)
     config = run.config()
     subs = runs_of(run, config)
@@ -129,8 +127,6 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
 
 def _validate(args, sub, config, ev, rollout, settings: dict):
     """The validation of one sub-run's pick (``mjxskill.evaluation.validation``; None: asked for none)."""
-    from mjxskill.evaluation.validation import in_contention, validate, validation_settings
-
     per = 5 if args.validation_per_config is None else args.validation_per_config
     if not per:
         return None
@@ -147,9 +143,6 @@ def _validate(args, sub, config, ev, rollout, settings: dict):
 
 def _pool(run, config, results, max_force) -> str:
     """Picks, pooled groups and tests of a repeated run into ``DIR/evaluation/``."""
-    from mjxskill.evaluation.evaluate_run import FOLDER
-    from mjxskill.evaluation.pooled import group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
-
     picks = [pick(sub.front(c), ev, max_force, validation) for sub, c, ev, validation in results]
     validations = [v for *_, v in results]
     results = [(sub, c, ev) for sub, c, ev, _ in results]
@@ -172,12 +165,11 @@ def _pool(run, config, results, max_force) -> str:
 
 
 def _experiment(args: argparse.Namespace) -> int:
-    from mjxskill.experiment.directory import Experiment
-    from mjxskill.experiment.report import write_report
-    from mjxskill.experiment.directory import is_done, repetition_settings
-    from mjxskill.experiment.driver import evaluate_timed, validate_timed
+    # lazy: an experiment's driver and report, and the experiment command's flags, cost evaluate
+    # --help and its bad-input errors ~0.03 s (+7 %); only an experiment directory needs them
     from mjxskill.cli.experiment import change_validation
-    from mjxskill.runs.run_task import load_run_task
+    from mjxskill.experiment.driver import evaluate_timed, validate_timed
+    from mjxskill.experiment.report import write_report
 
     exp = Experiment(args.run)
     config, protocol = exp.config(), exp.protocol()

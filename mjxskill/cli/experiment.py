@@ -24,6 +24,11 @@ from mjxskill.cli.progress import Progress
 from mjxskill.cli.run_settings import add_setting_arguments, new_config, resumed_config
 from mjxskill.engine.build import build_rollout, resolve_engine
 from mjxskill.errors import CommandError
+from mjxskill.experiment.directory import Experiment, Protocol, random_search_config
+from mjxskill.experiment.driver import run_experiment
+from mjxskill.experiment.report import write_report
+from mjxskill.runs.run_task import load_run_task, scenario_and_task
+from mjxskill.task import describe, planning_texts
 
 # The evaluation's flags: name -> (default, what the protocol field is called)
 EVALUATION_DEFAULTS = {"per_config": 5, "random": 10, "max_force": None}
@@ -86,11 +91,6 @@ def _validation_words(protocol) -> str:
 
 
 def _main(args: argparse.Namespace) -> int:
-    from mjxskill.task import planning_texts
-    from mjxskill.experiment.directory import Experiment, Protocol
-    from mjxskill.experiment.directory import random_search_config
-    from mjxskill.runs.run_task import load_run_task, scenario_and_task
-
     started = time.monotonic()
     if args.resume is not None:
         exp = Experiment(args.resume)
@@ -121,10 +121,6 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> int:
-    from mjxskill.task import describe
-    from mjxskill.experiment.driver import run_experiment
-    from mjxskill.experiment.report import write_report
-
     protocol = exp.protocol()
     print(describe(scn, task))
     print(f"experiment: {config.repeats} repetitions (seeds {config.seed}..{config.seed + config.repeats - 1}) of the "

@@ -40,6 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _main(args: argparse.Namespace) -> int:
+    # lazy: the scenario loader imports mujoco (~0.3 s); plan --help takes 0.13 s without it
     from mjxskill.scenario import load_scenario
     from mjxskill.task import describe, plan_task
 

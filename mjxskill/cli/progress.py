@@ -23,6 +23,8 @@ class Progress:
         self.t0 = time.monotonic()
 
     def _fields(self, ev: Evaluations, ref) -> dict:
+        # lazy: mjxskill.gp imports jax and scipy (~2 s); train's and experiment's --help and
+        # bad-input errors import this module
         from mjxskill.gp import hypervolume
 
         hv = hypervolume(-ev.objectives, ref) if ref is not None and len(ev) else float("nan")
@@ -32,6 +34,7 @@ class Progress:
     def start(self, ev: Evaluations, ref) -> None:
         if self.quiet:
             return
+        # lazy: tqdm costs ~0.025 s (6 % of train --help and of its bad-input errors), and --quiet never draws a bar
         from tqdm import tqdm
 
         self.bar = tqdm(total=self.total, initial=len(ev), desc=self.label or "evaluations", unit="eval", file=sys.stderr, dynamic_ncols=True)

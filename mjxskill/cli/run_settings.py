@@ -13,6 +13,8 @@ from mjxskill.cli import args as cli_args
 from mjxskill.errors import CommandError, ResumeConflict, SettingError
 from mjxskill.runs.run_dir import RunConfig
 from mjxskill.runs.settings import BY_NAME, SETTINGS, optimizer_option_value
+from mjxskill.training.configure import new_run_config, resumed_run_config
+from mjxskill.training.priors import describe_prior
 
 
 def add_setting_arguments(parser: argparse.ArgumentParser, skip: tuple[str, ...] = (), defaults: dict | None = None) -> None:
@@ -53,8 +55,6 @@ def _settings(args: argparse.Namespace) -> dict:
 
 def new_config(args: argparse.Namespace, scn, task) -> RunConfig:
     """The configuration of a new run of ``task``: the flags over the scenario's defaults."""
-    from mjxskill.training.configure import new_run_config
-
     try:
         return new_run_config(scn, task, args.task, _settings(args), dict(args.optimizer_option or []),
                               getattr(args, "prior_from", None))
@@ -69,9 +69,6 @@ def new_config(args: argparse.Namespace, scn, task) -> RunConfig:
 def resumed_config(args: argparse.Namespace, run_path: Path | None = None) -> RunConfig:
     """The configuration of the run ``--resume`` names (or ``run_path``, a run inside it),
     refusing flags that would change it."""
-    from mjxskill.training.configure import resumed_run_config
-    from mjxskill.training.priors import describe_prior
-
     try:
         config = resumed_run_config(run_path or args.resume, _settings(args), dict(args.optimizer_option or []),
                                     getattr(args, "prior_from", None))

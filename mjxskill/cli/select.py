@@ -26,7 +26,10 @@ from typing import Sequence
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
+from mjxskill.engine.build import build_rollout
 from mjxskill.errors import CommandError
+from mjxskill.evaluation.render import RenderUnavailable, default_gl, render_episode, render_world
+from mjxskill.evaluation.selection import best_unvalidated, choose, export_document, write_export
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -50,6 +53,7 @@ def _fronts(path: Path):
     ``path`` holds (a run, a repeated run or an experiment: ``mjxskill.runs.layout``). Of several,
     those not trained yet are left out (an experiment in progress lists the runs done so far); a
     damaged file is refused as ever."""
+    # lazy: these import mujoco, which reads MUJOCO_GL once, when imported; main() sets it first
     from mjxskill.runs.run_dir import PARETO, Run
     from mjxskill.runs.layout import runs_in
 
@@ -84,13 +88,10 @@ def _say_what_decided(union, i: int, validated, other: int | None, owner) -> Non
 
 
 def _main(args: argparse.Namespace) -> int:
-    from mjxskill.evaluation.render import default_gl
-
-    default_gl()  # before anything imports mujoco
-    from mjxskill.training.report import front_table
-    from mjxskill.runs.run_dir import concat_all
-    from mjxskill.evaluation.selection import best_unvalidated, choose, export_document, write_export
+    # lazy: these import mujoco, which reads MUJOCO_GL once, when imported; main() sets it first
     from mjxskill.evaluation.validation import row_validation, validated_union
+    from mjxskill.runs.run_dir import concat_all
+    from mjxskill.training.report import front_table
 
     fronts, several = _fronts(args.run)
     if args.min_success is not None and args.min_success > 1:
@@ -137,9 +138,7 @@ def _main(args: argparse.Namespace) -> int:
     if args.no_render:
         return 0
 
-    from mjxskill.engine.build import build_rollout
-    from mjxskill.evaluation.render import RenderUnavailable, render_episode, render_world
-    from mjxskill.runs.run_task import load_run_task
+    from mjxskill.runs.run_task import load_run_task  # lazy: imports mujoco, as in _fronts
 
     scn, task = load_run_task(run, config)
     n_known = len(scn.robot.start_configs)
@@ -161,5 +160,8 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    # Headless rendering needs MUJOCO_GL before mujoco is imported, and building the parser
+    # imports it (--seed's bounds come from the scenario schema): so before anything else.
+    default_gl()
     return cli.run(_main, build_parser(), argv)
 

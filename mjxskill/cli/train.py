@@ -27,9 +27,12 @@ from mjxskill.cli import args as cli_args
 from mjxskill.cli.progress import Progress
 from mjxskill.cli.run_settings import add_setting_arguments, new_config, resumed_config
 from mjxskill.engine.build import build_rollout, resolve_engine
+from mjxskill.task import describe, planning_texts
+from mjxskill.training import report
 from mjxskill.training.loop import rollout_evaluator, train
 from mjxskill.training.priors import describe_prior
 from mjxskill.runs.run_dir import Run, RunConfig
+from mjxskill.runs.run_task import load_run_task, scenario_and_task
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -48,9 +51,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _main(args: argparse.Namespace) -> int:
-    from mjxskill.task import planning_texts
-    from mjxskill.runs.run_task import load_run_task, scenario_and_task
-
     if args.resume is not None:
         config = resumed_config(args)
         run = Run(args.resume)
@@ -68,8 +68,6 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> int:
-    from mjxskill.task import describe
-
     print(describe(scn, task))
     print(f"objectives (larger is better): {', '.join(config.objective_names)}")
     print(f"budget {config.budget} evaluations, batches of {config.batch_size}, {config.n_init} random warm-up, "
@@ -84,8 +82,6 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
                               f"python -m mjxskill.train {args.task} --resume {run.path}")
     runs = run.sub_runs(config) if config.repeats > 1 else [run]
     sub, sub_config = run, config
-    from mjxskill.training import report
-
     # A Ctrl-C while it is built: nothing is trained yet, and mjxskill.cli.run says where the run is
     rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds)
     started = time.monotonic()
