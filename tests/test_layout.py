@@ -10,6 +10,9 @@ from __future__ import annotations
 
 import ast
 import io
+import os
+import subprocess
+import sys
 import tokenize
 from functools import lru_cache
 from pathlib import Path
@@ -321,3 +324,45 @@ def test_every_function_local_import_says_why_it_is_local():
 def test_not_yet_checked_names_modules_that_exist():
     for name in NOT_YET_CHECKED:
         assert name in modules(), name
+
+
+def _python(code: str, env: dict | None = None) -> str:
+    """The last line ``code`` prints, run in a fresh interpreter (what a command starts with)."""
+    done = subprocess.run([sys.executable, "-c", code], cwd=PACKAGE.parent, env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return done.stdout.strip().splitlines()[-1]
+
+
+def test_plan_starts_no_jax():
+    """``python -m mjxskill.plan push`` plans without importing jax (the lazy imports above keep it so)."""
+    code = (
+        "import runpy, sys\n"
+        "sys.argv = ['mjxskill.plan', 'push']\n"
+        "try:\n"
+        "    runpy.run_module('mjxskill.plan', run_name='__main__')\n"
+        "except SystemExit as stop:\n"
+        "    assert stop.code == 0, stop.code\n"
+        "print(sorted(m for m in sys.modules if m == 'jax' or m.startswith('jax.')))\n"
+    )
+    assert _python(code) == "[]"
+
+
+def test_the_rendering_commands_choose_the_gl_backend_before_mujoco_is_imported():
+    """mujoco reads MUJOCO_GL once, when imported: select and explore import it only after
+    ``default_gl()`` (headless: egl), even though building select's parser imports it."""
+    code = (
+        "import os, sys\n"
+        "seen = []\n"
+        "class Spy:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'mujoco' and not seen:\n"
+        "            seen.append(os.environ.get('MUJOCO_GL'))\n"
+        "sys.meta_path.insert(0, Spy())\n"
+        "import mjxskill.cli.explore, mjxskill.cli.select\n"
+        "assert not seen, 'importing the commands imported mujoco'\n"
+        "assert mjxskill.cli.select.main(['/nonexistent']) == 2\n"
+        "print(seen)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MUJOCO_GL")}
+    assert _python(code, env) == "['egl']"
