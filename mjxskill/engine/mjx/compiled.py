@@ -28,18 +28,21 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
+from mjxskill._runtime import enable_compilation_cache
 from mjxskill.bt_compiled import compile_tree
+from mjxskill.engine.common.arrays import JAX
+from mjxskill.engine.common.rewards import build_terms
+from mjxskill.engine.common.types import EpisodeResult, EpisodeSetup, RolloutOutput, episode_setup, objective_matrix, summarize
+from mjxskill.engine.common.worlds import Worlds, WorldSampler, make_sampler, sample_worlds, worlds_per_config
+from mjxskill.engine.mjx.batching import STRATEGIES, default_strategy, over_worlds
 from mjxskill.engine.mjx.episode import EpisodeSpec, run_episode
 from mjxskill.engine.mjx.leaves import build_leaf_programs
 from mjxskill.engine.mjx.program_cache import Program, load_or_trace
 from mjxskill.engine.mjx.sharding import shard_batch
 from mjxskill.engine.protocol import RolloutBase
-from mjxskill.engine.common.arrays import JAX
-from mjxskill.engine.common.rewards import build_terms
-from mjxskill.engine.common.types import EpisodeResult, EpisodeSetup, RolloutOutput, episode_setup, objective_matrix, summarize
-from mjxskill.engine.common.worlds import Worlds, WorldSampler, make_sampler, sample_worlds, worlds_per_config
 from mjxskill.scenario.schema import Scenario
-from mjxskill.engine.mjx.batching import STRATEGIES, default_strategy, over_worlds
+from mjxskill.sim.model import build_model
+from mjxskill.task import plan_task
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,22 +148,16 @@ def compile_rollout(
     task: a ``mjxskill.task.PlannedTask`` (default: ``plan_task(scn)``, the scenario's goal).
     worlds: W, randomized worlds per parameter set (default: the scenario's n_worlds).
     episode_seconds: overrides the scenario's episode length.
-    batching: "vmap", "map" or "chunked" (default: the backend's fastest, see sim.batching).
+    batching: "vmap", "map" or "chunked" (default: the backend's fastest, see ``engine.mjx.batching``).
     start_configs: (C, 7) start configurations to draw from (default: the training ones).
     mj_model: the model to simulate (default: ``mjxskill.build_model(scn)``, the MJCF with the world
     model's physics).
     """
-    from mjxskill._runtime import enable_compilation_cache
-
     enable_compilation_cache()
     if task is None:
-        from mjxskill.task import plan_task
-
         task = plan_task(scn)
     worlds, seconds, strategy = _checked_settings(scn, worlds, episode_seconds, batching)
     if mj_model is None:
-        from mjxskill.sim.model import build_model
-
         mj_model = build_model(scn)
     spec = _episode_spec(scn, task, mj_model, seconds)
     model, template = _device_model(mj_model)
