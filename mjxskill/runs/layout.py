@@ -20,8 +20,8 @@ An **experiment** (``python -m mjxskill.experiment``; ``mjxskill.experiment``)::
     EXP/state.json                                       wall times per repetition
     EXP/report.md, report.json, *.png                    the report, rewritten after each repetition
 
-The kind of a run is its own ``config.yaml``'s ``optimizer`` setting ("mobo": the Bayesian
-optimizer, "random": uniform random search), never the folder's name.
+The kind of a run is its own ``config.yaml``'s ``optimizer`` setting ("mobo" or one of Optuna's
+samplers: an optimizer, "random": uniform random search), never the folder's name.
 """
 
 from __future__ import annotations
@@ -32,11 +32,13 @@ from typing import NamedTuple
 
 from mjxskill.errors import RunError
 from mjxskill.runs.run_dir import CONFIG, Run
+from mjxskill.runs.settings import OPTUNA_OPTIMIZERS
 
 EXPERIMENT = "experiment.yaml"
 OPTIMIZER_RUNS = "optimizer"
 RANDOM_RUNS = "random_search"
-KINDS = {"mobo": "optimizer", "random": "random_search"}  # config.yaml's optimizer -> kind
+# config.yaml's optimizer -> kind; Optuna's samplers are optimizers like ours to the layouts
+KINDS = {"mobo": "optimizer", "random": "random_search", **{name: "optimizer" for name in OPTUNA_OPTIMIZERS}}
 
 
 class RunRef(NamedTuple):

@@ -54,7 +54,9 @@ class RunConfig:
     repeats: int = 1
     optimizer_options: dict = field(default_factory=dict)  # {acquisition setting: value}, see optimizer_config
     engine: str = "mjx"  # the physics engine its batches run on (mjxskill.engine.build); "mjx" before the setting
-    optimizer: str = "mobo"  # "random": uniform random search after the warm-up (mjxskill.training.loop)
+    # "random": uniform random search after the warm-up; "optuna-*": one of Optuna's samplers
+    # (mjxskill.training.loop)
+    optimizer: str = "mobo"
     # The optimizer's parameter prior: {"source": text, "mean": (K, P), "std": (K, P), "weights":
     # (K,)} (mjxskill.training.priors); None: none (every run before priors).
     prior: dict | None = None

@@ -17,10 +17,11 @@ from pathlib import Path
 from typing import Mapping
 
 from mjxskill.engine.build import resolve_engine
-from mjxskill.errors import PlanError, ResumeConflict, SettingError
+from mjxskill.errors import PlanError, ResumeConflict, RunError, SettingError
 from mjxskill.runs.run_config import optimizer_problem
 from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.settings import BY_NAME, SETTINGS, cross_problems, optimizer_option_value
+from mjxskill.training.optuna_search import missing_extra
 from mjxskill.training.priors import describe_prior, prior_from_run, run_prior
 
 
@@ -76,6 +77,10 @@ def new_run_config(scn, task, scenario: str, settings: Mapping[str, object] | No
     for name, problem in cross_problems(values):
         origin = f"{name} {values[name]}" + ("" if name in given else " (the scenario's default)")
         raise SettingError(f"{origin} {problem}", name=name, value=values[name], given=name in given, problem=problem)
+    absent = missing_extra(values["optimizer"])  # before the run directory is made
+    if absent:
+        raise SettingError(f"optimizer {values['optimizer']} {absent}", name="optimizer", value=values["optimizer"],
+                           given=True, problem=absent)
     config = RunConfig(
         task=scn.name,
         scenario=stored_scenario(scenario),
@@ -124,6 +129,9 @@ def resumed_run_config(path: Path | str, settings: Mapping[str, object] | None =
             raise ResumeConflict(f"{run.path} continues with the prior it started with ({describe_prior(config.prior)}), "
                                  f"not the one of the run {prior_from}", run=run.path,
                                  conflicts=(("prior", prior_from, config.prior),))
+    absent = missing_extra(config.optimizer)
+    if absent:
+        raise RunError(f"{run.path} trains with the optimizer {config.optimizer}, which {absent}")
     return config
 
 

@@ -1,7 +1,7 @@
 """The optimizer loop of a run: propose a batch, evaluate it, write it, repeat to the budget.
 
-Scenario -> plan -> eBT -> compiled rollout -> optimizer loop (the Bayesian optimizer, or uniform
-random search as the baseline it is compared with: ``propose``). Every batch is appended to
+Scenario -> plan -> eBT -> compiled rollout -> optimizer loop (the Bayesian optimizer, or what it
+is compared with: uniform random search or one of Optuna's samplers, ``propose``). Every batch is appended to
 ``evaluations.csv`` and flushed before the next proposal; the optimizer state is replayed from
 that file on resume (see ``mjxskill.runs.run_dir``), so an interrupted run continues to the
 same budget and ends with the results of an uninterrupted one.
@@ -19,6 +19,8 @@ from mjxskill.runs.evaluations_csv import FORCE_COLUMNS
 from mjxskill.runs.resume import resume_batches
 from mjxskill.runs.run_config import optimizer_config
 from mjxskill.runs.run_dir import OPTIMIZER_STATE, Evaluations, Run, RunConfig, batch_sizes, concat_all
+from mjxskill.runs.settings import OPTUNA_OPTIMIZERS
+from mjxskill.training import optuna_search
 
 
 class BatchResult(NamedTuple):
@@ -117,14 +119,18 @@ RANDOM_SEARCH_STREAM = 0x5EA2C  # separates random search's draws from every oth
 
 
 def propose(gp, state, config: RunConfig, size: int) -> np.ndarray:
-    """The next batch of ``size`` parameter sets. During the warm-up both optimizers take the
-    optimizer's own uniform warm-up (``gp.ask``), so an optimizer run and a random search of the
-    same seed share their first ``n_init`` rows and their curves part where the model takes over;
-    after it, random search (``config.optimizer == "random"``) draws uniformly from the bounds with
-    a generator seeded by (seed, rows so far): a resumed run draws the same batches."""
+    """The next batch of ``size`` parameter sets. During the warm-up every optimizer takes the
+    Bayesian optimizer's own uniform warm-up (``gp.ask``), so runs of one seed share their first
+    ``n_init`` rows and their curves part where the optimizers take over. After it, random search
+    (``config.optimizer == "random"``) draws uniformly from the bounds with a generator seeded by
+    (seed, rows so far), and Optuna's samplers (``optuna-*``) propose from a study rebuilt from the
+    rows so far (``mjxskill.training.optuna_search``): either way a resumed run proposes the same
+    batches."""
     n = len(state.x)
-    if config.optimizer != "random" or n < config.n_init:
+    if config.optimizer == "mobo" or n < config.n_init:
         return gp.ask(state, num=size)
+    if config.optimizer in OPTUNA_OPTIMIZERS:
+        return optuna_search.ask(config, state.x, -state.y, size)
     lo, hi = np.asarray(config.bounds, np.float64)
     u = np.random.default_rng([config.seed, RANDOM_SEARCH_STREAM, n]).random((size, len(lo)))
     return lo + u * (hi - lo)
