@@ -5,6 +5,7 @@
     python -m mjxskill.train push --resume runs/push-0
     python -m mjxskill.train push --repeats 10 --out runs/push-x10
     python -m mjxskill.train push --optimizer random --out runs/push-random   # the random-search baseline
+    python -m mjxskill.train push --optimizer optuna-tpe --out runs/push-tpe  # Optuna's sampler, to compare
     python -m mjxskill.train push --prior-from runs/push-0 --budget 100   # guided by an earlier run's front
 
 The flags (``mjxskill.cli.run_settings``) over the scenario's defaults make the run's
@@ -33,6 +34,13 @@ from mjxskill.training.loop import rollout_evaluator, train
 from mjxskill.training.priors import describe_prior
 from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.run_task import load_run_task, scenario_and_task
+
+
+# what proposes the batches after the warm-up, when it is not the Bayesian optimizer
+AFTER_WARM_UP = {"random": ", uniform random search after the warm-up",
+                 "optuna-nsga2": ", Optuna's NSGAIISampler after the warm-up",
+                 "optuna-tpe": ", Optuna's TPESampler (multivariate) after the warm-up",
+                 "optuna-gp": ", Optuna's GPSampler after the warm-up"}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -73,7 +81,7 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
     print(f"budget {config.budget} evaluations, batches of {config.batch_size}, {config.n_init} random warm-up, "
           f"{config.worlds} worlds, {config.episode_seconds:g} s episodes, seed {config.seed}"
           + (f", {config.repeats} repeats" if config.repeats > 1 else "")
-          + (", uniform random search after the warm-up" if config.optimizer == "random" else ""))
+          + AFTER_WARM_UP.get(config.optimizer, ""))
     print(describe_prior(config.prior) + (" (the run's own)" if args.resume is not None and config.prior else ""))
     print(f"run directory: {run.path}", flush=True)
     why = "the run's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
