@@ -1,0 +1,236 @@
+"""Our optimizer against what a robotics engineer would pick instead, on the robot tasks
+themselves (issue 35): push and peg, native engine, full episodes.
+
+    python benchmarks/task_optimizers.py --seeds 5 --budget 200            # push and peg, every method
+    python benchmarks/task_optimizers.py --tasks peg --methods mjxskill.gp,optuna-tpe --seeds 10
+    python benchmarks/task_optimizers.py --quick --out /tmp/quick          # minutes: the pipeline, not the numbers
+    python benchmarks/task_optimizers.py --report benchmarks/results/<date>/task_optimizers.jsonl
+
+Every method is a ``train`` run through the training loop's own functions
+(``mjxskill.training.loop.train``) with the same budget, batch size, warm-up, worlds, episode
+length and world seeds (the worlds of batch b of seed s are drawn from (s, b) whatever the
+method): ``mjxskill.gp`` (``--optimizer mobo``, its defaults), ``optuna-nsga2``,
+``optuna-tpe``, ``optuna-gp`` (needs PyTorch; not in the default methods) and ``random``.
+Every method of a seed shares its warm-up rows (the Bayesian optimizer's uniform draws,
+``mjxskill.training.optuna_search``). BoTorch's qLogNEHVI is not run yet.
+
+Hypervolume: in the minimized space (negated objectives), about one reference point per task,
+the worst value of each objective over the union of the warm-ups of every finished run of the
+task plus 10 % of that union's range (``mjxskill.training.front.hypervolume_reference``). As
+the warm-up is shared by the methods of a seed, no method's proposals move the reference.
+
+Each run is a run directory under ``OUT/runs/<task>/<method>/seed-<s>`` (each batch on disk
+before the next; a killed benchmark started again with the same flags resumes the unfinished
+runs and skips the finished ones). After each finished run ``OUT/task_optimizers.jsonl`` is
+rewritten whole, one line per finished run: ``task``, ``method``, ``seed``, ``budget``,
+``batch_size``, ``n_init``, ``worlds``, ``episode_seconds``, ``hypervolume`` (final, about the
+task's reference), ``hypervolume_history`` (after each batch), ``reference`` (rewards, larger
+is better), ``front`` (the final Pareto rewards), ``ask_seconds`` (the optimizer's own wall
+time per batch after the warm-up, the proposal alone) and ``run_dir``. ``--report`` prints,
+per task and method, the median and quartiles of the final hypervolume and a two-sided
+Mann-Whitney U p of ``mjxskill.gp`` against each other method.
+
+``--quick``: push and peg, 1 seed, budget 12 in batches of 6 after a 6-point warm-up, 1 world,
+0.3 s episodes and a cheap acquisition search for ``mjxskill.gp``: what the test runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+import mjxskill  # noqa: E402,F401  (XLA flags before any JAX computation)
+from mjxskill.engine.build import build_rollout  # noqa: E402
+from mjxskill.gp import hypervolume, pareto_mask  # noqa: E402
+from mjxskill.runs.atomic_write import write_text  # noqa: E402
+from mjxskill.runs.run_dir import Run  # noqa: E402
+from mjxskill.scenario import load_scenario  # noqa: E402
+from mjxskill.task import plan_task, planning_texts  # noqa: E402
+from mjxskill.training import loop  # noqa: E402
+from mjxskill.training.configure import new_run_config  # noqa: E402
+from mjxskill.training.front import hypervolume_reference  # noqa: E402
+
+METHODS = {"mjxskill.gp": "mobo", "optuna-nsga2": "optuna-nsga2", "optuna-tpe": "optuna-tpe",
+           "optuna-gp": "optuna-gp", "random": "random"}
+DEFAULT_METHODS = ("mjxskill.gp", "optuna-nsga2", "optuna-tpe", "random")
+OURS = "mjxskill.gp"
+JSONL = "task_optimizers.jsonl"
+ASK_TIMES = "ask_seconds.csv"  # in each run directory: rows before the batch, seconds of the proposal
+QUICK = dict(tasks="push,peg", seeds=1, budget=12, batch=6, init=6, worlds=1, episode_seconds=3.0)
+QUICK_GP = dict(n_raw=64, n_restarts=2, n_opt_steps=10, fit_starts=1, fit_steps=10)
+
+
+def parse(argv=None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--tasks", default="push,peg", help="comma-separated scenarios (default push,peg)")
+    ap.add_argument("--methods", default=",".join(DEFAULT_METHODS), help=f"comma-separated, of {', '.join(METHODS)}")
+    ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--first-seed", type=int, default=0)
+    ap.add_argument("--budget", type=int, default=200)
+    ap.add_argument("--batch", type=int, default=6)
+    ap.add_argument("--init", type=int, default=48)
+    ap.add_argument("--worlds", type=int, default=7)
+    ap.add_argument("--episode-seconds", type=float, default=None, help="default: the scenario's (full episodes)")
+    ap.add_argument("--quick", action="store_true", help="tiny runs of every task and method (the test)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help=f"results folder (default benchmarks/results/<date>/task_optimizers)")
+    ap.add_argument("--report", type=Path, nargs="+", metavar="JSONL", help="print the table of these files and stop")
+    args = ap.parse_args(argv)
+    if args.quick:
+        for key, value in QUICK.items():
+            setattr(args, key, value)
+    args.task_list = [t for t in args.tasks.split(",") if t]
+    args.method_list = [m for m in args.methods.split(",") if m]
+    unknown = [m for m in args.method_list if m not in METHODS]
+    if unknown:
+        ap.error(f"--methods: unknown {', '.join(unknown)}; the methods are {', '.join(METHODS)}")
+    if args.out is None:
+        args.out = ROOT / "benchmarks" / "results" / datetime.date.today().isoformat() / "task_optimizers"
+    return args
+
+
+def timed_propose(run_path: Path):
+    """``loop.propose`` timed, each proposal after the warm-up appended to the run's ASK_TIMES
+    (rows so far, seconds) before its batch is evaluated: the optimizer's own time per ask."""
+    propose = loop.propose
+
+    def timed(gp, state, config, size):
+        started = time.perf_counter()
+        x = propose(gp, state, config, size)
+        seconds = time.perf_counter() - started
+        if len(state.x) >= config.n_init:
+            with open(run_path / ASK_TIMES, "a", newline="") as fh:
+                fh.write(f"{len(state.x)},{seconds:.6f}\n")
+        return x
+
+    return timed
+
+
+def ask_seconds(run_path: Path) -> list[float]:
+    """Seconds per proposal in batch order; a batch asked again after a kill: its last ask."""
+    path = run_path / ASK_TIMES
+    if not path.is_file():
+        return []
+    by_rows = {int(rows): float(s) for rows, s in csv.reader(path.read_text().splitlines())}
+    return [by_rows[rows] for rows in sorted(by_rows)]
+
+
+def run_one(rollout, scn, task, method: str, seed: int, args, path: Path):
+    """The run of ``method`` and ``seed`` in ``path``, created or resumed; its evaluations."""
+    settings = dict(budget=args.budget, batch_size=args.batch, n_init=args.init, worlds=args.worlds, seed=seed,
+                    episode_seconds=args.episode_seconds or scn.episode_seconds, engine="native",
+                    optimizer=METHODS[method])
+    options = QUICK_GP if args.quick and method == OURS else {}
+    config = new_run_config(scn, task, scn.name, settings, options)
+    run = Run(path)
+    if not (path / "config.yaml").is_file():
+        run.create(config, scn.source, planning_texts(task))
+    else:
+        run.check(config)
+    real, loop.propose = loop.propose, timed_propose(path)  # the loop calls it through the module
+    try:
+        with run.lock():
+            return loop.train(run, config, loop.rollout_evaluator(rollout, config.batch_size, seed))
+    finally:
+        loop.propose = real
+
+
+def record(run: Run, task: str, method: str, seed: int, args) -> dict:
+    config = run.config()
+    ev = run.evaluations(config)
+    return {"task": task, "method": method, "seed": seed, "budget": config.budget, "batch_size": config.batch_size,
+            "n_init": config.n_init, "worlds": config.worlds, "episode_seconds": config.episode_seconds,
+            "objectives": config.objective_names, "iteration": ev.iteration.tolist(), "y": ev.objectives.tolist(),
+            "ask_seconds": ask_seconds(run.path), "run_dir": str(run.path)}
+
+
+def with_hypervolumes(records: list[dict]) -> list[dict]:
+    """Each record with the hypervolumes about its task's reference point (the union of the
+    task's warm-ups), in the negated (minimized) objectives."""
+    out = []
+    for task in dict.fromkeys(r["task"] for r in records):
+        mine = [r for r in records if r["task"] == task]
+        warmups = np.concatenate([np.asarray(r["y"])[: r["n_init"]] for r in mine])
+        ref = hypervolume_reference(warmups)
+        for r in mine:
+            z, it = -np.asarray(r["y"]), np.asarray(r["iteration"])
+            ends = np.flatnonzero(np.diff(np.append(it, -1)) != 0) + 1
+            history = [float(hypervolume(z[:e], ref)) for e in ends]
+            front = np.asarray(r["y"])[pareto_mask(z)]
+            entry = {k: v for k, v in r.items() if k not in ("y", "iteration")}
+            out.append({**entry, "hypervolume": history[-1], "hypervolume_history": history,
+                        "evaluations": ends.tolist(), "reference": (-ref).tolist(),
+                        "reference_from": f"warm-ups of {len(mine)} runs of {task}", "front": front.tolist()})
+    return out
+
+
+def benchmark(args) -> list[dict]:
+    args.out.mkdir(parents=True, exist_ok=True)
+    records = []
+    for task_name in args.task_list:
+        scn = load_scenario(task_name)
+        task = plan_task(scn)
+        seconds = args.episode_seconds or scn.episode_seconds
+        print(f"{task_name}: native engine, {args.worlds} worlds, {seconds:g} s episodes, budget {args.budget} = "
+              f"{args.init} warm-up + batches of {args.batch}, seeds {args.first_seed}..{args.first_seed + args.seeds - 1}",
+              flush=True)
+        with build_rollout(scn, task, "native", worlds=args.worlds, episode_seconds=seconds) as rollout:
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
+                for method in args.method_list:
+                    path = args.out / "runs" / task_name / method / f"seed-{seed}"
+                    started = time.monotonic()
+                    run_one(rollout, scn, task, method, seed, args, path)
+                    records.append(record(Run(path), task_name, method, seed, args))
+                    rows = with_hypervolumes(records)
+                    write_text(args.out / JSONL, "".join(json.dumps(r) + "\n" for r in rows))
+                    print(f"  {method} seed {seed}: {time.monotonic() - started:.0f} s", flush=True)
+    return with_hypervolumes(records)
+
+
+def report(rows: list[dict]) -> str:
+    """Median [quartiles] of the final hypervolume per task and method, and the two-sided
+    Mann-Whitney U p of ours against each other method."""
+    from scipy.stats import mannwhitneyu  # lazy: --report only
+
+    lines = ["| task | method | runs | budget x worlds | final hypervolume, median [q1, q3] | p (ours vs it) "
+             "| ask s, median |", "| --- | --- | --- | --- | --- | --- | --- |"]
+    for task in dict.fromkeys(r["task"] for r in rows):
+        mine = [r for r in rows if r["task"] == task]
+        ours = [r["hypervolume"] for r in mine if r["method"] == OURS]
+        for method in dict.fromkeys(r["method"] for r in mine):
+            them = [r for r in mine if r["method"] == method]
+            hv = np.array([r["hypervolume"] for r in them])
+            q1, med, q3 = np.percentile(hv, [25, 50, 75])
+            p = "-" if method == OURS or not ours else f"{mannwhitneyu(ours, hv, alternative='two-sided').pvalue:.3g}"
+            asks = [s for r in them for s in r["ask_seconds"]]
+            lines.append(f"| {task} | {method} | {len(them)} | {them[0]['budget']} x {them[0]['worlds']} | "
+                         f"{med:.4g} [{q1:.4g}, {q3:.4g}] | {p} | {np.median(asks) if asks else float('nan'):.3g} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> list[dict]:
+    args = parse(argv)
+    if args.report:
+        rows = [json.loads(line) for path in args.report for line in path.read_text().splitlines() if line.strip()]
+    else:
+        rows = benchmark(args)
+    print(report(rows))
+    return rows
+
+
+if __name__ == "__main__":
+    main()
