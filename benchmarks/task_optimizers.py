@@ -55,6 +55,7 @@ if str(ROOT) not in sys.path:
 
 import mjxskill  # noqa: E402,F401  (XLA flags before any JAX computation)
 from mjxskill.engine.build import build_rollout  # noqa: E402
+from mjxskill.errors import UserError  # noqa: E402
 from mjxskill.gp import hypervolume, pareto_mask  # noqa: E402
 from mjxskill.runs.atomic_write import write_text  # noqa: E402
 from mjxskill.runs.run_dir import Run  # noqa: E402
@@ -222,15 +223,37 @@ def report(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def read_rows(paths: list[Path]) -> list[dict]:
+    """The lines of the JSONL files; UserError naming the file and line that is not a result."""
+    rows = []
+    for path in paths:
+        try:
+            lines = path.read_text().splitlines()
+        except OSError as err:
+            raise UserError(f"--report {path}: cannot read it ({err.strerror})") from None
+        for number, line in enumerate(lines, 1):
+            if not line.strip():
+                continue
+            try:
+                row = json.loads(line)
+            except json.JSONDecodeError as err:
+                raise UserError(f"--report {path} line {number}: not JSON ({err.msg})") from None
+            if not isinstance(row, dict) or not {"task", "method", "hypervolume", "budget", "worlds"} <= set(row):
+                raise UserError(f"--report {path} line {number}: not a task_optimizers result")
+            rows.append(row)
+    return rows
+
+
 def main(argv=None) -> list[dict]:
     args = parse(argv)
-    if args.report:
-        rows = [json.loads(line) for path in args.report for line in path.read_text().splitlines() if line.strip()]
-    else:
-        rows = benchmark(args)
+    rows = read_rows(args.report) if args.report else benchmark(args)
     print(report(rows))
     return rows
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except UserError as err:  # bad input (a flag, a file, a missing extra): one line, exit 2
+        print(f"task_optimizers.py: error: {err}", file=sys.stderr)
+        sys.exit(2)

@@ -1,0 +1,92 @@
+"""``benchmarks/task_optimizers.py --quick``: one tiny run per task and method, the shared
+warm-up, the hypervolume about the union of the warm-ups against a closed-form 2-D sweep, and a
+benchmark started again resuming an unfinished run to the same rows."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("optuna")
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import task_optimizers as bench  # noqa: E402
+from mjxskill.runs.run_dir import EVALUATIONS, Run  # noqa: E402
+
+METHODS = ("mjxskill.gp", "optuna-nsga2", "optuna-tpe", "random")
+
+
+def hypervolume_2d(rewards: np.ndarray, ref: np.ndarray) -> float:
+    """Area dominated by ``rewards`` (n, 2, larger is better) above ``ref``: a sweep over the
+    first objective, best first."""
+    pts = rewards[np.all(rewards > ref, axis=1)]
+    area, height = 0.0, ref[1]
+    for x, y in sorted(map(tuple, pts), reverse=True):
+        if y > height:
+            area += (x - ref[0]) * (y - height)
+            height = y
+    return area
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench")
+    bench.main(["--quick", "--out", str(out)])
+    return out, [json.loads(line) for line in (out / bench.JSONL).read_text().splitlines()]
+
+
+def test_one_line_per_task_and_method_with_the_runs_settings(quick):
+    _, rows = quick
+    assert [(r["task"], r["method"], r["seed"]) for r in rows] == [(t, m, 0) for t in ("push", "peg") for m in METHODS]
+    for r in rows:
+        assert (r["budget"], r["batch_size"], r["n_init"], r["worlds"]) == (12, 6, 6, 1)
+        assert r["evaluations"] == [6, 12] and len(r["hypervolume_history"]) == 2
+        assert len(r["ask_seconds"]) == 1 and r["ask_seconds"][0] >= 0  # one proposal after the warm-up
+
+
+def test_methods_share_the_warm_up_and_the_reference_and_the_hypervolume_is_the_swept_area(quick):
+    _, rows = quick
+    for task in ("push", "peg"):
+        mine = [r for r in rows if r["task"] == task]
+        evs = {r["method"]: Run(r["run_dir"]).evaluations() for r in mine}
+        for ev in evs.values():  # the same warm-up rows, then each method its own
+            np.testing.assert_array_equal(ev.params[:6], evs["random"].params[:6])
+        assert len({ev.params[6:].tobytes() for ev in evs.values()}) == len(METHODS)
+        # the reference: worst warm-up reward of each objective minus 10 % of the warm-up range
+        warm = np.concatenate([ev.objectives[:6] for ev in evs.values()])
+        ref = warm.min(axis=0) - 0.1 * (warm.max(axis=0) - warm.min(axis=0))
+        for r in mine:
+            np.testing.assert_allclose(r["reference"], ref, rtol=1e-12)
+            y = evs[r["method"]].objectives
+            assert r["hypervolume"] == pytest.approx(hypervolume_2d(y, ref), rel=1e-9)
+            assert r["hypervolume_history"][0] == pytest.approx(hypervolume_2d(y[:6], ref), rel=1e-9)
+
+
+def test_started_again_it_resumes_the_unfinished_run_and_keeps_the_finished(quick):
+    out, rows = quick
+    cut = out / "runs" / "push" / "optuna-tpe" / "seed-0" / EVALUATIONS
+    full = cut.read_text()
+    others = {p: p.stat().st_mtime_ns for p in (out / "runs").rglob(EVALUATIONS) if p != cut}
+    cut.write_text("".join(full.splitlines(keepends=True)[:7]))  # as a kill after the warm-up leaves it
+    bench.main(["--quick", "--out", str(out)])
+    assert cut.read_text() == full
+    assert {p: p.stat().st_mtime_ns for p in others} == others  # the finished runs: not evaluated again
+    again = [json.loads(line) for line in (out / bench.JSONL).read_text().splitlines()]
+    drop = lambda r: {k: v for k, v in r.items() if k != "ask_seconds"}  # noqa: E731  (wall times differ)
+    assert [drop(r) for r in again] == [drop(r) for r in rows]
+
+
+def test_report_reads_the_file_and_a_bad_file_is_one_error_line(quick, tmp_path):
+    out, rows = quick
+    table = bench.report(bench.read_rows([out / bench.JSONL]))
+    assert "| push | mjxskill.gp | 1 | 12 x 1 |" in table and "| peg | optuna-tpe |" in table
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text(json.dumps(rows[0]) + "\n{not json\n")
+    done = subprocess.run([sys.executable, bench.__file__, "--report", str(bad)], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert done.stderr.strip().splitlines() == [f"task_optimizers.py: error: --report {bad} line 2: not JSON "
+                                                 "(Expecting property name enclosed in double quotes)"]
