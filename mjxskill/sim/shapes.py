@@ -206,10 +206,12 @@ def _cylinder_inertia(size, extra, drawn: Drawn):
 def _cylinder_draw(size, extra, drawn: Drawn, spec):
     geom = drawn.geoms[_cylinder_geom(drawn, spec)]
     old = mesh_half_extent(geom, spec)[2]
+    spec.mesh(geom.meshname).uservert = cylinder_vertices(size).ravel().tolist()
+    # the extent as stored (float32, as the old one), so an unchanged height moves nothing
+    new = mesh_half_extent(geom, spec)[2]
     pos = np.array(geom.pos, float)
     # keep the end nearest the body origin: a mounted tool stays on its flange
-    pos[2] += np.sign(pos[2]) * (float(size[1]) / 2 - old)
-    spec.mesh(geom.meshname).uservert = cylinder_vertices(size).ravel().tolist()
+    pos[2] += np.sign(pos[2]) * (new - old)
     geom.pos = pos
 
 
