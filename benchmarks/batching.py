@@ -55,7 +55,7 @@ def make_batched_rollout(cfg, mx, n_steps, strategy, chunk):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default="push", choices=["push", "peg"])
+    parser.add_argument("--scene", default="push", choices=["push", "peg", "peg_square"])
     parser.add_argument("--batches", type=int, nargs="+", default=[8, 64])
     parser.add_argument("--strategies", nargs="+", default=list(STRATEGIES), choices=STRATEGIES)
     parser.add_argument("--chunk", type=int, default=16)

@@ -13,7 +13,10 @@ import pytest
 from mjxskill import build_model, load_scenario
 from mjxskill.errors import ScenarioError
 from mjxskill.engine.native import NativeRollout
-from mjxskill.sim.shapes import SHAPE_MODELS, Drawn, box_tensor, box_with_hole_parts, prism_tensor, prism_vertices
+from mjxskill.sim.shapes import (
+    CYLINDER_SIDES, SHAPE_MODELS, Drawn, HeldItem, ShapeError, box_tensor, box_with_hole_parts, box_with_round_hole_parts,
+    cylinder_tensor, cylinder_vertices, prism_tensor, prism_vertices,
+)
 from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.task import plan_task
 from scenario_texts import shipped_text, write_copy
@@ -30,7 +33,7 @@ def edited(tmp_path, name: str, *replacements) -> object:
     return load_scenario(write_copy(tmp_path, name, text))
 
 
-@pytest.mark.parametrize("name", ["push", "peg", "slide"])
+@pytest.mark.parametrize("name", ["push", "peg", "peg_square", "slide"])
 def test_the_shipped_yaml_and_mjcf_agree(name):
     # Building the shipped scenarios changes nothing the MJCF already said: same masses, centres
     # of mass, geometry and pair frictions. The prism's inertia is the closed form; the MJCF held
@@ -39,7 +42,7 @@ def test_the_shipped_yaml_and_mjcf_agree(name):
     # relative; peg rollouts agree to 10 digits.)
     scn = load_scenario(name)
     built, raw = build_model(scn), mujoco.MjModel.from_xml_path(scn.scene)
-    for field in ("body_mass", "body_ipos", "body_pos", "geom_size", "geom_pos", "pair_friction", "mesh_vert"):
+    for field in ("body_mass", "body_ipos", "body_pos", "geom_size", "geom_pos", "geom_quat", "pair_friction", "mesh_vert"):
         np.testing.assert_allclose(getattr(built, field), getattr(raw, field), atol=2e-6, err_msg=field)
     # the inertia as a tensor in the body frame: a written inertia may list the same principal
     # moments in another order (body_iquat turned to match)
@@ -101,7 +104,7 @@ def test_the_box_and_the_box_with_hole_inertia_are_mujocos():
     _, reference = _mujoco_inertia(lambda s, b: b.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=np.array(size) / 2), 0.7)
     np.testing.assert_allclose(0.7 * box_tensor(size), reference, rtol=1e-9)
     extra, outer = {"hole_clearance": 0.002, "hole_depth": 0.03}, (0.09, 0.07, 0.05)
-    drawn = Drawn(None, [], np.zeros((0, 3)), np.zeros((0, 3, 3)), np.array([0.03, 0.02]))
+    drawn = Drawn(None, [], np.zeros((0, 3)), np.zeros((0, 3, 3)), HeldItem("peg", "box", np.array([0.03, 0.02, 0.05])))
     parts = box_with_hole_parts(outer, extra, drawn)
 
     def walls(spec, body):
@@ -112,6 +115,66 @@ def test_the_box_and_the_box_with_hole_inertia_are_mujocos():
     ours_centroid, ours = SHAPE_MODELS["box_with_hole"].inertia(outer, extra, drawn)
     np.testing.assert_allclose(ours_centroid, centroid, atol=1e-12)
     np.testing.assert_allclose(1.3 * ours, reference, rtol=1e-9, atol=1e-12)
+
+
+def test_the_cylinder_inertia_is_mujocos_and_its_prism_lies_on_it():
+    size = (0.015, 0.05)
+    _, reference = _mujoco_inertia(lambda s, b: b.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.015, 0.025, 0]), 0.2)
+    np.testing.assert_allclose(0.2 * cylinder_tensor(size), reference, rtol=1e-9)
+    vertices = cylinder_vertices(size)
+    assert vertices.shape == (2 * CYLINDER_SIDES, 3)
+    np.testing.assert_allclose(np.hypot(vertices[:, 0], vertices[:, 1]), 0.015)  # on the cylinder
+    np.testing.assert_allclose(np.unique(vertices[:, 2]), [-0.025, 0.025])
+
+
+def _round_hole(size, extra, radius):
+    return Drawn(None, [], np.zeros((0, 3)), np.zeros((0, 3, 3)), HeldItem("peg", "cylinder", np.array([radius, 0.05])))
+
+
+def _inside(parts, points):
+    """(N,) bool: each point (N, 3) inside any of the boxes (centre, half, yaw)."""
+    hit = np.zeros(len(points), bool)
+    for centre, half, yaw in parts:
+        c, s = np.cos(yaw), np.sin(yaw)
+        local = (points - centre) @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])  # rows: R^T p
+        hit |= np.all(np.abs(local) <= half, axis=1)
+    return hit
+
+
+def test_the_round_hole_boxes_fill_the_box_but_a_hole_of_the_pegs_radius_plus_the_clearance():
+    # Sampled against the solid it stands for: every point of the box outside the hole's circle
+    # (beyond the polygon's 0.3 mm) is covered, none inside the circle, and nothing sticks out.
+    outer, extra = (0.073, 0.073, 0.05), {"hole_clearance": 0.0015, "hole_depth": 0.04}
+    parts = box_with_round_hole_parts(outer, extra, _round_hole(outer, extra, 0.015))
+    points = np.random.default_rng(0).uniform([-0.04, -0.04, -0.005], [0.04, 0.04, 0.055], (200_000, 3))
+    hit = _inside(parts, points)
+    r = np.hypot(points[:, 0], points[:, 1])
+    in_box = np.all(np.abs(points[:, :2]) <= 0.0365, axis=1) & (points[:, 2] >= 0) & (points[:, 2] <= 0.05)
+    in_hole = (r < 0.0165) & (points[:, 2] > 0.01)
+    polygon_gap = (r < 0.0165 / np.cos(np.pi / CYLINDER_SIDES)) & (points[:, 2] > 0.01)
+    assert not hit[in_hole].any()
+    assert hit[in_box & ~polygon_gap].all()
+    assert not hit[~in_box].any()
+
+
+def test_the_box_with_round_hole_inertia_is_the_solid_box_less_the_hole():
+    # Monte Carlo over the solid (independent of the closed form): mass centre and tensor.
+    outer, extra = (0.09, 0.07, 0.05), {"hole_clearance": 0.002, "hole_depth": 0.03}
+    centroid, tensor = SHAPE_MODELS["box_with_round_hole"].inertia(outer, extra, _round_hole(outer, extra, 0.012))
+    p = np.random.default_rng(1).uniform([-0.045, -0.035, 0.0], [0.045, 0.035, 0.05], (1_000_000, 3))
+    p = p[~((np.hypot(p[:, 0], p[:, 1]) < 0.014) & (p[:, 2] > 0.02))]
+    mean = p.mean(axis=0)
+    d = p - mean
+    sampled = np.eye(3) * np.mean(np.sum(d * d, axis=1)) - d.T @ d / len(d)
+    np.testing.assert_allclose(centroid, mean, atol=5e-5)
+    np.testing.assert_allclose(tensor, sampled, rtol=5e-3, atol=1e-6)  # sampling noise ~4e-7 on 1e-3
+
+
+def test_a_round_hole_needs_a_held_cylinder():
+    outer, extra = (0.073, 0.073, 0.05), {"hole_clearance": 0.0015, "hole_depth": 0.04}
+    square_peg = Drawn(None, [], np.zeros((0, 3)), np.zeros((0, 3, 3)), HeldItem("Peg-1", "box", np.array([0.03, 0.03, 0.05])))
+    with pytest.raises(ShapeError, match=r"shape cylinder\): Peg-1 is a box"):
+        box_with_round_hole_parts(outer, extra, square_peg)
 
 
 def test_every_shape_of_the_vocabulary_has_a_model():
@@ -137,7 +200,7 @@ def test_a_copy_with_other_mass_centre_of_mass_and_friction_gives_those_values(t
 
 
 def test_a_tighter_hole_and_a_longer_peg_give_that_geometry(tmp_path):
-    scn = edited(tmp_path, "peg", ("hole_clearance: 0.0015", "hole_clearance: 0.0004"),
+    scn = edited(tmp_path, "peg_square", ("hole_clearance: 0.0015", "hole_clearance: 0.0004"),
                  ("size: [0.03, 0.03, 0.05]  # square peg", "size: [0.03, 0.03, 0.07]  # square peg"))
     model = build_model(scn)
     wall = model.geom("wall_px")
@@ -152,6 +215,23 @@ def test_a_tighter_hole_and_a_longer_peg_give_that_geometry(tmp_path):
     np.testing.assert_allclose(data.site_xpos[model.site("tool").id], bottom, atol=1e-12)
 
 
+def test_a_tighter_round_hole_and_a_longer_thinner_round_peg_give_that_geometry(tmp_path):
+    scn = edited(tmp_path, "peg", ("hole_clearance: 0.0015", "hole_clearance: 0.0004"),
+                 ("size: [0.015, 0.05]  ", "size: [0.012, 0.07]  "))
+    model = build_model(scn)
+    for k in range(CYLINDER_SIDES):  # each slab's inner face at the hole's radius from its axis
+        slab = model.geom(f"ring_{k:02d}")
+        assert np.hypot(*slab.pos[:2]) - slab.size[0] == pytest.approx(0.012 + 0.0004)
+    peg = model.geom("tool_geom")
+    vertices = model.mesh_vert[model.mesh_vertadr[peg.dataid[0]]:][:model.mesh_vertnum[peg.dataid[0]]]
+    np.testing.assert_allclose(np.hypot(vertices[:, 0], vertices[:, 1]), 0.012, rtol=1e-6)
+    np.testing.assert_allclose(peg.pos, [0, 0, 0.035], atol=1e-9)  # still mounted on the flange, 0.07 long
+    np.testing.assert_allclose(model.site("tool").pos, [0, 0, 0.07], atol=1e-9)  # the tip moved with the peg's end
+    body = model.body("tool_tool").id
+    np.testing.assert_allclose(np.sort(model.body_inertia[body]), np.sort(np.diag(0.2 * cylinder_tensor((0.012, 0.07)))),
+                               rtol=1e-9)
+
+
 @pytest.mark.parametrize("name, old, new, key, message", [
     ("peg", "    friction: 0.3\n    extra:", "    mass: 1.0\n    friction: 0.3\n    extra:", "objects.BoxWithHole-1.mass",
      "mocap body: it does not move"),
@@ -163,6 +243,14 @@ def test_a_tighter_hole_and_a_longer_peg_give_that_geometry(tmp_path):
     ("push", "    shape: box\n    size: [0.07, 0.07, 0.05]", "    shape: box\n    size: [0.07, 0.05]",
      "objects.Pusher-1.size", "a box has 3 sizes"),
     ("peg", "      hole_depth: 0.04\n", "      hole_depth: 0.06\n", "objects.BoxWithHole-1.size", "does not fit in the box"),
+    ("peg_square", "      hole_depth: 0.04\n", "      hole_depth: 0.06\n", "objects.BoxWithHole-1.size", "does not fit in the box"),
+    ("peg", "size: [0.015, 0.05]  ", "size: [0.025, 0.05]  ", "objects.BoxWithHole-1.size", "round hole .* does not fit"),
+    ("peg", "    shape: cylinder\n    size: [0.015, 0.05]  ", "    shape: box\n    size: [0.03, 0.03, 0.05]  ",
+     "objects.Peg-1.shape", "a box is drawn by exactly one box geom of body 'tool_tool'; it has tool_geom \\(mesh\\)"),
+    ("peg_square", "    shape: box_with_hole\n", "    shape: box_with_round_hole\n", "objects.BoxWithHole-1.shape",
+     "drawn by 21 box geoms .* it has 5 geoms"),
+    ("peg", "    shape: cylinder\n    size: [0.015, 0.05]  ", "    shape: cylinder\n    size: [0.015, 0.05, 0.01]  ",
+     "objects.Peg-1.size", "a cylinder has 2 sizes"),
 ])
 def test_what_the_simulator_cannot_honour_is_an_error_naming_the_entry(tmp_path, name, old, new, key, message):
     with pytest.raises(ScenarioError, match=rf"{key} \(line \d+\): .*{message}"):
@@ -207,7 +295,7 @@ def test_a_tighter_hole_changes_the_insertion(tmp_path):
         engine = NativeRollout(scn, plan_task(scn), worlds=1, episode_seconds=4.0, workers=1)
         world = jax.tree.map(lambda x: np.asarray(x)[0], engine.worlds_per_config(jax.random.key(0), 1))
         world = world._replace(object_pos=engine.sampler.nominal_pos.copy())
-        out = engine.run_worlds(np.array([[-5.0, 0.0, 0.0, 0.0]]), jax.tree.map(lambda x: np.asarray(x)[None], world))
+        out = engine.run_worlds(np.array([[-5.0, 0.0, 0.0]]), jax.tree.map(lambda x: np.asarray(x)[None], world))
         depths.append(float(out.metrics["insertion_depth"][0, 0]))
     assert depths[0] > scn.success.depth > depths[1], depths
 

@@ -60,7 +60,7 @@ def test_no_contact_no_force_and_the_reward_is_the_mean_force_per_tick(tmp_path)
     # The peg's first half second is the approach in free space: nothing touches the tool.
     peg = load_scenario("peg")
     free = NativeRollout(peg, plan_task(peg), worlds=2, episode_seconds=0.5, workers=1)
-    out = free(np.array([[-5.0, 0.0, 0.0, 0.0]]), jax.random.key(0))
+    out = free(np.array([[-5.0, 0.0, 0.0]]), jax.random.key(0))
     assert np.all(out.metrics["peak_contact_force"] == 0) and np.all(out.metrics["mean_contact_force"] == 0)
     # The push presses the prism: a contact_force reward totals the mean force of each tick.
     text = shipped_text("push").replace(

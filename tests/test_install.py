@@ -26,7 +26,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 BUILD_INPUTS = ("pyproject.toml", "README.md", "mjxskill", "assets")
 IGNORED = shutil.ignore_patterns("__pycache__", "*.pyc")
-TASKS = ("push", "peg", "slide")
+TASKS = ("push", "peg", "peg_square", "slide")
 
 
 def _run(cmd, cwd, timeout=300, env=None) -> subprocess.CompletedProcess:

@@ -44,7 +44,8 @@ DATA = Path(__file__).resolve().parent / "data"
 @pytest.mark.parametrize("task", ["push", "peg"])
 def test_the_trees_from_the_yaml_skill_library_are_the_trees_python_built(task):
     # tests/data/plan_<task>.txt: the command's output (after its first line, which names the
-    # scenario's path) when the skills' trees were built in Python (commit f26d09d)
+    # scenario's path) when the skills' trees were built in Python (commit f26d09d); the peg's
+    # with the spiral's pitch a constant of the library (2 mm), as the paper learns three
     run = cli("mjxskill.plan", task)
     assert run.returncode == 0, run.stderr
     assert run.stdout.splitlines()[1:] == (DATA / f"plan_{task}.txt").read_text().splitlines()
@@ -81,7 +82,7 @@ def test_plan_peg_with_a_goal_exports_pddl_fast_downward_solves(tmp_path):
 
 
 def test_unknown_task():
-    assert_bad_input(cli("mjxskill.plan", "pusj"), "unknown task 'pusj'", "available: peg, push")
+    assert_bad_input(cli("mjxskill.plan", "pusj"), "unknown task 'pusj'", "available: peg, peg_square, push")
     assert_bad_input(cli("mjxskill.train", "pusj"), "mjxskill.train: error: unknown task 'pusj'")
 
 

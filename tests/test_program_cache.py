@@ -26,7 +26,7 @@ SCRIPT = """
 import json, sys, mjxskill, jax, numpy as np
 from mjxskill import compile_rollout, load_scenario
 from mjxskill.task import plan_task
-scn = load_scenario("peg")
+scn = load_scenario("peg_square")
 r = compile_rollout(scn, worlds=2, episode_seconds=0.3)
 params = np.tile(plan_task(scn).defaults, (2, 1)).astype(np.float32)
 params[1, 0] = -8.0
@@ -67,12 +67,13 @@ def _key(scn, seconds=0.3, batch=2, worlds=2):
 
 
 def test_the_key_names_everything_the_program_depends_on():
-    peg = load_scenario("peg")
+    peg = load_scenario("peg_square")
     base = _key(peg)
     assert _key(peg) == base  # deterministic
-    assert _key(load_scenario("peg")) == base  # the same content loaded again
-    others = [_key(peg, seconds=0.4), _key(peg, batch=3), _key(peg, worlds=3), _key(load_scenario("push"))]
-    assert len({base, *others}) == 5
+    assert _key(load_scenario("peg_square")) == base  # the same content loaded again
+    others = [_key(peg, seconds=0.4), _key(peg, batch=3), _key(peg, worlds=3), _key(load_scenario("push")),
+              _key(load_scenario("peg"))]  # the round peg: another MuJoCo model
+    assert len({base, *others}) == 6
     # The scenario's content counts, the skill library it includes too: the same files with
     # another approach threshold (a tree constant, not in the MuJoCo model) get another key.
     old = 'threshold: {type: float, unit: m, default: 0.05, description: "done when the tool is this close'
@@ -81,8 +82,8 @@ def test_the_key_names_everything_the_program_depends_on():
     folder = Path(os.environ.get("TMPDIR", "/tmp")) / f"peg-key-{os.getpid()}"
     folder.mkdir(exist_ok=True)
     try:
-        same = _key(load_scenario(str(write_library_copy(folder, "peg", library))))
-        changed = write_library_copy(folder, "peg", library.replace(old, old.replace("default: 0.05", "default: 0.06")))
+        same = _key(load_scenario(str(write_library_copy(folder, "peg_square", library))))
+        changed = write_library_copy(folder, "peg_square", library.replace(old, old.replace("default: 0.05", "default: 0.06")))
         assert _key(load_scenario(str(changed))) != same
     finally:
         shutil.rmtree(folder, ignore_errors=True)

@@ -1,5 +1,9 @@
 """The compiled rollout end to end on the peg task: BT + leaf programs + controller + MJX.
 
+The task in its square geometry (peg_square): MJX collides its box-box pairs fastest, and what
+is tested here is the engine, not the peg's shape (the round peg's geometry: test_build_model,
+test_sim_scenes; its insertion on the native engine: test_native_engine).
+
 One compiled program (3 parameter sets x 2 worlds, 10 s episodes) serves every test here:
 compiling a whole episode costs minutes on a 2-core CPU, so all calls keep that shape.
 """
@@ -17,12 +21,12 @@ from mjxskill.task import plan_task
 from rollout_inputs import params_of, placed_worlds
 
 B, W = 3, 2
-SPIRAL = {"PegInsertion.force": -5.0, "PegInsertion.radius": 0.012, "PegInsertion.path_velocity": 0.03, "PegInsertion.pitch": 0.002}
+SPIRAL = {"PegInsertion.force": -5.0, "PegInsertion.radius": 0.012, "PegInsertion.path_velocity": 0.03}
 
 
 @pytest.fixture(scope="module")
 def peg():
-    scn = load_scenario("peg")
+    scn = load_scenario("peg_square")
     return scn, compile_rollout(scn, worlds=W, episode_seconds=10.0)
 
 
@@ -104,7 +108,7 @@ def test_absurd_parameters_stay_finite(peg):
     """Force 1e6 N, a 1 km spiral at 1e6 m/s: the controller's rate limits and torque saturation
     keep the physics finite; whatever happens, outputs are finite and the world is failed."""
     scn, rollout = peg
-    absurd = {"PegInsertion.force": -1e6, "PegInsertion.radius": 1e3, "PegInsertion.path_velocity": 1e6, "PegInsertion.pitch": 1e3}
+    absurd = {"PegInsertion.force": -1e6, "PegInsertion.radius": 1e3, "PegInsertion.path_velocity": 1e6}
     out = rollout(params_of(rollout, absurd, SPIRAL, absurd), jax.random.key(5))
     for leaf in jax.tree.leaves(out):
         assert np.isfinite(np.asarray(leaf, dtype=float)).all()
@@ -113,7 +117,7 @@ def test_absurd_parameters_stay_finite(peg):
 
 def test_bad_params_are_rejected_with_the_expected_shape(peg):
     _, rollout = peg
-    with pytest.raises(ValueError, match=r"shape \(B, 4\)"):
-        rollout(np.zeros((2, 3)), jax.random.key(0))
+    with pytest.raises(ValueError, match=r"shape \(B, 3\)"):
+        rollout(np.zeros((2, 4)), jax.random.key(0))
     with pytest.raises(ValueError, match="finite"):
-        rollout(np.full((1, 4), math.nan), jax.random.key(0))
+        rollout(np.full((1, 3), math.nan), jax.random.key(0))

@@ -4,8 +4,9 @@ Pushing the prism 0.43 m and turning it by 26 degrees open-loop lands it within 
 the goal only because the goal is a corner (fence + stop, assets/push.xml) and the push drives the
 prism into it. The planner's zero offsets put the pusher on top of the prism and never move it; a
 straight push from behind its left part (found by a hand search with the native baseline, see
-the issue's closing note) succeeds at the extremes of the randomization: start configurations,
-object and goal offsets at the +-1 sigma clip in opposite directions, both friction bounds.
+the issue's closing note) succeeds across the randomization: start configurations, object and
+goal offsets of 1 sd in opposite directions (where SkiREIL's clip stopped them; the paper's
+Gaussian goes beyond), both friction bounds.
 """
 
 import jax
@@ -19,7 +20,7 @@ HAND_FOUND = {"Push.offset_x_start": -0.05, "Push.offset_y_start": -0.15, "Push.
 
 def extreme_worlds(scn, rollout, cases):
     """Worlds (W,) from (start configuration, object sign, goal sign, friction) cases: the object
-    and goal offsets at sign * sigma (the randomization's clip)."""
+    and goal offsets at sign * sigma (1 sd)."""
     sigma = scn.randomization.xy_sigma
     return placed_worlds(rollout, [
         (config, {"ObjectToBePushed-1": np.multiply(obj_sign, sigma["ObjectToBePushed-1"]),

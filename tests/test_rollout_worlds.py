@@ -11,11 +11,17 @@ from mjxskill.sim.model import build_model
 from mjxskill.engine.common.worlds import make_sampler, sample_worlds, worlds_per_config
 from mjxskill.scenario import load_scenario
 from mjxskill.task import plan_task
+from scenario_texts import shipped_text, write_copy
 
 
-@pytest.fixture(scope="module", params=["push", "peg"])
-def setup(request):
-    scn = load_scenario(request.param)
+@pytest.fixture(scope="module", params=["push", "peg", "push clipped"])
+def setup(request, tmp_path_factory):
+    if request.param == "push clipped":  # SkiREIL's choice, a scenario option
+        text = shipped_text("push").replace("  friction_range: [0.2, 0.25]", "  clip_sigmas: 1.0\n  friction_range: [0.2, 0.25]")
+        scn = load_scenario(write_copy(tmp_path_factory.mktemp("clipped"), "push", text))
+        assert scn.randomization.clip_sigmas == 1.0
+    else:
+        scn = load_scenario(request.param)
     model = build_model(scn)
     bindings = bind_scene(scn, model, referenced_objects(scn, leaf_objects(plan_task(scn).tree)))
     return scn, bindings, make_sampler(scn, bindings)
@@ -59,8 +65,11 @@ def test_randomization_statistics_match_the_scenario(setup):
         if sigma == 0.0:
             np.testing.assert_allclose(offset, 0.0, atol=1e-7)
             continue
-        if clip is None:
+        if clip is None:  # Gaussian: sd sigma, a third of the draws beyond 1 sd, 4.6 % beyond 2
             np.testing.assert_allclose(offset[:, :2].std(axis=0), sigma, rtol=0.06)
+            beyond = np.abs(offset[:, :2]) / sigma
+            assert np.mean(beyond > 1) == pytest.approx(0.3173, abs=0.02)
+            assert np.mean(beyond > 2) == pytest.approx(0.0455, abs=0.01)
         else:
             assert np.abs(offset[:, :2]).max() <= clip * sigma + 1e-7
             # A standard normal clipped to +-c has variance erf-based; check it stays below sigma.

@@ -51,10 +51,12 @@ def test_push_world_model_has_the_papers_numbers(push):
     np.testing.assert_allclose(push.robot.home, [0, 0.785, 0, -1.571, 0, 0, 0])
     assert push.success.kind == "object_at_pose"
     assert (push.success.position_tolerance, push.success.orientation_tolerance_deg) == (0.01, 5.0)
+    # the paper: object and goal offsets Gaussian with sd 7 mm, not clipped
     assert push.randomization.n_worlds == 7 and dict(push.randomization.xy_sigma) == {
         "ObjectToBePushed-1": 0.007,
         "ObjectGoalPose-1": 0.007,
     }
+    assert push.randomization.clip_sigmas is None
     assert push.optimizer.budget == 400 and push.optimizer.repetitions == 10
     assert push.objective_names == ("success", "applied_force")
     assert {r.objective for r in push.rewards} == set(push.objective_names)
@@ -62,9 +64,14 @@ def test_push_world_model_has_the_papers_numbers(push):
 
 def test_peg_world_model_has_the_papers_numbers(peg):
     assert (peg.episode_seconds, peg.gravity) == (18.0, False)
-    box = peg.objects["BoxWithHole-1"]
-    assert box.mjcf_body == "box" and peg.objects["Peg-1"].mjcf_body == "tool_tool"
+    box, item = peg.objects["BoxWithHole-1"], peg.objects["Peg-1"]
+    assert box.mjcf_body == "box" and item.mjcf_body == "tool_tool"
+    # a round peg in a round hole of a 1.5 mm larger radius
+    assert item.shape == "cylinder" and item.size.tolist() == [0.015, 0.05]  # radius, length
+    assert box.shape == "box_with_round_hole"
     assert box.extra["hole_clearance"] == 0.0015 and box.extra["hole_depth"] > 0.01
+    # the box's offsets Gaussian with sd 7 mm, not clipped
+    assert dict(peg.randomization.xy_sigma) == {"BoxWithHole-1": 0.007} and peg.randomization.clip_sigmas is None
     assert box.friction == 0.3
     assert peg.robot.start_configs.shape == (5, 7) and peg.robot.eval_configs.shape == (10, 7)
     assert peg.success.kind == "inserted" and peg.success.depth == 0.01
@@ -82,19 +89,68 @@ def test_learnable_parameters_come_from_the_plan(push, peg):
     np.testing.assert_array_equal(plan_task(push).bounds, [[-0.3] * 4, [0.3] * 4])
     assert plan_task(push).parameter_units == ("m",) * 4
     np.testing.assert_array_equal(plan_task(push).defaults, np.zeros(4))
-    assert plan_task(peg).parameter_names == (
-        "PegInsertion.force", "PegInsertion.radius", "PegInsertion.path_velocity", "PegInsertion.pitch",
-    )
-    np.testing.assert_array_equal(plan_task(peg).bounds, [[-10, 0, 0, 0], [0, 0.07, 0.3, 0.03]])
-    assert plan_task(peg).parameter_units == ("N", "m", "m/s", "m")
-    assert plan_task(peg).defaults[1:].tolist() == [0, 0, 0]  # no search motion
-    for scn in (push, peg):
+    # the paper's three: downward force, spiral radius and path velocity; the pitch a constant
+    assert plan_task(peg).parameter_names == ("PegInsertion.force", "PegInsertion.radius", "PegInsertion.path_velocity")
+    np.testing.assert_array_equal(plan_task(peg).bounds, [[-10, 0, 0], [0, 0.07, 0.3]])
+    assert plan_task(peg).parameter_units == ("N", "m", "m/s")
+    assert plan_task(peg).defaults[1:].tolist() == [0, 0]  # no search motion
+    pitch = peg.skills["PegInsertion"].parameter("pitch")
+    assert not pitch.learnable and pitch.default == 0.002
+    # a spiral this tight cannot pass the hole: its turns lie a pitch apart, and the peg drops in
+    # within the clearance of the hole's axis
+    assert pitch.default <= 2 * peg.objects["BoxWithHole-1"].extra["hole_clearance"]
+    for scn in (push, peg, load_scenario("peg_square")):
         assert len(scn.manual_parameters) >= 3
         task = plan_task(scn)
         assert set(task.manual_parameters) == set(scn.manual_parameters)  # every set fits the plan
         for values in task.manual_parameters.values():
             assert values.shape == (len(task.parameter_names),)
             assert np.all(task.bounds[0] <= values) and np.all(values <= task.bounds[1])
+
+
+def test_the_square_peg_variant_is_the_same_task_with_square_geometry(peg):
+    square = load_scenario("peg_square")
+    assert square.objects["Peg-1"].shape == "box" and square.objects["BoxWithHole-1"].shape == "box_with_hole"
+    assert square.objects["Peg-1"].size.tolist() == [0.03, 0.03, 0.05]
+    assert square.objects["BoxWithHole-1"].extra["hole_clearance"] == 0.0015
+    assert plan_task(square).parameter_names == plan_task(peg).parameter_names
+    assert dict(square.randomization.xy_sigma) == dict(peg.randomization.xy_sigma)
+    assert square.randomization.clip_sigmas is None
+
+
+def test_a_scenario_makes_a_library_constant_learnable(tmp_path):
+    # the pitch, a constant of the skill library, learnable with the scenario's bounds, and the
+    # operators' sets then name it
+    text = shipped_text("peg").replace("goal: (skiros:at", "skill_parameters:\n  PegInsertion.pitch: {learnable: true, bounds: [0.0, 0.003]}\n\ngoal: (skiros:at")
+    text = re.sub(r"(operator_\w: \{[^}]*)\}", r"\1, PegInsertion.pitch: 0.002}", text)
+    path = tmp_path / "peg.yaml"
+    path.write_text(text)
+    task = plan_task(load_scenario(path))
+    assert task.parameter_names[-1] == "PegInsertion.pitch"
+    np.testing.assert_array_equal(task.bounds[:, -1], [0.0, 0.003])
+    assert task.defaults[-1] == 0.002
+    assert load_scenario("peg").skills["PegInsertion"].parameter("pitch").learnable is False  # the library unchanged
+
+
+@pytest.mark.parametrize("entry, key, message", [
+    ("PegInsertion.pitch: {learnable: true, bounds: [0.003, 0.01]}", "skill_parameters.PegInsertion.pitch.bounds",
+     "default 0.002 is outside the bounds"),
+    ("PegInsertion.pitchh: {learnable: true}", "skill_parameters.PegInsertion.pitchh", "has no parameter 'pitchh'"),
+    ("PegInsert.pitch: {learnable: true}", "skill_parameters.PegInsert.pitch", "names no skill parameter"),
+    ("PegInsertion.pitch: {learnable: true, bounds: [0.002, 0.002]}", "skill_parameters.PegInsertion.pitch.bounds",
+     "nothing to learn"),
+    ("PegInsertion.pitch: {}", "skill_parameters.PegInsertion.pitch", "give at least one of"),
+    ("PegInsertion.pitch: {unit: mm}", "skill_parameters.PegInsertion.pitch.unit", "unknown key .unit."),
+    ("PegInsertion.box: {learnable: true}", "skill_parameters.PegInsertion.box.learnable", "a plan parameter"),
+    ("PegInsertion.stiffness: {learnable: true}", "skill_parameters.PegInsertion.stiffness", "vector parameters cannot be learnable"),
+])
+def test_a_bad_skill_parameter_entry_is_an_error_naming_it(tmp_path, entry, key, message):
+    text = shipped_text("peg").replace("goal: (skiros:at", f"skill_parameters:\n  {entry}\n\ngoal: (skiros:at")
+    path = tmp_path / "peg.yaml"
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match=rf"peg.yaml: {re.escape(key)} \(line \d+\): .*{message}") as err:
+        load_scenario(path)
+    assert "as included by" not in str(err.value)
 
 
 def test_start_configurations_respect_the_iiwa_joint_limits(push, peg):
@@ -138,7 +194,7 @@ def test_load_by_path_equals_load_by_name(push):
 
 
 def test_unknown_task_name_lists_the_available_ones():
-    with pytest.raises(ScenarioError, match=r"unknown task 'pusj'.*available: peg, push"):
+    with pytest.raises(ScenarioError, match=r"unknown task 'pusj'.*available: peg, peg_square, push"):
         load_scenario("pusj")
 
 

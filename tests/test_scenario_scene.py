@@ -12,7 +12,7 @@ from mjxskill.scenario import load_scenario
 mujoco = pytest.importorskip("mujoco")
 
 
-@pytest.fixture(scope="module", params=["push", "peg", "slide"])
+@pytest.fixture(scope="module", params=["push", "peg", "peg_square", "slide"])
 def scene(request):
     scn = load_scenario(request.param)
     if not Path(scn.scene).exists():

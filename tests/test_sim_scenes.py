@@ -20,7 +20,7 @@ TORQUES = [320, 320, 176, 176, 110, 40, 40]
 MASSES = [5.76, 6.35, 3.5, 3.5, 3.5, 1.8, 1.2]
 
 
-@pytest.fixture(scope="module", params=["push", "peg"])
+@pytest.fixture(scope="module", params=["push", "peg", "peg_square"])
 def scene(request):
     return request.param, load_scene(request.param)
 
@@ -47,8 +47,9 @@ def test_only_tool_and_objects_collide(scene):
     name, model = scene
     assert np.all(model.geom_contype == 0) and np.all(model.geom_conaffinity == 0)
     pair_geoms = {model.geom(int(g)).name for g in np.concatenate([model.pair_geom1, model.pair_geom2])}
+    walls = {"tool_geom", "wall_px", "wall_nx", "wall_py", "wall_ny", "bottom"}
     expected = {"push": {"tool_geom", "object", "table", "fence", "stop"},
-                "peg": {"tool_geom", "wall_px", "wall_nx", "wall_py", "wall_ny", "bottom"}}[name]
+                "peg": walls | {f"ring_{k:02d}" for k in range(16)}, "peg_square": walls}[name]
     assert pair_geoms == expected
     # MJX accepts the scene (it raises for collision pairs it has no function for).
     mjx.put_model(model)
@@ -119,8 +120,30 @@ def test_the_goal_corner_holds_the_prism_at_the_goal_pose():
             assert np.all(_inside(model, data, plane, points) > 0.1), plane
 
 
-def test_peg_hole_clearance_and_depth():
+def test_round_peg_hole_clearance_and_depth():
+    # the peg's 16 vertices on a 0.015 m circle, each facing a slab whose inner face is tangent
+    # to the 0.0165 m hole: the gap is the clearance there and larger everywhere else
     model = load_scene("peg")
+    assert model.body("box").mocapid[0] >= 0
+    peg = model.geom("tool_geom")
+    assert peg.type == mujoco.mjtGeom.mjGEOM_MESH
+    verts = model.mesh_vert[model.mesh_vertadr[peg.dataid[0]]:][:model.mesh_vertnum[peg.dataid[0]]]
+    np.testing.assert_allclose(np.hypot(verts[:, 0], verts[:, 1]), 0.015, rtol=2e-5)  # 7 digits in the MJCF
+    np.testing.assert_allclose(np.ptp(verts[:, 2]), 0.05, rtol=1e-6)
+    vertex_angles = np.sort(np.mod(np.arctan2(verts[:16, 1], verts[:16, 0]), 2 * np.pi))
+    for k in range(16):
+        slab = model.geom(f"ring_{k:02d}")
+        normal_angle = np.arctan2(slab.pos[1], slab.pos[0]) % (2 * np.pi)
+        assert normal_angle == pytest.approx(vertex_angles[k], abs=1e-5)  # float32 vertices
+        assert np.hypot(*slab.pos[:2]) - slab.size[0] - 0.015 == pytest.approx(HOLE_CLEARANCE, abs=1e-7)
+        assert slab.pos[2] + slab.size[2] == pytest.approx(HOLE_TOP)
+    floor = model.geom("bottom").pos[2] + model.geom("bottom").size[2]
+    assert HOLE_TOP - floor == pytest.approx(HOLE_DEPTH)
+    np.testing.assert_allclose(model.pair_friction[:, 0], 0.3)
+
+
+def test_square_peg_hole_clearance_and_depth():
+    model = load_scene("peg_square")
     assert model.body("box").mocapid[0] >= 0
     peg_half = model.geom("tool_geom").size[0]
     inner = model.geom("wall_px").pos[0] - model.geom("wall_px").size[0]

@@ -20,7 +20,7 @@ YAW_90 = (math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4))
 
 def make(kind, **values):
     base = dict(kind=kind, object=0, target=1, position_tolerance=0.01, orientation_tolerance=math.radians(5), depth=0.01,
-                hole_top=(0.0, 0.0, 0.05), hole_half_width=(0.02, 0.01), region_center=(0.05, 0.0, 0.0),
+                hole_top=(0.0, 0.0, 0.05), hole_half_width=(0.02, 0.01), hole_round=False, region_center=(0.05, 0.0, 0.0),
                 region_half=(0.01, 0.03, 0.02))
     return SuccessTest(**(base | values))
 
@@ -68,6 +68,19 @@ def test_inserted_reads_the_hole_in_the_boxs_frame():
         assert native[3] == pytest.approx(0.015) and float(compiled[3]) == pytest.approx(0.015, abs=1e-6)
 
 
+def test_inserted_into_a_round_hole_reads_its_radius():
+    # a round hole of radius 0.0165 m (the peg's 0.015 m plus 1.5 mm): inside is a distance from
+    # its axis, so a point 0.012 m along both box axes (0.0170 m away) is out although each
+    # coordinate is inside the radius, as a square hole of that half-width would take it
+    test = make("inserted", hole_half_width=(0.0165, 0.0165), hole_round=True)
+    box = (0.5, 0.0, 0.0)
+    for tool, expected in (((0.5, 0.016, 0.035), True), ((0.512, 0.012, 0.035), False),
+                           ((0.5116, 0.0116, 0.035), True), ((0.5, 0.0, 0.045), False)):  # 0.0164 m; 5 mm deep
+        native, compiled = both(test, tool, [(0, 0, 0), box], [(1, 0, 0, 0), YAW_90])
+        assert bool(native[0]) is expected and bool(compiled[0]) is expected, tool
+        assert native[1] == pytest.approx(np.hypot(tool[0] - 0.5, tool[1]))
+
+
 coords = st.floats(-0.1, 0.1)
 unit_quats = st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.2).map(
     lambda q: tuple(np.asarray(q) / np.linalg.norm(q)))
@@ -77,7 +90,12 @@ unit_quats = st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q:
 @given(st.sampled_from(sorted(SUCCESS_KINDS)), st.lists(coords, min_size=3, max_size=3),
        st.lists(coords, min_size=3, max_size=3), unit_quats, unit_quats)
 def test_the_engines_agree(kind, tool, obj, q_obj, q_target):
-    native, compiled = both(make(kind), tool, [obj, (0.0, 0.0, 0.0)], [q_obj, q_target])
+    for round_hole in ((False, True) if kind == "inserted" else (False,)):
+        _agree(make(kind, hole_round=round_hole), tool, obj, q_obj, q_target)
+
+
+def _agree(test, tool, obj, q_obj, q_target):
+    native, compiled = both(test, tool, [obj, (0.0, 0.0, 0.0)], [q_obj, q_target])
     np.testing.assert_allclose([float(native[1]), float(native[3])], [float(compiled[1]), float(compiled[3])], atol=2e-5)
     # float32 arccos near 1 (a small angle) is quantized to ~1e-3 rad
     assert float(native[2]) == pytest.approx(float(compiled[2]), abs=2e-3)

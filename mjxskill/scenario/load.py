@@ -22,7 +22,9 @@ from mjxskill.scenario.schema import (
 )
 from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.scenario.sections import optimizer, randomization, rewards, success
-from mjxskill.scenario.skills import manual_parameters, parameter_priors, skill, skill_fields
+from mjxskill.scenario.skills import (
+    manual_parameters, parameter_priors, skill, skill_fields, skill_parameter_overrides,
+)
 from mjxskill.sim.model import build_model
 from mjxskill.sim.scene import asset_path
 
@@ -63,7 +65,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
             "robot", "objects", "goal", "objectives", "rewards", "success", "randomization",
             "optimizer",
         ),
-        optional=("manual_parameters", "parameter_priors", "skills", "skill_library"),
+        optional=("manual_parameters", "parameter_priors", "skills", "skill_library", "skill_parameters"),
     )
     types = _types(top["types"])
     predicates = _predicates(top["predicates"], types)
@@ -76,8 +78,10 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         (name, _object(name, field, types, predicates, names)) for name, field in objects_field.items()
     )
     libraries = _skill_libraries(top, path)
-    skills = frozen_mapping((name, _skill(name, field, types, predicates, path))
-                            for name, field in skill_fields(top, [root for _, root in libraries]))
+    entries = skill_fields(top, [root for _, root in libraries])
+    overrides = skill_parameter_overrides(top.get("skill_parameters"), entries)
+    skills = frozen_mapping((name, _skill(name, field, types, predicates, path, overrides.get(name)))
+                            for name, field in entries)
     if not skills:
         (top["skills"] if "skills" in top else root).fail("the skill library is empty (skills: or skill_library:)")
     object_names = set(objects)
@@ -127,13 +131,14 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     return scn
 
 
-def _skill(name: str, field: Field, types, predicates, path: Path):
-    """A skill; one of a library is checked against the including scenario's vocabulary, and
-    its errors say so (the library is right for another scenario)."""
+def _skill(name: str, field: Field, types, predicates, path: Path, overrides=None):
+    """A skill (with the scenario's ``skill_parameters`` for it); one of a library is checked
+    against the including scenario's vocabulary, and its errors say so (the library is right for
+    another scenario)."""
     try:
-        return skill(name, field, types, predicates)
+        return skill(name, field, types, predicates, overrides)
     except ScenarioError as err:
-        if field.source == str(path):
+        if field.source == str(path) or str(err).startswith(f"{path}:"):  # the scenario's own entry
             raise
         raise ScenarioError(f"{err} (as included by {path}, whose types and predicates it uses)") from None
 

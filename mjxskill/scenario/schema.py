@@ -255,7 +255,8 @@ class Randomization:
     """Domain randomization of one evaluation world.
 
     xy_sigma: object/pose name -> standard deviation (m) of a Gaussian x, y offset.
-    clip_sigmas: offsets clipped to +- clip_sigmas * sigma (None: not clipped).
+    clip_sigmas: offsets clipped to +- clip_sigmas * sigma (None, the YAML leaving it out: not
+    clipped, the paper's Gaussian; SkiREIL's code clipped at 1.0).
     friction_range: (low, high) uniform friction of the randomized objects, or None.
     n_worlds: worlds per parameter set; the robot start configuration is drawn uniformly from
     ``Robot.start_configs``.

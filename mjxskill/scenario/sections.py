@@ -83,8 +83,9 @@ def success(field: Field, objects) -> Success:
             values[key] = frozen_array(vector)
         else:
             values[key] = f[key].number(positive=True)
-    if kind == "inserted" and objects[f["target"].string()].shape != "box_with_hole":
-        f["target"].fail(f"an insertion goes into the hole of a box_with_hole; {f['target'].string()} is a "
+    if kind == "inserted" and objects[f["target"].string()].shape not in ("box_with_hole", "box_with_round_hole"):
+        f["target"].fail(f"an insertion goes into the hole of a box_with_hole or a box_with_round_hole; "
+                         f"{f['target'].string()} is a "
                          f"{objects[f['target'].string()].shape}")
     return Success(kind, f["object"].string(), f["target"].string(), **values)
 

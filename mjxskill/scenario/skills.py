@@ -3,7 +3,9 @@
 Skills come from the scenario's ``skills`` and from the files its ``skill_library`` names (a
 file of skills that many scenarios include: ``skills:`` at its top); a skill is its PDDL
 action (parameters, pre-, hold- and postconditions) and its behavior tree (``tree``, a
-template over the primitive library read by ``mjxskill.scenario.skill_tree``).
+template over the primitive library read by ``mjxskill.scenario.skill_tree``). A scenario's ``skill_parameters`` change the library's
+parameters for that scenario (``skill_parameter_overrides``): a constant it makes learnable, a
+default or bounds of its own.
 """
 
 from __future__ import annotations
@@ -14,14 +16,15 @@ from mjxskill.scenario.schema import ManualSet, ParameterPrior, Skill, SkillPara
 from mjxskill.scenario.skill_tree import read_tree
 
 
-def skill(name: str, field: Field, types, predicates) -> Skill:
-    """One entry of ``skills``: its parameters, PDDL conditions and tree."""
+def skill(name: str, field: Field, types, predicates, overrides: dict | None = None) -> Skill:
+    """One entry of ``skills``: its parameters, PDDL conditions and tree. overrides: parameter
+    name -> the scenario's ``skill_parameters`` entry for it (``skill_parameter_overrides``)."""
     if not name.replace("-", "").replace("_", "").isalnum() or not name[0].isalpha():
         field.fail(f"{name!r} is not usable as a skill name (a letter, then letters, digits, - or _)")
     f = field.mapping(required=("parameters", "preconditions", "postconditions", "tree"), optional=("holdconditions",))
     parameters = []
     for pname, pfield in f["parameters"].items():
-        parameters.append(_skill_parameter(pname, pfield, types))
+        parameters.append(_skill_parameter(pname, pfield, types, (overrides or {}).get(pname)))
     by_name = {p.name: p for p in parameters}
     tree = read_tree(f["tree"], by_name)
     variables = {f"?{p.name.lower()}": p.type for p in parameters if p.plan}
@@ -61,10 +64,46 @@ def skill_fields(top: Field, library_files: list) -> list[tuple[str, Field]]:
     return entries
 
 
-def _skill_parameter(name: str, field: Field, types) -> SkillParameter:
+OVERRIDABLE = ("default", "bounds", "learnable")  # what a scenario's skill_parameters may change
+
+
+def skill_parameter_overrides(field: Field | None, entries: list[tuple[str, Field]]) -> dict[str, dict[str, Field]]:
+    """``skill_parameters``: ``"<Skill>.<parameter>": {default, bounds, learnable}`` (any of the
+    three), the scenario's own values for a parameter of a skill it includes, e.g. a constant of
+    the library made learnable with bounds. ``entries``: (name, Field) of every skill
+    (``skill_fields``). Returns skill name -> parameter name -> the entry's Field; the values are
+    checked with the skill (``skill``), each error naming the scenario's entry."""
+    if field is None:
+        return {}
+    skills = dict(entries)
+    out: dict[str, dict[str, Field]] = {}
+    for key, item in field.items():
+        skill_name, dot, name = key.partition(".")
+        if not dot or skill_name not in skills:
+            item.fail(f"{key!r} names no skill parameter: expected <Skill>.<parameter> with a skill of the library "
+                      f"(skills: {', '.join(skills)})")
+        declared = [p for p, _ in skills[skill_name].mapping(optional=("parameters",) + _SKILL_KEYS)["parameters"].items()]
+        if name not in declared:
+            item.fail(f"skill {skill_name} has no parameter {name!r} (parameters: {', '.join(declared)})")
+        entry = item.mapping(optional=OVERRIDABLE)
+        if not entry:
+            item.fail(f"give at least one of {', '.join(OVERRIDABLE)}")
+        out.setdefault(skill_name, {})[name] = item
+    return out
+
+
+_SKILL_KEYS = ("preconditions", "postconditions", "tree", "holdconditions")
+
+
+def _skill_parameter(name: str, field: Field, types, override: Field | None = None) -> SkillParameter:
     f = field.mapping(optional=("type", "plan", "unit", "default", "bounds", "learnable", "description"))
     if "type" not in f:
         field.fail("missing key 'type'")
+    if "default" not in f and "plan" not in f:
+        field.fail("missing key 'default'")
+    changed = override.mapping(optional=OVERRIDABLE) if override is not None else {}
+    f.update(changed)  # the scenario's values win; their errors name the scenario's entry
+    field = override if override is not None else field
     plan = f["plan"].boolean() if "plan" in f else False
     description = f["description"].string() if "description" in f else ""
     if plan:
@@ -91,7 +130,8 @@ def _skill_parameter(name: str, field: Field, types) -> SkillParameter:
         if lower > upper:
             f["bounds"].fail(f"lower bound {lower} is above the upper bound {upper}")
         if not lower <= default <= upper:
-            f["default"].fail(f"default {default} is outside the bounds [{lower}, {upper}]")
+            blamed = f["bounds"] if "bounds" in changed and "default" not in changed else f["default"]
+            blamed.fail(f"default {default} is outside the bounds [{lower}, {upper}]")
         bounds = (lower, upper)
     if learnable and bounds is None:
         field.fail("a learnable parameter needs bounds: [lower, upper]")

@@ -63,15 +63,19 @@ class ShapeKind:
 # mjxskill.sim.shapes (inertia and geometry, one registry with exactly these names).
 # pose: no body, size []. box: [x, y, z] edge lengths. right_triangle_prism: legs [x, y] along
 # the body axes and height z, body origin at the triangle's centroid at half height, the right
-# angle at (-x/3, -y/3). box_with_hole: outer [x, y, z], origin at the bottom centre, a hole
-# centred and open at the top, hole_depth deep and hole_clearance wider on each side than the
-# item the robot holds.
+# angle at (-x/3, -y/3). cylinder: [radius, height], axis along the body's z. box_with_hole:
+# outer [x, y, z], origin at the bottom centre, a square hole centred and open at the top,
+# hole_depth deep and hole_clearance wider on each side than the (box) item the robot holds.
+# box_with_round_hole: the same with a round hole whose radius is hole_clearance larger than
+# that of the (cylinder) item the robot holds.
 SHAPES: Mapping[str, ShapeKind] = MappingProxyType(
     {
         "pose": ShapeKind(0),
         "box": ShapeKind(3),
         "right_triangle_prism": ShapeKind(3),
+        "cylinder": ShapeKind(2),
         "box_with_hole": ShapeKind(3, ("hole_clearance", "hole_depth")),
+        "box_with_round_hole": ShapeKind(3, ("hole_clearance", "hole_depth")),
     }
 )
 

@@ -33,7 +33,7 @@ import mujoco
 import numpy as np
 
 from mjxskill.errors import ScenarioError
-from mjxskill.sim.shapes import SHAPE_MODELS, Drawn, ShapeError
+from mjxskill.sim.shapes import SHAPE_MODELS, Drawn, HeldItem, ShapeError, mesh_half_extent
 from mjxskill.sim.tool_force import add_tool_force_sensors
 
 
@@ -61,7 +61,7 @@ def compile_model(scn) -> mujoco.MjModel:
     mujoco.mj_kinematics(base, data)
     site = base.site(scn.robot.tool_site).id
     robot = _subtree(base, _root_child(base, int(base.site_bodyid[site])))
-    hole_item = held_item_size(scn)
+    hole_item = held_item(scn)
     for obj in scn.objects.values():
         if obj.mjcf_body is not None:
             _body_physics(spec, base, data, scn, obj, robot, hole_item, site)
@@ -98,13 +98,13 @@ def _ancestors(model: mujoco.MjModel, body: int) -> set[int]:
     return out
 
 
-def held_item_size(scn) -> np.ndarray | None:
-    """(2,) x-y size of the box the robot holds, when it holds exactly one (a hole's clearance
-    is relative to it)."""
+def held_item(scn) -> HeldItem | None:
+    """The item the robot holds, when it holds exactly one object with a shape (a hole's
+    clearance is relative to it)."""
     robot = scn.robot.pddl_name
     facts = {*scn.robot.relations, *(r for o in scn.objects.values() for r in o.relations)}
-    held = [o for o in scn.objects.values() if f"(holding {robot} {o.pddl_name})" in facts and o.shape == "box"]
-    return np.asarray(held[0].size[:2], float) if len(held) == 1 else None
+    held = [o for o in scn.objects.values() if f"(holding {robot} {o.pddl_name})" in facts and o.shape != "pose"]
+    return HeldItem(held[0].name, held[0].shape, np.asarray(held[0].size, float)) if len(held) == 1 else None
 
 
 def _geom_poses(model: mujoco.MjModel, body: int):
@@ -140,7 +140,7 @@ def _body_physics(spec, base, data, scn, obj, robot: set[int], hole_item, site: 
             t = mass * tensor
             body.fullinertia = [t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]]
         if shape.draw is not None:
-            faces = _faces(drawn) if on_robot else None
+            faces = _faces(drawn, spec) if on_robot else None
             shape.draw(obj.size, obj.extra, drawn, spec)
             if faces is not None:
                 _follow_tool_tip(spec, base, data, scn, body_id, drawn, faces, site)
@@ -150,12 +150,14 @@ def _body_physics(spec, base, data, scn, obj, robot: set[int], hole_item, site: 
         _place(spec, base, data, scn, obj, body_id, body)
 
 
-def _faces(drawn: Drawn) -> list[np.ndarray] | None:
-    """Centres (6, 3) of the faces of the body's single box geom in the body frame, or None."""
-    if len(drawn.geoms) != 1 or drawn.geoms[0].type != mujoco.mjtGeom.mjGEOM_BOX:
+def _faces(drawn: Drawn, spec) -> list[np.ndarray] | None:
+    """Centres (6, 3) of the faces of the body's single box geom (or of the box around its single
+    mesh geom, which is centred on its origin: a cylinder's ends) in the body frame, or None."""
+    if len(drawn.geoms) != 1 or drawn.geoms[0].type not in (mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_MESH):
         return None
-    half = np.array(drawn.geoms[0].size[:3], float)
-    centre = np.array(drawn.geoms[0].pos, float)
+    geom = drawn.geoms[0]
+    half = np.array(geom.size[:3], float) if geom.type == mujoco.mjtGeom.mjGEOM_BOX else mesh_half_extent(geom, spec)
+    centre = np.array(geom.pos, float)
     return [centre + s * drawn.geom_rot[0][:, j] * half[j] for j in range(3) for s in (1, -1)]
 
 
@@ -163,7 +165,7 @@ def _follow_tool_tip(spec, base, data, scn, body_id: int, drawn: Drawn, old_face
     """The robot's tool site sat on a face of this held tool: it moves with that face."""
     body_rot = data.xmat[body_id].reshape(3, 3)
     tip = body_rot.T @ (data.site_xpos[site] - data.xpos[body_id])  # the site in this body's frame
-    for old, new in zip(old_faces, _faces(drawn)):
+    for old, new in zip(old_faces, _faces(drawn, spec)):
         if np.linalg.norm(tip - old) < 1e-6:
             site_body = int(base.site_bodyid[site])
             shift = data.xmat[site_body].reshape(3, 3).T @ (body_rot @ (new - old))
@@ -225,4 +227,4 @@ def _friction(spec, scn) -> None:
             pair.friction = friction
 
 
-__all__ = ["build_model", "held_item_size"]
+__all__ = ["build_model", "held_item"]

@@ -12,7 +12,7 @@ import mujoco
 # top-level assets/, so a wheel carries them inside mjxskill/ and an editable install reads the
 # checkout's folder.
 ASSETS_PACKAGE = "mjxskill.assets"
-SCENES = ("push", "peg")
+SCENES = ("push", "peg", "peg_square")
 
 ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 8))
 TOOL_SITE = "tool"
@@ -52,5 +52,5 @@ def scene_path(name: str) -> Path:
 
 
 def load_scene(name: str) -> mujoco.MjModel:
-    """Native MjModel of the shipped scene ``name`` ('push' or 'peg'), as its MJCF file has it."""
+    """Native MjModel of the shipped scene ``name`` (one of SCENES), as its MJCF file has it."""
     return mujoco.MjModel.from_xml_path(str(scene_path(name)))

@@ -18,8 +18,8 @@ import numpy as np
 from mjxskill.ebt.nodes import Status
 from mjxskill.engine.common.bindings import SceneBindings, bind_scene, referenced_objects
 from mjxskill.sim.controller_config import ControllerConfig
-from mjxskill.sim.model import held_item_size
-from mjxskill.sim.shapes import hole_half_widths
+from mjxskill.sim.model import held_item
+from mjxskill.sim.shapes import hole_half_widths, hole_radius
 
 # Divergence containment (both engines): a world whose joints spin faster than MAX_QVEL or whose
 # free objects sink below MIN_OBJECT_Z is marked diverged and frozen at its last good state.
@@ -30,7 +30,8 @@ MIN_OBJECT_Z = -0.05  # m: a free object this far below the table top fell throu
 class SuccessTest(NamedTuple):
     """The scenario's success test with its objects as slot indices (host values; meanings:
     ``mjxskill.scenario.schema.Success``). orientation_tolerance: rad (inf: not tested).
-    hole_top (3,), hole_half_width (2,): the target's hole in its frame (inserted).
+    hole_top (3,), hole_half_width (2,): the target's hole in its frame (inserted); hole_round:
+    the hole is round, of radius hole_half_width[0].
     region_center (3,), region_half (3,): the region in the target's frame (object_in_region)."""
 
     kind: str
@@ -41,6 +42,7 @@ class SuccessTest(NamedTuple):
     depth: float
     hole_top: tuple[float, float, float]
     hole_half_width: tuple[float, float]
+    hole_round: bool
     region_center: tuple[float, float, float]
     region_half: tuple[float, float, float]
 
@@ -75,9 +77,13 @@ def success_test(scn, bindings: SceneBindings) -> SuccessTest:
     s = scn.success
     target = scn.objects[s.target]
     hole_top, hole_half = (0.0, 0.0, 0.0), (0.0, 0.0)
-    if s.kind == "inserted":  # the loader checked the target is a box_with_hole
+    hole_round = target.shape == "box_with_round_hole"
+    if s.kind == "inserted":  # the loader checked the target is a box with a hole
         hole_top = (0.0, 0.0, float(target.size[2]))
-        hole_half = _floats(hole_half_widths(target.extra, held_item_size(scn)), 2)
+        if hole_round:
+            hole_half = (hole_radius(target.extra, held_item(scn)),) * 2
+        else:
+            hole_half = _floats(hole_half_widths(target.extra, held_item(scn)), 2)
     tolerance = s.orientation_tolerance_deg
     return SuccessTest(
         kind=s.kind,
@@ -88,6 +94,7 @@ def success_test(scn, bindings: SceneBindings) -> SuccessTest:
         depth=float(s.depth or 0.0),
         hole_top=hole_top,
         hole_half_width=hole_half,
+        hole_round=hole_round,
         region_center=_floats(s.region_center, 3),
         region_half=_floats(None if s.region_size is None else np.asarray(s.region_size) / 2, 3),
     )
