@@ -141,22 +141,35 @@ def loop(engine, params, worlds) -> dict:
                 steps_per_s=b * w * engine.control_steps_per_episode / run_s, load_avg=os.getloadavg()[0])
 
 
-def native(scn, task, params, worlds, workers: int, seconds) -> dict:
-    """The native engine with ``workers`` processes (their start-up timed apart)."""
+def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1) -> dict:
+    """The native engine with ``workers`` processes (their start-up timed apart), or with one
+    process whose batch steps on ``threads`` threads. With one process and one thread, also the
+    share of the time spent in MuJoCo's step (``physics_share``)."""
     import numpy as np
 
+    from mjxskill.engine.native import batched
     from mjxskill.engine.native.rollout import NativeRollout
 
-    engine = NativeRollout(scn, task, worlds=worlds.config_index.shape[1], episode_seconds=seconds, workers=workers)
+    engine = NativeRollout(scn, task, worlds=worlds.config_index.shape[1], episode_seconds=seconds, workers=workers,
+                           threads=threads)
     b, w = worlds.config_index.shape
     t0 = time.perf_counter()
     engine.start_workers()
     start_s = time.perf_counter() - t0
+    timing = {}
+    run = batched.run_batched
+    if workers == 1 and threads == 1:  # time MuJoCo's step inside the call
+        batched_run = lambda *a, **k: run(*a, **k, timing=timing)  # noqa: E731
+        engine_module = sys.modules["mjxskill.engine.native.rollout"]
+        engine_module.run_batched, restore = batched_run, run
     t0 = time.perf_counter()
     out = engine.run_worlds(params, worlds)
     run_s = time.perf_counter() - t0
+    if workers == 1 and threads == 1:
+        engine_module.run_batched = restore
     engine.close()
-    return dict(engine="native", workers=workers, episodes=b * w, start_s=start_s, run_s=run_s,
+    return dict(engine="native", workers=workers, threads=threads, episodes=b * w, start_s=start_s, run_s=run_s,
+                physics_share=timing["physics_s"] / run_s if timing else None,
                 steps_per_s=b * w * engine.control_steps_per_episode / run_s,
                 memory_per_episode_mb=engine.memory_per_episode() / 2**20, load_avg=os.getloadavg()[0],
                 success=np.asarray(out.success).tolist(), objectives=np.asarray(out.objectives).tolist())

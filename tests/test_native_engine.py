@@ -1,12 +1,12 @@
-"""The native engine's fast path against its plain loop, and its worker processes against one
-process: the same episodes, the same numbers.
+"""The native engine against its plain loop, and its worker processes against one process:
+the same episodes, the same numbers.
 
 The plain loop (``NativeRollout.run_episode``: one control step at a time, the scalar numpy
-controller) is the reference. The lockstep path (``mjxskill.engine.native.lockstep``: the controller
-vectorized over episodes, the references of a tick at once) evaluates the same law in a
-different order of floating-point operations, so it may differ in the last bits; measured:
-4e-15 absolute on a reward total of ~28 (push, 3 s, 6 episodes). Worker processes run the
-lockstep code on slices of the episodes, which never interact: bit-identical.
+controller) is the reference. The engine's own stepping (``mjxskill.engine.native.batched``: MuJoCo
+batches and the compiled law) and the numpy lockstep evaluate the same law in a different order
+of floating-point operations, so they may differ in the last bits (tests/test_native_batched.py
+bounds it). Worker processes run the batched code on slices of the episodes, which never
+interact: bit-identical.
 """
 
 import json
@@ -45,7 +45,7 @@ def test_lockstep_equals_the_plain_loop_on_the_push(push):
     scn, task, params = push
     engine = NativeRollout(scn, task, worlds=2, episode_seconds=3.0, workers=1)
     worlds = engine.sample_worlds(jax.random.key(2), len(params))
-    plain = engine.run_worlds(params, worlds, plain=True)
+    plain = engine.run_worlds(params, worlds, stepping="plain")
     lockstep = engine.run_worlds(params, worlds)
     assert_same_outputs(plain, lockstep, atol=1e-9)
     for name in ("bt_status", "bt_done_tick", "diverged", "config_index"):
@@ -61,7 +61,7 @@ def test_lockstep_equals_the_plain_loop_with_the_search_spiral():
     params = np.array([[-6.0, 0.01, 0.05], [-9.0, 0.05, 0.2]])
     engine = NativeRollout(scn, task, worlds=2, episode_seconds=4.0, workers=1)
     worlds = engine.sample_worlds(jax.random.key(1), len(params))
-    assert_same_outputs(engine.run_worlds(params, worlds, plain=True), engine.run_worlds(params, worlds), atol=1e-9)
+    assert_same_outputs(engine.run_worlds(params, worlds, stepping="plain"), engine.run_worlds(params, worlds), atol=1e-9)
 
 
 def test_worker_processes_give_one_process_results_bit_for_bit(push):
@@ -144,7 +144,7 @@ def test_a_diverging_world_is_contained_in_lockstep_as_in_the_loop():
     worlds = engine.sample_worlds(jax.random.key(3), 2)
     broken = worlds._replace(arm_qpos=worlds.arm_qpos.copy())
     broken.arm_qpos[1, 0] = np.nan
-    plain, lockstep, clean = (engine.run_worlds(params, broken, plain=True), engine.run_worlds(params, broken),
+    plain, lockstep, clean = (engine.run_worlds(params, broken, stepping="plain"), engine.run_worlds(params, broken),
                               engine.run_worlds(params, worlds))
     assert bool(lockstep.metrics["diverged"][1, 0]) and int(np.sum(lockstep.metrics["diverged"])) == 1
     assert not bool(lockstep.success[1, 0])

@@ -45,6 +45,13 @@ from mjxskill.sim.model import build_model
 from mjxskill.task import plan_task
 
 
+# On the CPU a call runs at most this many episodes (whole parameter sets; more when one set has
+# more worlds): with jax 0.10.2 a call of 6 x 60 push episodes never returns, every XLA thread
+# parked, with or without the YNN-fusion and multi-threaded-Eigen flags, where 2 x 60 and 6 x 20
+# return (benchmarks/NOTES.md section 13). Wider calls buy no speed on a few cores.
+CPU_EPISODES_PER_CALL = 120
+
+
 @dataclass(frozen=True, eq=False)
 class MJXRollout(RolloutBase):
     """A compiled rollout of one planned task and W worlds per parameter set: the ``Rollout`` of
@@ -91,7 +98,18 @@ class MJXRollout(RolloutBase):
 
     def _run(self, params: np.ndarray, worlds: Worlds) -> RolloutOutput:
         params = jnp.asarray(params)
-        return self.program(params, worlds).fn(params, worlds)
+        b, w = worlds.config_index.shape
+        per_call = max(1, CPU_EPISODES_PER_CALL // w)
+        if jax.default_backend() != "cpu" or b <= per_call:
+            return self.program(params, worlds).fn(params, worlds)
+        # Calls of per_call sets, the last padded with copies of the last set so that every
+        # call runs the one program; the padding's results are dropped.
+        pad = -b % per_call
+        take = lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)]) if pad else x  # noqa: E731
+        params, worlds = take(params), jax.tree.map(take, worlds)
+        parts = [self._run(params[i:i + per_call], jax.tree.map(lambda x: x[i:i + per_call], worlds))
+                 for i in range(0, b + pad, per_call)]
+        return jax.tree.map(lambda *xs: jnp.concatenate(xs)[:b], *parts)
 
     def program(self, params, worlds: Worlds) -> Program:
         """The batched-episode program for arguments shaped like (B, P) ``params`` and (B, W)

@@ -60,6 +60,14 @@ def initial_data(engine, model: mujoco.MjModel, world) -> mujoco.MjData:
     return data
 
 
+def data_was_reset(data) -> bool:
+    """Whether MuJoCo reset ``data`` to the model's initial state after its state or
+    accelerations went bad (it only counts a warning); a batch row says so itself."""
+    if isinstance(data, mujoco.MjData):
+        return any(data.warning[w].number for w in _RESET_WARNINGS)
+    return data.was_reset
+
+
 class _Snapshot:
     """What is read of an episode's data after it has ended: its state and the kinematics
     ``mj_step`` left (copying the whole MjData each tick cost more than a tick's physics)."""
@@ -69,9 +77,14 @@ class _Snapshot:
     def __init__(self, data: mujoco.MjData):
         self.arrays = [getattr(data, name).copy() for name in self.FIELDS]
 
-    def restore(self, data: mujoco.MjData) -> None:
+    def restore(self, data):
+        """The data at the snapshot: ``data`` itself, restored in place, for an ``MjData``; a
+        frozen copy for a batch row, whose kinematics are the batch's read-only outputs."""
+        if not isinstance(data, mujoco.MjData):
+            return data.frozen(dict(zip(self.FIELDS, self.arrays)))
         for name, array in zip(self.FIELDS, self.arrays):
             getattr(data, name)[:] = array
+        return data
 
 
 class NativeEpisode:
@@ -79,11 +92,13 @@ class NativeEpisode:
     (unbatched numpy fields), simulated on ``model`` (the engine's, or a private copy when
     several episodes run at once: each world has its own friction)."""
 
-    def __init__(self, engine, params, world, model: mujoco.MjModel, record: bool = False):
+    def __init__(self, engine, params, world, model: mujoco.MjModel | None, record: bool = False, data=None):
         self.engine, self.world, self.model, self.record = engine, world, model, record
         spec = engine.setup
         self.params = np.asarray(params, float)
-        self.data = initial_data(engine, model, world)
+        # data: the episode's MjData, made here, or a row of a batch (``mjxskill.engine.native.batched``)
+        # that its runner has set to the world's initial conditions
+        self.data = initial_data(engine, model, world) if data is None else data
         tool_pos, tool_quat = self.tool_pose()
         self.n_leaves = len(engine.programs)
         self.bb = NativeBlackboard(tool_pos, tool_quat, spec.default_stiffness, self.n_leaves)
@@ -125,7 +140,7 @@ class NativeEpisode:
         # bad (NaN, huge) and only counts a warning: without this check such a world would carry
         # on from qpos0 where MJX's keeps its NaNs and is contained (found by the engines'
         # agreement test on a world with a NaN start posture).
-        if any(data.warning[w].number for w in _RESET_WARNINGS):
+        if data_was_reset(data):
             return False
         if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
             return False
@@ -182,7 +197,7 @@ class NativeEpisode:
         if not self.healthy():
             # The compiled rollout keeps ticking a frozen world, which changes nothing.
             snapshot, self.cstate, self.bb = self._before
-            snapshot.restore(self.data)
+            self.data = snapshot.restore(self.data)
             self.diverged = True
             return False
         root = self.root

@@ -16,6 +16,7 @@ from mjxskill.ebt.primitives import SPIRAL_NORMAL, LeafRegistry, goal_orientatio
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.leaf_inputs import LeafInput, force_inputs, leaf_input, spiral_inputs, wait_ticks
 from mjxskill.engine.common.rotations import quat_mul
+from mjxskill.engine.native.kernels import spiral_offsets
 from mjxskill.engine.native.motion import LinearMotion, plane_basis, spiral_step
 
 TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # rotation by pi about y: the tool's z along world -z
@@ -67,12 +68,9 @@ class NativeBlackboard:
         self.mg_time = float(times[-1])
         if self.spiral_on:
             radius_max, velocity, pitch = self.spiral_params
-            offsets = np.empty((n, 3))
             e1, e2 = self.spiral_axes
-            for k in range(n):
-                r, th = self.spiral_radius, self.spiral_theta
-                offsets[k] = r * (math.cos(th) * e1 + math.sin(th) * e2)
-                self.spiral_theta, self.spiral_radius = spiral_step(th, r, radius_max, velocity, pitch, dt)
+            offsets, self.spiral_theta, self.spiral_radius = spiral_offsets(
+                self.spiral_theta, self.spiral_radius, radius_max, velocity, pitch, dt, e1, e2, n)
             pos = pos + offsets
         return pos, quat
 

@@ -18,18 +18,6 @@ from mjxskill.engine.common.motion import AxisLimits, MotionLimits
 from mjxskill.engine.common.rotations import quat_conj, quat_mul, quat_to_rotvec, rotvec_to_quat
 
 
-
-
-
-
-
-
-
-
-
-
-
-
 def _shape_constant(lim: AxisLimits) -> float:
     return 0.5 / lim.acc + 0.5 / lim.dec
 
@@ -69,10 +57,6 @@ def trapezoid_positions(t: np.ndarray, distance: float, duration: float, speed: 
     return np.where(t < t_acc, 0.5 * lim.acc * t**2, np.where(t < duration - t_dec, cruise, braking))
 
 
-
-
-
-
 class LinearMotion:
     """Straight-line, constant-axis motion from (start_pos (3,), start_quat (4,)) to
     (goal_pos, goal_quat); translation and rotation finish together at ``duration``."""
@@ -90,9 +74,19 @@ class LinearMotion:
         self.duration = max(min_duration(self.length, limits.translation), min_duration(self.angle, limits.rotation))
         self.speed_pos = cruise_speed(self.length, self.duration, limits.translation)
         self.speed_rot = cruise_speed(self.angle, self.duration, limits.rotation)
+        # the reference at and after ``duration``, by ``at``'s scalar and ``at_times``'s array
+        # arithmetic (which may differ in the last bit), once asked for
+        self._end_scalar = self._end = None
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference position (3,) and quaternion (4,) at time t (s) since the start."""
+        if t >= self.duration:  # clamped to the duration: the value at the end, computed once
+            if self._end_scalar is None:
+                self._end_scalar = self._at(self.duration)
+            return self._end_scalar[0].copy(), self._end_scalar[1].copy()
+        return self._at(t)
+
+    def _at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         lim = self.limits
         if self.length > 0:
             frac_pos = trapezoid_position(t, self.length, self.duration, self.speed_pos, lim.translation) / self.length
@@ -108,6 +102,19 @@ class LinearMotion:
 
     def at_times(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``at`` for every time of ``t`` (n,) at once: positions (n, 3), quaternions (n, 4)."""
+        if t[0] >= self.duration:
+            pos, quat = self._end_pose()
+            return np.repeat(pos, len(t), axis=0), np.repeat(quat, len(t), axis=0)
+        return self._at_times(t)
+
+    def _end_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """The reference at the motion's end, (1, 3) and (1, 4): time is clamped to the
+        duration, so every later time gives these very values (most of an episode's ticks)."""
+        if self._end is None:
+            self._end = self._at_times(np.array([self.duration]))
+        return self._end
+
+    def _at_times(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         lim = self.limits
         if self.length > 0:
             frac_pos = trapezoid_positions(t, self.length, self.duration, self.speed_pos, lim.translation) / self.length

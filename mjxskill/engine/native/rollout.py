@@ -1,12 +1,14 @@
 """The native MuJoCo engine: the episodes of a planned task on native MuJoCo, numpy and the
 reference BT interpreter, without MJX.
 
-Two ways of stepping the same episodes (``mjxskill.engine.native.episode``): ``run_episode``, a plain
-single-process Python loop one control step at a time (how a user without this project would
-write it: the baseline the benchmarks measure against, and the reference in tests), and
-``run_worlds``/``__call__``, all episodes of a call in lockstep (``mjxskill.engine.native.lockstep``:
-one vectorized impedance law per control step for all of them), split over ``workers``
-processes (``mjxskill.engine.native.pool``). Same MJCF model and timestep as the compiled rollout,
+Three ways of stepping the same episodes (``mjxskill.engine.native.episode``): ``run_episode``, a
+plain single-process Python loop one control step at a time (how a user without this project
+would write it: the baseline the benchmarks measure against, and the reference in tests); the
+numpy lockstep (``mjxskill.engine.native.lockstep``: one vectorized numpy law per control step for
+all episodes, the reference of the compiled law); and the engine's own, ``run_worlds`` and
+``__call__``: all episodes of a call on MuJoCo batches with the compiled law
+(``mjxskill.engine.native.batched``), split over ``workers`` processes
+(``mjxskill.engine.native.pool``), each batch stepped by ``threads`` threads. Same MJCF model and timestep as the compiled rollout,
 same worlds (``mjxskill.engine.common.worlds``), same world-model poses for the skills, same
 divergence containment (``mjxskill.engine.common.types``); float64 throughout where MJX runs float32.
 Nothing of the compiled rollout or of MJX is imported: this engine is the independent reference
@@ -28,7 +30,12 @@ import mujoco
 import numpy as np
 
 from mjxskill.ebt.interpreter import Interpreter
+from mjxskill.engine.native.batched import run_batched
 from mjxskill.engine.native.episode import NativeEpisode
+from mjxskill.engine.native.lockstep import run_lockstep
+from mjxskill.engine.native.pool import WorkerPool
+from mjxskill.sim.model import build_model
+from mjxskill.task import plan_task
 from mjxskill.engine.native.leaves import build_native_leaves
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import nominal_poses
@@ -36,6 +43,9 @@ from mjxskill.engine.common.rewards import build_terms
 from mjxskill.engine.common.types import EpisodeResult, RolloutOutput, episode_setup, objective_matrix, summarize
 from mjxskill.engine.protocol import RolloutBase
 from mjxskill.engine.common.worlds import Worlds, make_sampler, sample_worlds, worlds_per_config
+
+
+STEPPINGS = ("batch", "lockstep", "plain")
 
 
 def sources_sha256(scn) -> str:
@@ -57,23 +67,21 @@ def default_workers() -> int:
 class NativeRollout(RolloutBase):
     """The episodes of ``task`` in ``scn`` on native MuJoCo (arguments as ``compile_rollout``;
     nothing is compiled). workers: processes ``run_worlds`` splits a call's episodes over
-    (default: one per core; 1 runs them in this process). Results do not depend on it."""
+    (default: one per core; 1 runs them in this process); threads: the threads that step the
+    batch of a call run in this process (workers == 1). Results depend on neither."""
 
     def __init__(self, scn, task=None, *, worlds: int | None = None, episode_seconds: float | None = None,
                  start_configs: np.ndarray | None = None, mj_model: mujoco.MjModel | None = None,
-                 workers: int | None = None):
+                 workers: int | None = None, threads: int = 1):
         if task is None:
-            from mjxskill.task import plan_task
-
             task = plan_task(scn)
         if mj_model is None:
-            from mjxskill.sim.model import build_model
-
             mj_model = build_model(scn)
         seconds = scn.episode_seconds if episode_seconds is None else float(episode_seconds)
         self.scenario, self.task = scn, task
         self.start_configs = None if start_configs is None else np.asarray(start_configs)
         self.workers = default_workers() if workers is None else max(1, int(workers))
+        self.threads = max(1, int(threads))
         self._pool = None
         # The scenario and skill library files as this engine read them: workers rebuild from
         # them and check they are unchanged.
@@ -132,11 +140,16 @@ class NativeRollout(RolloutBase):
         params = self.check_params(params)
         return self.run_worlds(params, self.sample_worlds(key, len(params)))
 
-    def run_worlds(self, params, worlds: Worlds, *, plain: bool = False) -> RolloutOutput:
+    def run_worlds(self, params, worlds: Worlds, *, stepping: str = "batch") -> RolloutOutput:
         """Rolls out (B, P) ``params`` in ``worlds`` of leading shape (B, W) or (W,) (the same
-        worlds for every parameter set): the B x W episodes in lockstep, split over the worker
-        processes (``plain``: one after another in the plain loop, in this process). Returns a
-        RolloutOutput of numpy arrays with the compiled rollout's fields and metric names."""
+        worlds for every parameter set). ``stepping``: "batch", the engine's own way (the B x W
+        episodes on MuJoCo batches with the compiled law, split over the worker processes);
+        "lockstep", the numpy law for all episodes at once (the law's reference); "plain", one
+        episode after another in the plain loop (the baseline). The last two run in this
+        process. Returns a RolloutOutput of numpy arrays with the compiled rollout's fields and
+        metric names."""
+        if stepping not in STEPPINGS:
+            raise ValueError(f"stepping must be one of {', '.join(STEPPINGS)}, got {stepping!r}")
         params = self.check_params(params)
         worlds = jax.tree.map(np.asarray, worlds)
         if worlds.config_index.ndim == 1:
@@ -146,35 +159,31 @@ class NativeRollout(RolloutBase):
         b, w = worlds.config_index.shape
         flat_params = np.repeat(params, w, axis=0)
         flat_worlds = jax.tree.map(lambda x: np.ascontiguousarray(x.reshape((b * w,) + x.shape[2:])), worlds)
-        if plain:
+        if stepping == "plain":
             results = [self.run_episode(flat_params[i], jax.tree.map(lambda x: x[i], flat_worlds)) for i in range(b * w)]
+        elif stepping == "lockstep":
+            results = run_lockstep(self, flat_params, flat_worlds)
         else:
-            results = self._lockstep(flat_params, flat_worlds)
+            results = self._run_batched(flat_params, flat_worlds)
         res = EpisodeResult(*(np.array([getattr(r, f) for r in results]).reshape((b, w) + np.shape(getattr(results[0], f)))
                               for f in EpisodeResult._fields))
         return summarize(res, worlds.config_index, self.objective_matrix, self.reward_names, xp=np)
 
-    def _lockstep(self, params: np.ndarray, worlds: Worlds) -> list[EpisodeResult]:
-        from mjxskill.engine.native.lockstep import run_lockstep
-
+    def _run_batched(self, params: np.ndarray, worlds: Worlds) -> list[EpisodeResult]:
         if min(self.workers, len(params)) <= 1:
-            return run_lockstep(self, params, worlds)
+            return run_batched(self, params, worlds, threads=self.threads)
         return self.start_workers().run(params, worlds)
 
     def start_workers(self):
         """Starts the worker processes now (a call starts them when it first needs them: a few
         seconds of imports each). Returns the pool."""
         if self._pool is None and self.workers > 1:
-            from mjxskill.engine.native.pool import WorkerPool
-
             self._pool = WorkerPool(self, self.workers)
         return self._pool
 
     def memory_per_episode(self) -> int:
         """Bytes one episode holds while it runs: its model copy and its MjData (buffer and the
         arena it used), measured on a short plain episode."""
-        from mjxskill.engine.native.episode import NativeEpisode
-
         world = jax.tree.map(lambda x: np.asarray(x)[0, 0], self.sample_worlds(jax.random.key(0), 1))
         episode = NativeEpisode(self, self.task.defaults, world, self.mj_model.__copy__())
         for t in range(min(self.setup.ticks, 5)):

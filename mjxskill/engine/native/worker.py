@@ -1,7 +1,7 @@
 """A native engine worker process (started by ``mjxskill.engine.native.pool``; not a user command).
 
 Reads a recipe frame (JSON), builds the engine, answers ``K``; then for every job frame (NPZ:
-params and world fields) runs the episodes in lockstep and answers an ``O`` frame (NPZ: the
+params and world fields) runs the episodes on one single-threaded MuJoCo batch and answers an ``O`` frame (NPZ: the
 EpisodeResult fields). Any failure is answered with an ``E`` frame holding the traceback.
 """
 
@@ -17,6 +17,8 @@ import numpy as np
 
 
 def _build(spec: dict):
+    # Imported here, after main has set SIGINT aside: a Ctrl-C during the seconds these imports
+    # take reaches the parent, which stops us, not a traceback from every worker.
     import mujoco
 
     from mjxskill.engine.native.rollout import NativeRollout, sources_sha256
@@ -36,7 +38,8 @@ def _build(spec: dict):
 
 def main() -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops us
-    from mjxskill.engine.native.lockstep import run_lockstep
+    # imported only now, with SIGINT set aside (see _build)
+    from mjxskill.engine.native.batched import run_batched
     from mjxskill.engine.native.pool import pack_arrays, read_frame, unpack_arrays, write_frame
     from mjxskill.engine.common.types import EpisodeResult
     from mjxskill.engine.common.worlds import Worlds
@@ -51,7 +54,7 @@ def main() -> int:
             kind, payload = read_frame(stdin)
             arrays = unpack_arrays(payload)
             worlds = Worlds(*(arrays[f"world_{name}"] for name in Worlds._fields))
-            results = run_lockstep(engine, arrays["params"], worlds)
+            results = run_batched(engine, arrays["params"], worlds)
             fields = {f: np.array([getattr(r, f) for r in results]) for f in EpisodeResult._fields}
             write_frame(stdout, b"O", pack_arrays(**fields))
     except EOFError:  # the parent closed the pipe: done

@@ -1,0 +1,184 @@
+"""Many native episodes on one ``mujoco.batch.Batch``: the BT ticks per episode in Python, the
+control steps between two ticks for all episodes at MuJoCo's speed.
+
+The batch holds one simulation per episode, each world's contact friction as a per-simulation
+model field (``Batch.expand``: no model copy per episode), and binds the fields the law reads
+as (N, ...) arrays. Each control step is two calls for all episodes: the compiled impedance
+law (``mjxskill.engine.native.kernels``) writes every row's torques, then ``Batch.step`` runs
+``mj_step`` per row in C with the GIL released; the contact-force sensors are read as one
+array. What ``mj_step`` leaves in a row is what it leaves in an ``MjData`` (MuJoCo's batch is
+bit-identical to a loop over one ``MjData`` each), so the law sees what the lockstep's numpy law
+sees, and agrees with it to rounding (tests/test_native_batched.py).
+
+A row MuJoCo resets after its state went bad (``mj_step`` then only counts a warning, which a
+batch does not report) is found by its clock: a reset sets ``time`` to 0, so the row falls
+behind the others. A row MuJoCo raises an error in stops there. Either is a diverged episode,
+contained as in the plain loop.
+"""
+
+from __future__ import annotations
+
+import time
+
+import mujoco
+import numpy as np
+from mujoco.batch import Batch, SimulationError
+
+from mjxskill.engine.common.arrays import HOST
+from mjxskill.engine.common.bindings import FREE, MOCAP
+from mjxskill.engine.common.types import EpisodeResult
+from mjxskill.engine.common.worlds import world_pair_friction
+from mjxskill.engine.native.controller import NativeControllerState
+from mjxskill.engine.native.episode import NativeEpisode
+from mjxskill.engine.native.kernels import add_forces, impedance_rows
+from mjxskill.sim.controller_config import N_ARM
+
+# Bound before the batch's first call: a field bound later is only filled from the next call on.
+BOUND = ("qpos", "qvel", "ctrl", "mocap_pos", "mocap_quat", "time", "xpos", "xquat", "site_xpos", "site_xmat",
+         "cdof", "subtree_com", "qfrc_bias", "sensordata")
+
+
+class BatchRow:
+    """Simulation ``i`` of a batch, read as an ``MjData``: views into the bound (N, ...) fields."""
+
+    def __init__(self, fields: dict, i: int):
+        for name, array in fields.items():
+            setattr(self, name, array[i])
+        self.was_reset = False
+
+    def frozen(self, snapshot: dict) -> "BatchRow":
+        """A copy of this row with ``snapshot``'s fields: what a diverged episode is read from."""
+        row = object.__new__(BatchRow)
+        row.__dict__.update({name: np.array(value) for name, value in self.__dict__.items()})
+        row.__dict__.update(snapshot)
+        return row
+
+
+def kinematic_chain(model: mujoco.MjModel, body: int) -> np.ndarray:
+    """(7,) bool: the arm's dofs among the ancestors of ``body``'s motion, as ``mj_jac`` walks them."""
+    while body and not model.body_dofnum[body]:
+        body = model.body_parentid[body]
+    chain = np.zeros(N_ARM, bool)
+    dof = int(model.body_dofadr[body] + model.body_dofnum[body] - 1) if body else -1
+    while dof >= 0:
+        if dof < N_ARM:
+            chain[dof] = True
+        dof = int(model.dof_parentid[dof])
+    return chain
+
+
+def start_batch(engine, worlds, threads: int = 1) -> tuple[Batch, dict, np.ndarray]:
+    """A batch of one simulation per world of ``worlds`` (leading (N,), numpy fields), each at
+    its world's initial conditions with its friction, kinematics computed. Returns the batch,
+    its bound fields and which worlds (N,) start from a state that is not finite: MuJoCo's
+    batch would reset those to the model's initial state at once, where an ``MjData`` starts
+    from it (and diverges at the first step, as the compiled engine's world does)."""
+    n, b = len(worlds.config_index), engine.setup.bindings
+    batch = Batch(engine.mj_model, n, nthread=threads)
+    fields = {name: batch.bind(name) for name in BOUND}
+    friction = batch.expand("pair_friction")
+    for i in range(n):
+        friction[i] = world_pair_friction(engine.base_pair_friction, b.randomized_pairs, worlds.friction[i], HOST)
+    batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+    fields["qpos"][:, list(b.arm_qpos)] = worlds.arm_qpos
+    for k, slot in enumerate(b.slots):
+        if slot.how == FREE:
+            fields["qpos"][:, slot.qpos_adr : slot.qpos_adr + 3] = worlds.object_pos[:, k]
+            fields["qpos"][:, slot.qpos_adr + 3 : slot.qpos_adr + 7] = worlds.object_quat[:, k]
+        elif slot.how == MOCAP:
+            fields["mocap_pos"][:, slot.mocap_id] = worlds.object_pos[:, k]
+            fields["mocap_quat"][:, slot.mocap_id] = worlds.object_quat[:, k]
+    bad = ~(np.isfinite(fields["qpos"]).all(axis=1) & np.isfinite(fields["mocap_pos"]).all(axis=(1, 2))
+            & np.isfinite(fields["mocap_quat"]).all(axis=(1, 2)))
+    batch.forward(np.flatnonzero(~bad))
+    return batch, fields, bad
+
+
+def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: dict | None = None) -> list[EpisodeResult]:
+    """Episodes of ``engine`` (a ``NativeRollout``) for params (N, P) in ``worlds`` (leading
+    shape (N,), numpy fields) on one batch stepped by ``threads`` threads. Returns the N
+    results in order; they do not depend on ``threads`` or on which episodes share the batch.
+    ``timing``, if given, gets ``physics_s``: the seconds spent in ``Batch.step`` (benchmarks)."""
+    batch, fields, bad = start_batch(engine, worlds, threads)
+    # A world that starts from a non-finite state runs on its own MjData, as in the plain loop.
+    episodes = [
+        NativeEpisode(engine, params[i], _world(worlds, i), engine.mj_model.__copy__()) if bad[i]
+        else NativeEpisode(engine, params[i], _world(worlds, i), None, data=BatchRow(fields, i))
+        for i in range(len(params))
+    ]
+    stepper = _Stepper(engine, batch, fields)
+    stepper.timed = timing is not None
+    for t in range(engine.setup.ticks):
+        alive = [i for i, e in enumerate(episodes) if not e.diverged]
+        if not alive:
+            break
+        for i in alive:
+            episodes[i].begin_tick()
+        rows = [i for i in alive if not bad[i]]
+        if rows:
+            stepper.tick([episodes[i] for i in rows], np.array(rows, dtype=np.int64))
+        for i in alive:
+            if bad[i]:
+                episodes[i].plain_steps()
+            episodes[i].end_tick(t)
+    if timing is not None:
+        timing["physics_s"] = timing.get("physics_s", 0.0) + stepper.physics_s
+    return [e.result() for e in episodes]
+
+
+def _world(worlds, i: int):
+    return type(worlds)(*(np.asarray(x)[i] for x in worlds))
+
+
+class _Stepper:
+    """The control steps of one tick for the live rows of a batch."""
+
+    def __init__(self, engine, batch: Batch, fields: dict):
+        cfg, model = engine.setup.ctrl, engine.mj_model
+        self.batch, self.fields, self.cfg, self.steps = batch, fields, cfg, engine.setup.steps_per_tick
+        self.site, self.root = cfg.site_id, int(model.body_rootid[cfg.site_body_id])
+        self.chain = kinematic_chain(model, cfg.site_body_id)
+        self.rates = np.array([cfg.stiffness_rate * cfg.dt, cfg.wrench_rate * cfg.dt, cfg.torque_step,
+                               cfg.pinv_damping, cfg.nullspace_stiffness])
+        self.torque_limit = np.asarray(cfg.torque_limit, float)
+        self.sensors = np.asarray(engine.setup.bindings.force_sensors, dtype=np.int64)
+        self.timestep = float(model.opt.timestep)
+        self.clock = 0.0  # the time of a row that has never been reset, summed as mj_step sums it
+        self.timed, self.physics_s = False, 0.0
+
+    def tick(self, episodes: list[NativeEpisode], rows: np.ndarray) -> None:
+        f, m, steps = self.fields, len(rows), self.steps
+        refs = [e.bb.references(steps, self.cfg.dt) for e in episodes]
+        ref_pos = np.stack([r[0] for r in refs], axis=1)  # (steps, m, 3)
+        ref_quat = np.stack([r[1] for r in refs], axis=1)  # (steps, m, 4)
+        cmd_wrench = np.stack([e.bb.wrench for e in episodes])
+        cmd_stiffness = np.stack([e.bb.stiffness for e in episodes])
+        nullspace_target = np.stack([e.nullspace_target for e in episodes])
+        torque = np.stack([e.cstate.torque for e in episodes])
+        stiffness = np.stack([e.cstate.stiffness for e in episodes])
+        wrench = np.stack([e.cstate.wrench for e in episodes])
+        force_sum, force_peak = np.zeros(m), np.zeros(m)
+        failed = np.zeros(m, bool)
+        live = rows
+        for k in range(steps):
+            # The law runs for every row of the tick, stepped or not: its per-row inputs are indexed
+            # by position in ``rows``; a failed row's torques are never applied.
+            impedance_rows(rows, self.chain, self.site, self.root, f["cdof"], f["subtree_com"], f["site_xpos"],
+                           f["site_xmat"], f["qpos"], f["qvel"], f["qfrc_bias"], ref_pos[k], ref_quat[k], cmd_wrench,
+                           cmd_stiffness, nullspace_target, torque, stiffness, wrench, self.torque_limit, self.rates,
+                           f["ctrl"])
+            start = time.perf_counter() if self.timed else 0.0
+            try:
+                self.batch.step(live)
+            except SimulationError as error:  # those rows kept their state; they end here
+                failed |= np.isin(rows, error.ids)
+                live = rows[~failed]
+            if self.timed:
+                self.physics_s += time.perf_counter() - start
+            add_forces(rows, f["sensordata"], self.sensors, force_sum, force_peak)
+            self.clock += self.timestep
+        reset = (f["time"][rows] != self.clock) | failed
+        for r, e in enumerate(episodes):
+            e.data.was_reset = bool(reset[r])
+            e.cstate = NativeControllerState(torque[r], stiffness[r], wrench[r])
+            e.tick_force = (float(force_sum[r]), float(force_peak[r]))

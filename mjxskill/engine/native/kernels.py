@@ -1,0 +1,205 @@
+"""The impedance law of ``mjxskill.engine.native.controller.batched_impedance_control`` as one
+compiled loop over the rows of a ``mujoco.batch.Batch``, with numba.
+
+Why numba: the law is ~40 small operations on 6x7 matrices per arm; as numpy over 42 rows it
+costs ~350 us per control step (one call per quantity, each ~5 us of dispatch), six times the
+physics it controls (benchmarks/NOTES.md sections 7-11 and 15). A compiled loop does the same
+arithmetic in a few microseconds; JAX's CPU dispatch (~20 us per call, and a copy of every bound
+array into its buffers) would cost more than the arithmetic. Cython would need a compiler at
+install time; numba ships wheels.
+
+The kernel reads what ``mj_step`` leaves in the batch's bound fields, exactly what the numpy law
+reads from each ``MjData``: the Jacobian is assembled from ``cdof`` and ``subtree_com`` as
+``mj_jac`` does (the site's point offset from its tree's centre of mass crossed with each
+ancestor dof's motion axis), the site orientation converted as ``mju_mat2Quat`` does, the
+rotation error as ``mju_quat2Vel``. The order of operations differs from numpy's BLAS and LAPACK
+calls (the 6x6 solve is a Cholesky factorization here: J J^T + lambda I is symmetric positive
+definite), so results agree to rounding, not bit for bit; the tests bound the difference on
+whole episodes (1e-9 on reward totals, equal discrete outcomes). No fastmath: rows never mix
+and the result of a row does not depend on the others or on the thread it runs on.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, nogil=True)
+def _mat2quat(mat, quat):
+    """``mju_mat2Quat`` operation for operation: the branch of the largest quaternion component,
+    then ``mju_normalize4`` (which leaves a norm within 1e-15 of 1 alone)."""
+    if mat[0] + mat[4] + mat[8] > 0.0:
+        quat[0] = 0.5 * math.sqrt(1.0 + mat[0] + mat[4] + mat[8])
+        quat[1] = 0.25 * (mat[7] - mat[5]) / quat[0]
+        quat[2] = 0.25 * (mat[2] - mat[6]) / quat[0]
+        quat[3] = 0.25 * (mat[3] - mat[1]) / quat[0]
+    elif mat[0] > mat[4] and mat[0] > mat[8]:
+        quat[1] = 0.5 * math.sqrt(1.0 + mat[0] - mat[4] - mat[8])
+        quat[0] = 0.25 * (mat[7] - mat[5]) / quat[1]
+        quat[2] = 0.25 * (mat[1] + mat[3]) / quat[1]
+        quat[3] = 0.25 * (mat[2] + mat[6]) / quat[1]
+    elif mat[4] > mat[8]:
+        quat[2] = 0.5 * math.sqrt(1.0 - mat[0] + mat[4] - mat[8])
+        quat[0] = 0.25 * (mat[2] - mat[6]) / quat[2]
+        quat[1] = 0.25 * (mat[1] + mat[3]) / quat[2]
+        quat[3] = 0.25 * (mat[5] + mat[7]) / quat[2]
+    else:
+        quat[3] = 0.5 * math.sqrt(1.0 - mat[0] - mat[4] + mat[8])
+        quat[0] = 0.25 * (mat[3] - mat[1]) / quat[3]
+        quat[1] = 0.25 * (mat[2] + mat[6]) / quat[3]
+        quat[2] = 0.25 * (mat[5] + mat[7]) / quat[3]
+    norm = math.sqrt(quat[0] * quat[0] + quat[1] * quat[1] + quat[2] * quat[2] + quat[3] * quat[3])
+    if norm < 1e-15:  # mjMINVAL
+        quat[0], quat[1], quat[2], quat[3] = 1.0, 0.0, 0.0, 0.0
+    elif abs(norm - 1.0) > 1e-15:
+        inverse = 1.0 / norm
+        for k in range(4):
+            quat[k] *= inverse
+
+
+@numba.njit(cache=True, nogil=True)
+def _rate_limit(previous, target, max_delta):
+    step = target - previous
+    if step > max_delta:
+        step = max_delta
+    elif step < -max_delta:
+        step = -max_delta
+    return previous + step
+
+
+@numba.njit(cache=True, nogil=True)
+def impedance_rows(rows, chain, site, root, cdof, subtree_com, site_xpos, site_xmat, qpos, qvel, qfrc_bias,
+                   ref_pos, ref_quat, cmd_wrench, cmd_stiffness, nullspace_target, torque, stiffness, wrench,
+                   torque_limit, rates, ctrl):
+    """The impedance law for the batch rows ``rows`` (m,) at one control step.
+
+    chain (7,) bool: which of the arm's dofs are ancestors of the site's body (``mj_jac``'s
+    chain); site, root: the site id and its body's tree root; cdof (n, nv, 6), subtree_com
+    (n, nbody, 3), site_xpos (n, nsite, 3), site_xmat (n, nsite, 9), qpos (n, nq), qvel and
+    qfrc_bias (n, nv): the batch's bound fields. ref_pos (m, 3), ref_quat (m, 4), cmd_wrench and
+    cmd_stiffness (m, 6), nullspace_target (m, 7): per row of ``rows``. torque (m, 7),
+    stiffness and wrench (m, 6): the rate-limited state, updated in place. torque_limit (7,);
+    rates: (stiffness step, wrench step, torque step, pinv damping, nullspace stiffness).
+    Writes each row's torques into ctrl (n, nu)[:, :7].
+    """
+    stiffness_step, wrench_step, torque_step, damping, k_ns = rates[0], rates[1], rates[2], rates[3], rates[4]
+    jac = np.empty((6, 7))
+    jjt = np.empty((6, 6))
+    x = np.empty((6, 7))
+    quat = np.empty(4)
+    err = np.empty(4)
+    pose_err = np.empty(6)
+    force = np.empty(6)
+    drive = np.empty(7)
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        for k in range(6):
+            stiffness[r, k] = _rate_limit(stiffness[r, k], cmd_stiffness[r, k], stiffness_step)
+            wrench[r, k] = _rate_limit(wrench[r, k], cmd_wrench[r, k], wrench_step)
+        # mj_jac at the site's point: translation rows cross(axis, offset) + linear part
+        ox = site_xpos[i, site, 0] - subtree_com[i, root, 0]
+        oy = site_xpos[i, site, 1] - subtree_com[i, root, 1]
+        oz = site_xpos[i, site, 2] - subtree_com[i, root, 2]
+        for j in range(7):
+            if chain[j]:
+                a0, a1, a2 = cdof[i, j, 0], cdof[i, j, 1], cdof[i, j, 2]
+                jac[0, j] = (a1 * oz - a2 * oy) + cdof[i, j, 3]
+                jac[1, j] = (a2 * ox - a0 * oz) + cdof[i, j, 4]
+                jac[2, j] = (a0 * oy - a1 * ox) + cdof[i, j, 5]
+                jac[3, j], jac[4, j], jac[5, j] = a0, a1, a2
+            else:
+                for k in range(6):
+                    jac[k, j] = 0.0
+        # orientation error: quat2vel(quat * conj(ref)), the angle wrapped into (-pi, pi]
+        _mat2quat(site_xmat[i, site], quat)
+        bw, bx, by, bz = ref_quat[r, 0], -ref_quat[r, 1], -ref_quat[r, 2], -ref_quat[r, 3]
+        aw, ax, ay, az = quat[0], quat[1], quat[2], quat[3]
+        err[0] = aw * bw - ax * bx - ay * by - az * bz
+        err[1] = aw * bx + ax * bw + ay * bz - az * by
+        err[2] = aw * by - ax * bz + ay * bw + az * bx
+        err[3] = aw * bz + ax * by - ay * bx + az * bw
+        norm = math.sqrt(err[1] * err[1] + err[2] * err[2] + err[3] * err[3])
+        angle = 2.0 * math.atan2(norm, err[0])
+        if angle > math.pi:
+            angle -= 2.0 * math.pi
+        for k in range(3):
+            pose_err[k] = site_xpos[i, site, k] - ref_pos[r, k]
+            pose_err[3 + k] = (1.0 if k == 0 else 0.0) * angle if norm < 1e-15 else err[1 + k] / norm * angle
+        # task-space force: spring, critical damping on the twist, the commanded wrench
+        for k in range(6):
+            twist = jac[k, 0] * qvel[i, 0]
+            for j in range(1, 7):
+                twist += jac[k, j] * qvel[i, j]
+            s = stiffness[r, k]
+            force[k] = -s * pose_err[k] - 2.0 * math.sqrt(max(s, 0.0)) * twist + wrench[r, k]
+        # nullspace projector I - J^T (J J^T + lambda I)^-1 J, by Cholesky of the SPD J J^T + lambda I
+        for a in range(6):  # jjt's lower triangle becomes its Cholesky factor, row by row
+            for b in range(a + 1):
+                acc = jac[a, 0] * jac[b, 0]
+                for j in range(1, 7):
+                    acc += jac[a, j] * jac[b, j]
+                acc = acc + (damping if a == b else 0.0)
+                for c in range(b):
+                    acc -= jjt[a, c] * jjt[b, c]
+                jjt[a, b] = math.sqrt(acc) if a == b else acc / jjt[b, b]
+        for j in range(7):  # x = (J J^T + lambda I)^-1 J, column by column
+            for a in range(6):
+                acc = jac[a, j]
+                for c in range(a):
+                    acc -= jjt[a, c] * x[c, j]
+                x[a, j] = acc / jjt[a, a]
+            for a in range(5, -1, -1):
+                acc = x[a, j]
+                for c in range(a + 1, 6):
+                    acc -= jjt[c, a] * x[c, j]
+                x[a, j] = acc / jjt[a, a]
+        sqrt_kns = 2.0 * math.sqrt(k_ns)
+        for j in range(7):
+            drive[j] = k_ns * (nullspace_target[r, j] - qpos[i, j]) - sqrt_kns * qvel[i, j]
+        for j in range(7):
+            nullspace = drive[j]
+            for c in range(7):
+                proj = jac[0, j] * x[0, c]
+                for a in range(1, 6):
+                    proj += jac[a, j] * x[a, c]
+                nullspace -= proj * drive[c]
+            tau = qfrc_bias[i, j] + nullspace
+            for k in range(6):
+                tau += jac[k, j] * force[k]
+            tau = _rate_limit(torque[r, j], tau, torque_step)
+            limit = torque_limit[j]
+            tau = min(max(tau, -limit), limit)
+            torque[r, j] = tau
+            ctrl[i, j] = tau
+
+
+@numba.njit(cache=True, nogil=True)
+def add_forces(rows, sensordata, sensors, force_sum, force_peak):
+    """This step's contact force per row of ``rows``: the sum of the tool's touch ``sensors``,
+    added to force_sum and folded into force_peak (m,), in place."""
+    for r in range(rows.shape[0]):
+        total = 0.0
+        for s in sensors:
+            total += sensordata[rows[r], s]
+        force_sum[r] += total
+        if total > force_peak[r]:
+            force_peak[r] = total
+
+
+@numba.njit(cache=True, nogil=True)
+def spiral_offsets(theta, radius, radius_max, velocity, pitch, dt, e1, e2, n):
+    """``n`` control periods of the search spiral (``motion.spiral_step``), its offset from the
+    motion's reference at each: offsets (n, 3) and the final (theta, radius). The same scalar
+    operations in the same order as the Python loop, so bit for bit the same values."""
+    offsets = np.empty((n, 3))
+    for k in range(n):
+        c, s = math.cos(theta), math.sin(theta)
+        for i in range(3):
+            offsets[k, i] = radius * (c * e1[i] + s * e2[i])
+        dtheta = velocity / (radius + 0.001) * dt
+        theta = theta + dtheta
+        radius = min(radius + dtheta * pitch / (2.0 * math.pi), radius_max)
+    return offsets, theta, radius

@@ -1,0 +1,184 @@
+"""The native engine's batched stepping (``mjxskill.engine.native.batched``: MuJoCo batches and the
+compiled law of ``mjxskill.engine.native.kernels``) against its references.
+
+- The compiled law against the numpy law (``batched_impedance_control``, written operation for
+  operation as the kernel, and itself tested against the plain loop's ``mj_jacSite``/``mju_*``
+  law with BLAS and LAPACK, to rounding) on states MuJoCo produced: the same torques bit for
+  bit, the Jacobian assembled as ``mj_jac`` does; its ``mju_mat2Quat`` against MuJoCo's on
+  random rotations, bit for bit.
+- Whole episodes against the numpy lockstep on push and on the round peg (whose mesh contacts
+  turn a last-bit difference into a visible one within seconds): every result bit for bit.
+- Results bit-identical whatever the threads of the batch, and whichever episodes share it.
+- The references of a tick at once (the spiral compiled, the ended motion cached) bit-identical
+  to the uncompiled, uncached code.
+"""
+
+import math
+
+import jax
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mjxskill import load_scenario, plan_task
+from mjxskill.engine.common.types import EpisodeResult
+from mjxskill.engine.native import NativeRollout
+from mjxskill.engine.native.batched import kinematic_chain, run_batched, start_batch
+from mjxskill.engine.native.controller import BatchedControllerState, batched_impedance_control
+from mjxskill.engine.native.kernels import _mat2quat, impedance_rows
+from mjxskill.engine.native.leaves import NativeBlackboard
+from mjxskill.engine.native.lockstep import run_lockstep
+from mjxskill.engine.native.motion import LinearMotion, spiral_step
+from mjxskill.sim.controller_config import N_ARM
+
+def flat_worlds(engine, n_sets, seed):
+    worlds = engine.sample_worlds(jax.random.key(seed), n_sets)
+    w = engine.worlds
+    return jax.tree.map(lambda x: np.array(x.reshape((n_sets * w,) + x.shape[2:])), worlds)
+
+
+def fields_of(results):
+    return {f: np.array([getattr(r, f) for r in results]) for f in EpisodeResult._fields}
+
+
+@pytest.fixture(scope="module", params=["push", "peg"])
+def engine(request):
+    scn = load_scenario(request.param)
+    return NativeRollout(scn, plan_task(scn), worlds=3, episode_seconds=3.0, workers=1)
+
+
+def params_for(engine, n, seed=0):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(*engine.task.bounds, size=(n, len(engine.task.parameter_names)))
+
+
+def test_whole_episodes_equal_the_numpy_lockstep_bit_for_bit(engine):
+    params = np.repeat(params_for(engine, 3), engine.worlds, axis=0)
+    worlds = flat_worlds(engine, 3, seed=1)
+    batched, lockstep = fields_of(run_batched(engine, params, worlds)), fields_of(run_lockstep(engine, params, worlds))
+    for name in EpisodeResult._fields:
+        np.testing.assert_array_equal(batched[name], lockstep[name], err_msg=name)
+    assert np.nanmax(batched["peak_contact_force"]) > 1.0  # episodes in contact, where rounding would show
+
+
+def test_results_do_not_depend_on_threads_or_on_the_other_episodes(engine):
+    params = np.repeat(params_for(engine, 2, seed=3), engine.worlds, axis=0)
+    worlds = flat_worlds(engine, 2, seed=4)
+    one = fields_of(run_batched(engine, params, worlds, threads=1))
+    two = fields_of(run_batched(engine, params, worlds, threads=2))
+    tail = fields_of(run_batched(engine, params[2:], jax.tree.map(lambda x: x[2:], worlds)))
+    for name in EpisodeResult._fields:
+        np.testing.assert_array_equal(one[name], two[name], err_msg=name)
+        np.testing.assert_array_equal(one[name][2:], tail[name], err_msg=name)
+
+
+def test_the_compiled_law_gives_the_numpy_laws_torques_on_states_mujoco_made(engine):
+    n = 6
+    params = np.repeat(params_for(engine, 2, seed=5), engine.worlds, axis=0)[:n]
+    batch, f, bad = start_batch(engine, flat_worlds(engine, 2, seed=6))
+    assert not bad.any()
+    rng = np.random.default_rng(7)
+    f["ctrl"][:, :N_ARM] = rng.normal(0.0, 20.0, size=(len(f["ctrl"]), N_ARM))
+    batch.step(nstep=25)  # a state away from rest: moving arms, contacts possible
+    cfg, model = engine.setup.ctrl, engine.mj_model
+    rows = np.arange(n)
+    ref_pos = f["site_xpos"][rows, cfg.site_id] + rng.normal(0.0, 0.02, size=(n, 3))
+    ref_quat = rng.normal(size=(n, 4))
+    ref_quat /= np.linalg.norm(ref_quat, axis=1, keepdims=True)
+    cmd_wrench, cmd_stiffness = rng.normal(0.0, 5.0, size=(n, 6)), rng.uniform(0.0, 800.0, size=(n, 6))
+    target = f["qpos"][rows, :N_ARM] + rng.normal(0.0, 0.1, size=(n, N_ARM))
+    state = BatchedControllerState(rng.normal(0.0, 5.0, size=(n, 7)), rng.uniform(0, 800, size=(n, 6)),
+                                   rng.normal(0.0, 5.0, size=(n, 6)))
+    # the numpy law's inputs, read as the lockstep reads them from an MjData
+    jac = np.zeros((n, 6, model.nv))
+    quat = np.zeros((n, 4))
+    for i in rows:
+        data = batch.get_data(int(i))
+        mujoco.mj_forward(batch.get_model(int(i)), data)  # a fresh MjData: kinematics as the step left them
+        data.site_xpos[:] = f["site_xpos"][i]
+        data.cdof[:] = f["cdof"][i]
+        data.subtree_com[:] = f["subtree_com"][i]
+        mujoco.mj_jacSite(model, data, jac[i, :3], jac[i, 3:], cfg.site_id)
+        mujoco.mju_mat2Quat(quat[i], f["site_xmat"][i, cfg.site_id])
+    expected, new_state = batched_impedance_control(
+        cfg, jac[:, :, :N_ARM], f["site_xpos"][rows, cfg.site_id], quat, f["qpos"][rows, :N_ARM],
+        f["qvel"][rows, :N_ARM], f["qfrc_bias"][rows, :N_ARM], ref_pos, ref_quat, cmd_wrench, cmd_stiffness, target, state)
+    torque, stiffness, wrench = state.torque.copy(), state.stiffness.copy(), state.wrench.copy()
+    ctrl = np.zeros_like(f["ctrl"])
+    rates = np.array([cfg.stiffness_rate * cfg.dt, cfg.wrench_rate * cfg.dt, cfg.torque_step, cfg.pinv_damping,
+                      cfg.nullspace_stiffness])
+    impedance_rows(rows, kinematic_chain(model, cfg.site_body_id), cfg.site_id, int(model.body_rootid[cfg.site_body_id]),
+                   f["cdof"], f["subtree_com"], f["site_xpos"], f["site_xmat"], f["qpos"], f["qvel"], f["qfrc_bias"],
+                   ref_pos, ref_quat, cmd_wrench, cmd_stiffness, target, torque, stiffness, wrench,
+                   np.asarray(cfg.torque_limit, float), rates, ctrl)
+    np.testing.assert_array_equal(ctrl[rows, :N_ARM], expected)
+    np.testing.assert_array_equal(torque, new_state.torque)
+    np.testing.assert_array_equal(stiffness, new_state.stiffness)
+    np.testing.assert_array_equal(wrench, new_state.wrench)
+    assert np.ptp(expected) > 1.0  # torques that exercise the law, not its limits alone
+
+
+unit = st.floats(-1.0, 1.0, allow_nan=False)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.tuples(unit, unit, unit, unit).filter(lambda q: sum(x * x for x in q) > 1e-3))
+def test_mat2quat_is_mujocos(q):
+    q = np.array(q) / np.linalg.norm(q)
+    mat = np.zeros(9)
+    mujoco.mju_quat2Mat(mat, q)
+    expected, got = np.zeros(4), np.zeros(4)
+    mujoco.mju_mat2Quat(expected, mat)
+    _mat2quat(mat, got)
+    np.testing.assert_array_equal(got, expected)
+
+
+finite = st.floats(-1.0, 1.0, allow_nan=False)
+
+
+def references_one_by_one(bb, n, dt):
+    """The references of ``n`` periods as written before they were compiled and cached: the
+    motion's array arithmetic at every time, the spiral a Python loop of ``spiral_step``."""
+    times = np.cumsum(np.concatenate([[bb.mg_time], np.full(n, dt)]))
+    pos, quat = bb.motion._at_times(np.minimum(times[:-1], bb.motion.duration))
+    theta, radius = bb.spiral_theta, bb.spiral_radius
+    if bb.spiral_on:
+        e1, e2 = bb.spiral_axes
+        offsets = np.empty((n, 3))
+        for k in range(n):
+            offsets[k] = radius * (math.cos(theta) * e1 + math.sin(theta) * e2)
+            theta, radius = spiral_step(theta, radius, *bb.spiral_params, dt)
+        pos = pos + offsets
+    return pos, quat, theta, radius, float(times[-1])
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    start=st.tuples(finite, finite, finite), goal_offset=st.tuples(finite, finite, finite),
+    turn=st.tuples(unit, unit, unit, unit).filter(lambda q: sum(x * x for x in q) > 1e-3),
+    elapsed=st.floats(0.0, 3.0), spiral=st.booleans(), theta=st.floats(0.0, 60.0), radius=st.floats(0.0, 0.01),
+    spiral_params=st.tuples(st.floats(0.0, 0.01), st.floats(1e-4, 0.05), st.floats(0.0, 0.005)),
+)
+def test_a_ticks_references_are_those_of_the_uncompiled_uncached_code(start, goal_offset, turn, elapsed, spiral,
+                                                                        theta, radius, spiral_params):
+    q1 = np.array(turn) / np.linalg.norm(turn)
+    q0 = np.array([0.0, 1.0, 0.0, 0.0])
+    bb = NativeBlackboard(np.array(start) * 0.5, q0, np.full(6, 400.0), 2)
+    bb.motion = LinearMotion(bb.goal_pos, q0, bb.goal_pos + 0.1 * np.array(goal_offset), q1)
+    bb.mg_time, bb.spiral_on, bb.spiral_params = elapsed, spiral, spiral_params
+    bb.spiral_theta, bb.spiral_radius = theta, radius
+    pos, quat, theta, radius, time = references_one_by_one(bb, 50, 0.002)
+    for _ in range(2):  # the second call reads the ended motion from its cache
+        got_pos, got_quat = bb.copy().references(50, 0.002)
+        np.testing.assert_array_equal(got_pos, pos)
+        np.testing.assert_array_equal(got_quat, quat)
+    bb.references(50, 0.002)
+    assert (bb.spiral_theta, bb.spiral_radius, bb.mg_time) == (theta, radius, time)
+    for t in (elapsed, bb.motion.duration, bb.motion.duration + elapsed):  # at(): cached once ended
+        for _ in range(2):
+            got_pos, got_quat = bb.motion.at(t)
+            want_pos, want_quat = bb.motion._at(min(t, bb.motion.duration))
+            np.testing.assert_array_equal(got_pos, want_pos)
+            np.testing.assert_array_equal(got_quat, want_quat)
