@@ -22,6 +22,7 @@ content again is harmless.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -115,7 +116,10 @@ def export_texts(doc: dict) -> dict[str, str]:
 
 def conflicting_export(doc: dict, folder: Path) -> Path | None:
     """The first parameter file in ``folder`` that an export of ``doc`` would replace with other
-    content (or that is a link or no file at all), or None when writing it changes nothing."""
+    content (or that is a link or no file at all), or ``folder`` itself when it is a link (a run's
+    selected-<k> pointing elsewhere), or None when writing it changes nothing."""
+    if folder.is_symlink():
+        return folder
     for name, text in export_texts(doc).items():
         path = folder / name
         if path.is_symlink() or (path.exists() and (not path.is_file() or path.read_bytes() != text.encode())):
@@ -123,12 +127,19 @@ def conflicting_export(doc: dict, folder: Path) -> Path | None:
     return None
 
 
+def what_is_there(conflict: Path) -> str:
+    """How ``conflicting_export``'s answer is in the way, for a message."""
+    if conflict.is_symlink():
+        return f"is a symbolic link (to {os.readlink(conflict)!r}), never written through"
+    return "holds another export or an edited file"
+
+
 def write_export(doc: dict, folder: Path) -> list[Path]:
     """Writes the export of ``doc`` into ``folder``, each file replaced whole; RunError when
     ``folder`` holds a parameter file with other content (see ``conflicting_export``)."""
     conflict = conflicting_export(doc, folder)
     if conflict is not None:
-        raise RunError(f"{conflict} holds another export or an edited file; it is kept: move it away, or export elsewhere")
+        raise RunError(f"{conflict} {what_is_there(conflict)}; it is kept: move it away, or export elsewhere")
     try:
         folder.mkdir(parents=True, exist_ok=True)
         paths = []

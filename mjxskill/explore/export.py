@@ -15,7 +15,7 @@ import shutil
 from pathlib import Path
 
 from mjxskill.errors import RunError
-from mjxskill.evaluation.selection import conflicting_export, export_document, write_export
+from mjxskill.evaluation.selection import conflicting_export, export_document, what_is_there, write_export
 from mjxskill.evaluation.validation import row_validation, validated_union
 from mjxskill.explore.data import RunEntry, evaluation_rows
 from mjxskill.explore.solutions import Solutions
@@ -31,7 +31,7 @@ def export_solution(entry: RunEntry, k: int, solutions: Solutions | None = None)
     folder = entry.run.path / f"selected-{k}"
     conflict = conflicting_export(doc, folder)
     if conflict is not None:
-        raise RunError(f"{conflict} already holds another export; move it away, or export with "
+        raise RunError(f"{conflict} {what_is_there(conflict)}; move it away, or export with "
                        f"python -m mjxskill.select {entry.run.path} --pick {k} --out FOLDER")
     written = [str(p) for p in write_export(doc, folder)]
     if solutions is not None:
