@@ -59,6 +59,16 @@ class RequestError(UserError, ValueError):
     an integer, a body that is not a JSON object (``mjxskill.explore.server``; answered 400)."""
 
 
+class ServerBusy(UserError):
+    """A request to the explore page's server that it cannot take now, answered with ``status``:
+    409, the point asked for has a rollout under way; 429, the rollout queue is full
+    (``mjxskill.explore.solutions``)."""
+
+    def __init__(self, message: str, *, status: int):
+        super().__init__(message)
+        self.status = status
+
+
 class CommandError(UserError):
     """A command's flags or arguments that cannot be honoured (e.g. an unwritable folder)."""
 
@@ -70,4 +80,4 @@ class Notice(UserWarning):
 
 
 __all__ = ["CommandError", "GoalError", "Notice", "PlanError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
-           "SettingError", "UserError"]
+           "ServerBusy", "SettingError", "UserError"]

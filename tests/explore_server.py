@@ -28,21 +28,31 @@ def serving(path, solutions: Solutions | None = None):
         explorer.close()
 
 
-def request(base: str, path: str, body: dict | None = None) -> tuple[int, bytes, str]:
-    """(status, body, content type) of GET ``path`` (POST with a JSON ``body``), sent as is."""
+def request(base: str, path: str, body: dict | None = None, headers: dict | None = None,
+            method: str | None = None) -> tuple[int, bytes, str]:
+    """(status, body, content type) of GET ``path`` (POST with a JSON ``body``, from the page's
+    own origin as a browser sends it), sent as is; ``headers`` replace or add headers (a value of
+    None leaves that header out)."""
     host, port = base.removeprefix("http://").split(":")
     conn = http.client.HTTPConnection(host, int(port), timeout=30)
+    sent = {} if body is None else {"Content-Type": "application/json", "Origin": base}
+    sent.update(headers or {})
+    skip_host = "Host" in sent
     try:
-        if body is None:
-            conn.request("GET", path)
-        else:
-            conn.request("POST", path, json.dumps(body), {"Content-Type": "application/json"})
+        conn.putrequest(method or ("GET" if body is None else "POST"), path, skip_host=skip_host, skip_accept_encoding=True)
+        data = b"" if body is None else json.dumps(body).encode()
+        if body is not None:
+            sent.setdefault("Content-Length", str(len(data)))
+        for name, value in sent.items():
+            if value is not None:
+                conn.putheader(name, value)
+        conn.endheaders(data or None)
         response = conn.getresponse()
         return response.status, response.read(), response.getheader("Content-Type", "")
     finally:
         conn.close()
 
 
-def get_json(base: str, path: str, body: dict | None = None) -> tuple[int, dict]:
-    status, data, _ = request(base, path, body)
+def get_json(base: str, path: str, body: dict | None = None, headers: dict | None = None) -> tuple[int, dict]:
+    status, data, _ = request(base, path, body, headers)
     return status, json.loads(data)

@@ -162,3 +162,45 @@ def test_rolling_out_a_point_shows_progress_then_worlds_and_video(tmp_path, open
         first = page.locator("#frame").get_attribute("src")
         page.click("#video button")  # play: the frames follow each other
         page.wait_for_function(f"document.getElementById('frame').getAttribute('src') !== {first!r}")
+
+
+def test_the_page_opened_as_localhost_exports(tmp_path, open_page):
+    run = make_push_run(tmp_path / "push-0")
+    with serving(run.path) as base:
+        page = open_page(base.replace("127.0.0.1", "localhost"))
+        page.locator('#pareto circle.front[data-k="1"]').click()
+        page.click("#export")
+        page.wait_for_function("document.getElementById('export-result').textContent.startsWith('wrote')")
+    assert (run.path / "selected-1" / "parameters.yaml").is_file()
+
+
+CROSS_SITE_POSTS = """async (target) => {
+  const outcomes = [];
+  for (const [path, body] of [["/api/export", {run: 0, k: 0}], ["/api/solution/0/0", {config: 0}]]) {
+    for (const init of [{mode: "no-cors", headers: {"Content-Type": "text/plain"}},           // no preflight
+                        {mode: "cors", headers: {"Content-Type": "application/json"}}]) {     // preflighted
+      try {
+        const response = await fetch(target + path, {method: "POST", body: JSON.stringify(body), ...init});
+        outcomes.push(response.type);
+      } catch (err) {
+        outcomes.push("failed");
+      }
+    }
+  }
+  return outcomes;
+}"""
+
+
+def test_another_sites_page_cannot_export_or_start_a_rollout(tmp_path, open_page):
+    """A page of another origin (here another explore server: another port) posts to the
+    page's API as a hostile site would; the run directory stays as it was."""
+    run = make_push_run(tmp_path / "push-0")
+    before = sorted(p.relative_to(run.path) for p in run.path.rglob("*"))
+    other = make_push_run(tmp_path / "elsewhere")
+    solutions = Solutions(run.path, lambda entry: pytest.fail("a rollout was built"), per_config=1)
+    with serving(run.path, solutions) as target, serving(other.path) as elsewhere:
+        page = open_page(elsewhere)
+        outcomes = page.evaluate(CROSS_SITE_POSTS, target)
+        assert outcomes == ["opaque", "failed"] * 2  # sent blind, or refused at the preflight
+        assert solutions._worker is None
+    assert sorted(p.relative_to(run.path) for p in run.path.rglob("*")) == before

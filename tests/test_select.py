@@ -180,3 +180,57 @@ def plt_read(path):
     import matplotlib.pyplot as plt
 
     return plt.imread(path)
+
+
+# -- nothing the user has is replaced -------------------------------------------------------------
+def _select(capsys, run_path, *args):
+    from cli_helpers import invoke
+
+    return invoke(capsys, "select", run_path, "--no-render", *args)
+
+
+def test_select_again_with_the_same_pick_is_harmless(tmp_path, capsys):
+    from explore_runs import make_push_run
+
+    run = make_push_run(tmp_path / "push-0")
+    assert _select(capsys, run.path, "--pick", 1)[0] == 0
+    first = {p.name: p.read_bytes() for p in (run.path / "selected-1").iterdir()}
+    assert _select(capsys, run.path, "--pick", 1)[0] == 0
+    assert {p.name: p.read_bytes() for p in (run.path / "selected-1").iterdir()} == first
+
+
+@pytest.mark.parametrize("name", ["parameters.yaml", "parameters.json"])
+def test_select_keeps_a_parameter_file_edited_by_hand(tmp_path, capsys, name):
+    from cli_helpers import error_line
+    from explore_runs import make_push_run
+
+    run = make_push_run(tmp_path / "push-0")
+    assert _select(capsys, run.path, "--pick", 1)[0] == 0
+    edited = run.path / "selected-1" / name
+    edited.write_text(edited.read_text().replace("Push.offset_x_start", "Push.offset_x_start_tuned"))
+    before = {p.name: p.read_bytes() for p in (run.path / "selected-1").iterdir()}
+    code, err = _select(capsys, run.path, "--pick", 1)
+    error_line(code, err, "select", str(edited), "is kept", "--out FOLDER")
+    assert {p.name: p.read_bytes() for p in (run.path / "selected-1").iterdir()} == before
+
+
+def test_select_out_into_a_users_folder_keeps_its_files(tmp_path, capsys):
+    from cli_helpers import error_line
+    from explore_runs import make_push_run
+
+    run = make_push_run(tmp_path / "push-0")
+    mine = tmp_path / "my-settings"
+    mine.mkdir()
+    (mine / "parameters.json").write_text('{"mine": true}\n')
+    outside = tmp_path / "outside.yaml"
+    outside.write_text("a file of the user's\n")
+    code, err = _select(capsys, run.path, "--pick", 0, "--out", mine)
+    error_line(code, err, "select", str(mine / "parameters.json"))
+    assert sorted(p.name for p in mine.iterdir()) == ["parameters.json"]
+    assert (mine / "parameters.json").read_text() == '{"mine": true}\n'
+    linked = run.path / "selected-0"
+    linked.mkdir()
+    (linked / "parameters.yaml").symlink_to(outside)  # a link out of the run: never written through
+    code, err = _select(capsys, run.path, "--pick", 0)
+    error_line(code, err, "select", str(linked / "parameters.yaml"))
+    assert outside.read_text() == "a file of the user's\n" and (linked / "parameters.yaml").is_symlink()

@@ -28,7 +28,7 @@ from mjxskill.cli import args as cli_args
 from mjxskill.engine.build import CHOICES, build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 from mjxskill.evaluation.baselines import table
-from mjxskill.evaluation.evaluate_run import FOLDER, evaluate_run, evaluation_settings
+from mjxskill.evaluation.evaluate_run import FOLDER, differences_from_earlier, evaluate_run, evaluation_settings
 from mjxskill.evaluation.pooled import group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
 from mjxskill.evaluation.validation import in_contention, validate, validation_settings
 from mjxskill.experiment.directory import Experiment, is_done, repetition_settings, runs_of
@@ -52,6 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "how a solution transfers between engines)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="force bound of each repeated "
                         "run's picked solution, N (default: the largest force an operator set commands)")
+    parser.add_argument("--replace", action="store_true", help="replace an earlier evaluation made with other settings "
+                        "(without it, evaluate refuses and keeps that one)")
     cli_args.add_validation_arguments(parser, "a repeated run or an experiment, before each run's pick", "default 5; an "
                                               "experiment: its own, which this flag changes (the picks are made again)")
     return parser
@@ -102,6 +104,9 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
         sub.front(sub.config())
     scn, task = load_run_task(run, config)
     seed = 0 if args.seed is None else args.seed
+    if not args.replace:
+        for i, sub in enumerate(subs):
+            _keep_earlier(sub, _settings(args, sub.config(), seed + i))
     rollout = _rollout(args, scn, task, _settings(args, config, seed), config)
     results = []
     try:
@@ -123,6 +128,20 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
     if repeated:
         print(_pool(run, config, results, args.max_force))
     return 0
+
+
+FLAGS = {"per_config": "--per-config", "random": "--random", "seed": "--seed", "engine": "--engine",
+         "episode_seconds": "--episode-seconds"}
+
+
+def _keep_earlier(run, settings: dict) -> None:
+    """Refuses an evaluation that would replace ``run``'s earlier one made with other settings."""
+    differences = differences_from_earlier(run, settings)
+    if differences:
+        earlier = ", ".join(f"{FLAGS[k]} {old}" for k, old, _ in differences)
+        asked = ", ".join(f"{FLAGS[k]} {new}" for k, _, new in differences)
+        raise CommandError(f"{run.path / FOLDER} holds an evaluation made with {earlier}; this one ({asked}) would replace "
+                           "it, so it is kept: evaluate with --replace to replace it, or evaluate a copy of the run")
 
 
 def _validate(args, sub, config, ev, rollout, settings: dict):
@@ -180,6 +199,8 @@ def _experiment(args: argparse.Namespace) -> int:
                  if value is not None and value != own]
     if args.seed is not None:
         conflicts.append(f"--seed {args.seed} (each repetition is evaluated in the worlds of its own seed)")
+    if args.replace:
+        conflicts.append("--replace (an experiment keeps the evaluations of its protocol)")
     if conflicts:
         raise CommandError(f"{exp.path} is evaluated with its own protocol; drop {', '.join(conflicts)}")
     scn, task = load_run_task(exp.optimizer, config)

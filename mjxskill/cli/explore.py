@@ -57,9 +57,7 @@ def _main(args: argparse.Namespace) -> int:
         print(f"{build_parser().prog}: warning: listening on {args.host}: anyone who reaches this address can read "
               "the run directory and export from it (there is no login)", file=sys.stderr, flush=True)
     try:
-        server.serve_forever()
-    except KeyboardInterrupt:
-        pass
+        server.serve_forever()  # until Ctrl-C: its KeyboardInterrupt becomes exit code 130 in cli.run
     finally:
         server.server_close()
         explorer.close()

@@ -29,7 +29,14 @@ from mjxskill.cli import args as cli_args
 from mjxskill.engine.build import build_rollout
 from mjxskill.errors import CommandError
 from mjxskill.evaluation.render import RenderUnavailable, default_gl, render_episode, render_world
-from mjxskill.evaluation.selection import best_unvalidated, choose, export_document, write_export
+from mjxskill.evaluation.selection import (
+    best_unvalidated,
+    choose,
+    conflicting_export,
+    export_document,
+    what_is_there,
+    write_export,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -130,6 +137,10 @@ def _main(args: argparse.Namespace) -> int:
     front = fronts[[f[0] for f in fronts].index(ref)][3]
     folder = args.out or Path(args.run) / (f"selected-{ref.kind}-{ref.seed}-{k}" if several else f"selected-{k}")
     doc = export_document(config, front, k, run.path, row_validation(validated, worlds, i))
+    conflict = conflicting_export(doc, folder)
+    if conflict is not None:
+        raise CommandError(f"{conflict} {what_is_there(conflict)}; it is kept: move it away, "
+                           "or write this pick elsewhere with --out FOLDER")
     for path in write_export(doc, folder):
         print(f"wrote {path}")
     print(f"chose Pareto solution {k}{f' of {run.path}' if several else ''}: "

@@ -15,7 +15,8 @@
 An evaluation is *current* when ``evaluation.json`` has the same settings (worlds per
 configuration, random sets, seed, engine, episode length) and the same Pareto solutions as the
 run has now; a current evaluation is reused, not run again (the same inputs give the same
-numbers). A chunk line is used only when its settings and parameter sets are the ones asked
+numbers). One with other settings is replaced only when the caller allows it
+(``differences_from_earlier``: ``evaluate`` refuses without ``--replace``). A chunk line is used only when its settings and parameter sets are the ones asked
 for; a line cut short by a kill is evaluated again. Format 2 (the commanded force named
 peak_commanded_force, the contact forces added): an evaluation or chunk of format 1 (its
 max_force) is not used, the run is evaluated again.
@@ -59,9 +60,22 @@ def evaluation_settings(per_config: int, n_random: int, seed: int, batch_size: i
             "engine": str(engine), "episode_seconds": float(episode_seconds)}
 
 
+RESULT_SETTINGS = ("per_config", "random", "seed", "engine", "episode_seconds")  # what the numbers depend on
+
+
 def _same(a: dict, b: dict) -> bool:
-    keys = ("per_config", "random", "seed", "engine", "episode_seconds")
-    return all(a.get(k) == b.get(k) for k in keys)
+    return all(a.get(k) == b.get(k) for k in RESULT_SETTINGS)
+
+
+def differences_from_earlier(run: Run, settings: dict) -> list[tuple[str, object, object]]:
+    """``(setting, the earlier value, the asked value)`` for each setting in which the run's
+    complete evaluation differs from ``settings``: an evaluation with these settings would
+    replace it. Empty when the run has none (or a damaged one, which is evaluated again)."""
+    try:
+        _, own = load_evaluation(run)
+    except RunError:
+        return []
+    return [(k, own.get(k), settings.get(k)) for k in RESULT_SETTINGS if own.get(k) != settings.get(k)]
 
 
 def evaluation_current(run: Run, config: RunConfig, settings: dict) -> bool:
@@ -198,4 +212,4 @@ def _read_chunks(path: Path, settings: dict, candidates: Candidates) -> dict:
     return done
 
 
-__all__ = ["CHUNKS", "FOLDER", "RESULT", "evaluate_run", "evaluation_current", "evaluation_settings", "load_evaluation"]
+__all__ = ["CHUNKS", "FOLDER", "RESULT", "RESULT_SETTINGS", "differences_from_earlier", "evaluate_run", "evaluation_current", "evaluation_settings", "load_evaluation"]

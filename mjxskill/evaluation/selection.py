@@ -13,18 +13,23 @@ the best unvalidated solution when it did better in training than the validated 
 written before contact forces were measured has none: ``--max-force``
 is refused for it (its commanded force is no measure of what the tool did to the world). The choice is written to
 ``RUN_DIR/selected-<k>/parameters.yaml`` and ``parameters.json`` (parameter name -> value and
-unit, ready for a controller) and rendered there (PNG frames, or an MP4 with ffmpeg).
+unit, ready for a controller) and rendered there (PNG frames, or an MP4 with ffmpeg). An export
+never replaces a parameter file with other content (an earlier pick, a file edited by hand):
+``conflicting_export`` names it, and ``select`` and the explore page refuse; writing the same
+content again is harmless.
 """
 
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
 import yaml
 
 from mjxskill.errors import RunError
+from mjxskill.runs.atomic_write import write_text
 
 
 def choose(front, max_force: float | None = None, min_success: float | None = None, validated=None) -> int:
@@ -109,12 +114,37 @@ def export_texts(doc: dict) -> dict[str, str]:
     return {"parameters.yaml": yaml.safe_dump(doc, sort_keys=False), "parameters.json": json.dumps(doc, indent=2) + "\n"}
 
 
+def conflicting_export(doc: dict, folder: Path) -> Path | None:
+    """The first parameter file in ``folder`` that an export of ``doc`` would replace with other
+    content (or that is a link or no file at all), or ``folder`` itself when it is a link (a run's
+    selected-<k> pointing elsewhere), or None when writing it changes nothing."""
+    if folder.is_symlink():
+        return folder
+    for name, text in export_texts(doc).items():
+        path = folder / name
+        if path.is_symlink() or (path.exists() and (not path.is_file() or path.read_bytes() != text.encode())):
+            return path
+    return None
+
+
+def what_is_there(conflict: Path) -> str:
+    """How ``conflicting_export``'s answer is in the way, for a message."""
+    if conflict.is_symlink():
+        return f"is a symbolic link (to {os.readlink(conflict)!r}), never written through"
+    return "holds another export or an edited file"
+
+
 def write_export(doc: dict, folder: Path) -> list[Path]:
+    """Writes the export of ``doc`` into ``folder``, each file replaced whole; RunError when
+    ``folder`` holds a parameter file with other content (see ``conflicting_export``)."""
+    conflict = conflicting_export(doc, folder)
+    if conflict is not None:
+        raise RunError(f"{conflict} {what_is_there(conflict)}; it is kept: move it away, or export elsewhere")
     try:
         folder.mkdir(parents=True, exist_ok=True)
         paths = []
         for name, text in export_texts(doc).items():
-            (folder / name).write_text(text)
+            write_text(folder / name, text)
             paths.append(folder / name)
     except OSError as err:
         raise RunError(f"cannot write the export to {str(folder)!r}: {err.strerror}") from None

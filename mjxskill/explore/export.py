@@ -15,7 +15,7 @@ import shutil
 from pathlib import Path
 
 from mjxskill.errors import RunError
-from mjxskill.evaluation.selection import export_document, export_texts, write_export
+from mjxskill.evaluation.selection import conflicting_export, export_document, what_is_there, write_export
 from mjxskill.evaluation.validation import row_validation, validated_union
 from mjxskill.explore.data import RunEntry, evaluation_rows
 from mjxskill.explore.solutions import Solutions
@@ -29,11 +29,10 @@ def export_solution(entry: RunEntry, k: int, solutions: Solutions | None = None)
                            else f"{entry.run.path} has an empty Pareto front")
     doc = export_document(entry.config, front, k, entry.run.path, row_validation(*validated_union([(entry.run, front)]), k))
     folder = entry.run.path / f"selected-{k}"
-    for name, text in export_texts(doc).items():
-        path = folder / name
-        if path.is_file() and path.read_text() != text:
-            raise RunError(f"{path} already holds another export; move it away, or export with "
-                               f"python -m mjxskill.select {entry.run.path} --pick {k} --out FOLDER")
+    conflict = conflicting_export(doc, folder)
+    if conflict is not None:
+        raise RunError(f"{conflict} {what_is_there(conflict)}; move it away, or export with "
+                       f"python -m mjxskill.select {entry.run.path} --pick {k} --out FOLDER")
     written = [str(p) for p in write_export(doc, folder)]
     if solutions is not None:
         index = int(evaluation_rows(entry.evaluations(), front.take(slice(k, k + 1)))[0])

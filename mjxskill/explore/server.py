@@ -16,9 +16,13 @@ served:
     POST /api/solution/<run>/<index>  {"config": C}   start computing them (background)
     POST /api/export {"run": r, "k": k}      write selected-<k>/ as ``select --pick k``
 
-A path with a ``..`` segment, a backslash or a NUL is refused (403) before any routing, and a
-file is served only when its real path (symlinks resolved) lies inside the static folder or the
-run directory. Bad input to the API answers 400 with ``{"error": message}``.
+Before any routing, a request is refused (``mjxskill.explore.guard``) whose Host is not an
+address this server serves (403), a state-changing one not sent by the page itself with a JSON
+body (403), and a body over ``MAX_BODY_BYTES`` (413); so is a path with a ``..`` segment, a
+backslash or a NUL (403). A file is served only when its real path (symlinks resolved) lies
+inside the static folder or the run directory. Bad input to the API answers 400 with
+``{"error": message}``; a rollout the server cannot take now answers 409 (that point has one
+under way) or 429 (the queue is full).
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ from wsgiref.simple_server import WSGIRequestHandler, WSGIServer, make_server
 
 import bottle
 
-from mjxskill.errors import RequestError, RunError, UserError
+from mjxskill.errors import RequestError, RunError, ServerBusy, UserError
 from mjxskill.explore.data import (
     choose_document,
     evaluations_document,
@@ -42,6 +46,7 @@ from mjxskill.explore.data import (
     runs_in,
 )
 from mjxskill.explore.export import export_solution
+from mjxskill.explore.guard import ServedAddress, refusal, served_address
 from mjxskill.explore.solutions import Solutions
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -118,11 +123,15 @@ def _int(doc, name: str, default: int | None = None) -> int:
     return value
 
 
-def build_app(explorer: Explorer) -> bottle.Bottle:
+def build_app(explorer: Explorer, served: ServedAddress) -> bottle.Bottle:
+    """The page and its API for ``explorer``, answering only requests to ``served``."""
     app = bottle.Bottle()
 
     @app.hook("before_request")
-    def _refuse_escapes():
+    def _refuse_foreign_and_escapes():
+        refused_request = refusal(bottle.request.environ, served)
+        if refused_request is not None:
+            raise _json(refused_request[0], {"error": refused_request[1]})
         if refused(bottle.request.path):
             raise _json(403, {"error": f"refused: {bottle.request.path!r} leaves the served folders"})
 
@@ -130,6 +139,8 @@ def build_app(explorer: Explorer) -> bottle.Bottle:
         def handler(*args, **kwargs):
             try:
                 return fn(*args, **kwargs)
+            except ServerBusy as err:
+                return _json(err.status, {"error": str(err)})
             except UserError as err:
                 return _json(400, {"error": str(err)})
         return handler
@@ -181,4 +192,7 @@ def make_explore_server(explorer: Explorer, host: str = "127.0.0.1", port: int =
     not yet serving: call ``serve_forever()``. A port in use or a bad host is the OSError of
     binding the socket (errno EADDRINUSE for a port in use), which the command line words."""
     server_class = _IPv6Server if ":" in host else _ThreadingServer
-    return make_server(host, port, build_app(explorer), server_class=server_class, handler_class=_QuietHandler)
+    served = served_address(host)
+    server = make_server(host, port, build_app(explorer, served), server_class=server_class, handler_class=_QuietHandler)
+    served.port = server.server_port  # for port 0, the one the bind chose
+    return server

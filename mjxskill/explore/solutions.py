@@ -16,7 +16,9 @@ engine (``config.engine``: the native engine for a run trained on it, MJX for on
 MJX) and are closed with the explorer (``Solutions.close``: the native engine's worker
 processes). One worker thread runs the jobs one after another (a rollout is not shared between
 threads; the CPU is the limit anyway); the server only reads the jobs' progress, so it never
-waits for a compile.
+waits for a compile. A point has at most one job queued or running, and at most
+``MAX_WAITING_JOBS`` wait: what asks for more is refused (``ServerBusy``), so that a burst of
+requests cannot line up hours of rollouts.
 """
 
 from __future__ import annotations
@@ -34,15 +36,18 @@ from typing import Callable
 import numpy as np
 
 from mjxskill.engine import build
-from mjxskill.errors import RunError, UserError
+from mjxskill.errors import RunError, ServerBusy, UserError
 from mjxskill.evaluation.baselines import evaluation_worlds
 from mjxskill.evaluation.render import RenderUnavailable, render_episode, render_world
 from mjxskill.runs.atomic_write import write_json
 from mjxskill.runs.run_task import load_run_task
+from mjxskill.scenario import load_scenario
 from mjxskill.explore.data import RunEntry, number, numbers
 
 FORMAT = "mjxskill.explore/1"
 CACHE = "explore"
+MAX_WAITING_JOBS = 4  # a rollout with rendering takes a minute or more on a CPU
+ACTIVE = ("queued", "running")
 
 # (run entry) -> a rollout with scenario, worlds_per_config, run_worlds, trace, mj_model and close
 RolloutFactory = Callable[[RunEntry], object]
@@ -103,6 +108,7 @@ class Solutions:
         self._rollouts: dict[tuple, object] = {}
         self._worker: threading.Thread | None = None
         self._closed = False
+        self._known_configs: dict[str, int] = {}  # scenario -> its number of known start configurations
         # Why this process cannot render, once it failed to: the GL backend is fixed when mujoco
         # is imported, and after a failed mjr_makeContext another attempt aborts the process
         # (same thread) or hangs holding the GIL (another thread).
@@ -122,10 +128,24 @@ class Solutions:
     def cached_video(self, folder: Path, params: np.ndarray, config_index: int) -> dict | None:
         return read_cached(folder / f"known-{config_index}.json", params, seed=self.seed, size=list(self.size))
 
+    def check_config(self, entry: RunEntry, config_index: int) -> None:
+        """Raises RunError unless ``config_index`` is a known start configuration of the run's
+        task (the scenario is read once per scenario and process)."""
+        scenario = entry.config.scenario
+        with self._lock:
+            n_known = self._known_configs.get(scenario)
+        if n_known is None:
+            n_known = len(load_scenario(scenario).robot.start_configs)
+            with self._lock:
+                self._known_configs[scenario] = n_known
+        if not 0 <= config_index < n_known:
+            raise RunError(f"start configuration {config_index}: the task has known ones 0-{n_known - 1}")
+
     # -- what the page asks -------------------------------------------------------------------
     def status(self, run: int, entry: RunEntry, index: int, params: np.ndarray, config_index: int) -> dict:
         """What is known of point ``(run, index)``: its per-world results and its rendering from
         known start configuration ``config_index`` (None until computed), and its job."""
+        self.check_config(entry, config_index)
         folder = self.folder(entry, index)
         worlds = self.cached_worlds(folder, params)
         video = self.cached_video(folder, params, config_index)
@@ -137,19 +157,34 @@ class Solutions:
         return {"run": run, "index": index, "config_index": config_index, "worlds": worlds, "video": video, "job": job_doc}
 
     def start(self, run: int, entry: RunEntry, index: int, params: np.ndarray, config_index: int) -> dict:
-        """Queues the rollout and rendering of the point unless both are on disk or under way."""
+        """Queues the rollout and rendering of the point unless both are on disk or under way;
+        raises ServerBusy when the point has a job for another start configuration under way
+        (409) or ``MAX_WAITING_JOBS`` jobs wait (429)."""
         doc = self.status(run, entry, index, params, config_index)
         if doc["worlds"] is not None and doc["video"] is not None:
             return doc
         key = (run, index, config_index)
         with self._lock:
-            if key not in self._jobs or self._jobs[key].state in ("done", "failed"):
+            if key not in self._jobs or self._jobs[key].state not in ACTIVE:
+                self._refuse_more(run, index)
                 self._jobs[key] = Job(entry, index, np.asarray(params, np.float64), config_index)
                 self._queue.put(self._jobs[key])
             if self._worker is None:
                 self._worker = threading.Thread(target=self._work, name="mjxskill-explore-rollouts", daemon=True)
                 self._worker.start()
         return self.status(run, entry, index, params, config_index)
+
+    def _refuse_more(self, run: int, index: int) -> None:
+        """Raises ServerBusy when point ``(run, index)`` has a job under way or the queue is full
+        (called with the lock held)."""
+        for (job_run, job_index, job_config), job in self._jobs.items():
+            if (job_run, job_index) == (run, index) and job.state in ACTIVE:
+                raise ServerBusy(f"run {run}, evaluation {index} is already being rolled out (known start configuration "
+                                 f"{job_config}); ask again when it is done", status=409)
+        waiting = sum(job.state == "queued" for job in self._jobs.values())
+        if waiting >= MAX_WAITING_JOBS:
+            raise ServerBusy(f"the rollout queue is full ({waiting} points waiting, at most {MAX_WAITING_JOBS}); "
+                             "ask again when one is done", status=429)
 
     def close(self) -> None:
         """The explorer's end: the worker takes no further job and every rollout built is closed

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from mjxskill.errors import RunError
-from mjxskill.runs.atomic_write import write_text
+from mjxskill.runs.atomic_write import open_nofollow, write_text
 
 
 # The force columns after success_rate, N, each the mean over the worlds of a per-world value:
@@ -95,8 +95,9 @@ def write_csv(path: Path, columns: list[str], ev: Evaluations) -> None:
 
 
 def append_rows(path: Path, ev: Evaluations) -> None:
-    """Appends ``ev`` to a CSV in one write and forces it to disk before returning."""
-    with open(path, "a") as fh:
+    """Appends ``ev`` to a CSV in one write and forces it to disk before returning (RunError
+    when the CSV is a symbolic link: never appended to through one)."""
+    with os.fdopen(open_nofollow(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT), "a") as fh:
         fh.write(format_rows(ev))
         fh.flush()
         os.fsync(fh.fileno())

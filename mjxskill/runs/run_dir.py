@@ -19,8 +19,9 @@ the replayed state is bit-identical to the uninterrupted one (floats are written
 significant digits, which round-trips float64 exactly). Rows that cannot be used are never
 dropped silently (``mjxskill.runs.resume``).
 
-A run directory is created whole or not at all (built beside it, then renamed into place), only
-where nothing is (a missing or empty folder: another folder is the user's and is refused), and
+A run directory is created whole or not at all (built beside it in a staging folder named after
+the host and process, then renamed into place; a staging folder that a process killed on this
+host left behind is removed at the next creation beside it), only where nothing is (a missing or empty folder: another folder is the user's and is refused), and
 written by one process at a time (``lock``, ``mjxskill.runs.run_lock``). Every file is
 checked when read: a damaged one is a ``RunError`` naming it.
 """
@@ -31,8 +32,10 @@ import contextlib
 import json
 import math
 import os
+import re
 import secrets
 import shutil
+import socket
 from pathlib import Path
 
 import numpy as np
@@ -175,6 +178,45 @@ class Run:
         return [Run(self.path / f"seed-{config.seed + i}") for i in range(config.repeats)]
 
 
+# .<name>.<host>.<pid>.<hex>.creating; folders of before the host was named lack <host>.
+STAGING = re.compile(r"\.(?P<name>.+?)(?:\.(?P<host>[A-Za-z0-9-]+))?\.(?P<pid>\d+)\.[0-9a-f]{8}\.creating")
+
+
+def _this_host() -> str:
+    return re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname()) or "host"
+
+
+def _process_gone(pid: int) -> bool:
+    """Whether no process ``pid`` runs on this host (one of another user's still runs)."""
+    try:
+        os.kill(pid, 0)
+    except (ProcessLookupError, OverflowError):  # none, or a number larger than any pid
+        return True
+    except PermissionError:
+        return False
+    return False
+
+
+def remove_stale_staging(parent: Path) -> list[Path]:
+    """Removes the staging folders in ``parent`` of processes of this host that no longer run
+    (killed while creating a run or an experiment); returns them. A folder of another host, of a
+    running process or that is a link is left alone."""
+    removed = []
+    try:
+        entries = list(os.scandir(parent))
+    except OSError:
+        return removed
+    for entry in entries:
+        match = STAGING.fullmatch(entry.name)
+        if match is None or not entry.is_dir(follow_symlinks=False):
+            continue
+        if match["host"] not in (None, _this_host()) or not _process_gone(int(match["pid"])):
+            continue
+        shutil.rmtree(entry.path, ignore_errors=True)
+        removed.append(Path(entry.path))
+    return removed
+
+
 @contextlib.contextmanager
 def created_whole(path: Path, what: str, on_failure=lambda: None):
     """Yields a new folder beside ``path`` to fill; renamed into place in one step when the block
@@ -183,8 +225,9 @@ def created_whole(path: Path, what: str, on_failure=lambda: None):
     (``on_failure()`` first, to say something better)."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+        remove_stale_staging(path.parent)
         # a fresh name beside it (mkdir is atomic), with the permissions mkdir gives
-        staging = path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.creating"
+        staging = path.parent / f".{path.name}.{_this_host()}.{os.getpid()}.{secrets.token_hex(4)}.creating"
         staging.mkdir()
     except OSError as err:
         raise RunError(f"cannot write the {what} {str(path)!r}: {err.strerror}") from None
@@ -210,4 +253,5 @@ def _write_run(folder: Path, config: RunConfig, scenario_text: str, texts: dict[
 
 
 __all__ = ["CONFIG", "EVALUATIONS", "FORMAT", "LOCK_FILE", "OPTIMIZER_STATE", "PARETO", "RUN_STATE", "SCENARIO_COPY",
-           "Evaluations", "Run", "RunConfig", "batch_sizes", "created_whole", "evaluation_columns", "read_csv", "write_csv"]
+           "Evaluations", "Run", "RunConfig", "batch_sizes", "created_whole", "evaluation_columns", "read_csv", "remove_stale_staging",
+           "write_csv"]

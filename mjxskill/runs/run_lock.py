@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 from mjxskill.errors import RunError
+from mjxskill.runs.atomic_write import open_nofollow
 
 LOCK_FILE = ".lock"
 
@@ -45,7 +46,7 @@ def lock_run(folder: Path) -> RunLock:
     """Takes the writer's lock of the run in ``folder``; RunError if another process holds it."""
     path = Path(folder) / LOCK_FILE
     try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = open_nofollow(path, os.O_RDWR | os.O_CREAT)  # a link's target would be truncated below
     except OSError as err:
         raise RunError(f"cannot lock the run directory {str(folder)!r}: {err.strerror}") from None
     try:

@@ -4,8 +4,8 @@ A native episode is single-threaded Python and C, so a 2-core machine runs two a
 two processes. Each worker (``python -m mjxskill.engine.native.worker``, a fresh interpreter: nothing
 inherited from a parent that has started JAX's threads, and no re-import of the user's main
 script as ``multiprocessing``'s spawn would do) rebuilds the engine once from a recipe: the
-scenario file and its skill libraries (checked by their sha256), the goal, the settings and the MuJoCo model (an MJB
-file). It then runs contiguous slices of the episodes in lockstep (``mjxskill.engine.native.lockstep``).
+scenario file and its skill libraries (checked by their sha256), the goal, the settings and the MuJoCo model (MJB
+bytes in a frame of their own: no temporary file, so a killed pool leaves nothing on disk). It then runs contiguous slices of the episodes in lockstep (``mjxskill.engine.native.lockstep``).
 Episodes are deterministic and never interact, so the results equal one process's bit for bit
 (tests/test_native_engine.py).
 
@@ -22,7 +22,6 @@ import os
 import struct
 import subprocess
 import sys
-import tempfile
 import weakref
 from pathlib import Path
 
@@ -61,7 +60,7 @@ def unpack_arrays(payload: bytes) -> dict:
 
 
 # -- the parent's side --------------------------------------------------------------------------
-def recipe(engine, model_path: Path) -> dict:
+def recipe(engine) -> dict:
     """What a worker needs to rebuild ``engine`` (a ``NativeRollout``), as JSON data."""
     source = Path(engine.scenario.source)
     configs = engine.start_configs
@@ -72,12 +71,18 @@ def recipe(engine, model_path: Path) -> dict:
         "worlds": engine.worlds,
         "episode_seconds": engine.episode_seconds,
         "start_configs": None if configs is None else np.asarray(configs, float).tolist(),
-        "model": str(model_path),
     }
 
 
-def _stop_workers(procs: list, directory: tempfile.TemporaryDirectory) -> None:
-    """Kills and reaps the workers still running, closes their pipes, removes the model file."""
+def model_bytes(mj_model) -> bytes:
+    """``mj_model`` as MJB bytes (what ``mujoco.mj_saveModel`` writes to a file)."""
+    buffer = np.zeros(mujoco.mj_sizeModel(mj_model), np.uint8)
+    mujoco.mj_saveModel(mj_model, None, buffer)
+    return buffer.tobytes()
+
+
+def _stop_workers(procs: list) -> None:
+    """Kills and reaps the workers still running, closes their pipes."""
     for proc in procs:
         if proc.poll() is None:
             proc.kill()
@@ -88,28 +93,25 @@ def _stop_workers(procs: list, directory: tempfile.TemporaryDirectory) -> None:
             except OSError:
                 pass
     procs.clear()
-    directory.cleanup()
 
 
 class WorkerPool:
     """``n`` worker processes for ``engine``; ``run`` splits episodes over them. ``close`` stops
     them; so does the pool's garbage collection or the interpreter's exit, for an engine
-    dropped without ``close`` (a finalizer, as ``tempfile.TemporaryDirectory`` has)."""
+    dropped without ``close`` (a finalizer)."""
 
     def __init__(self, engine, n: int):
         self.n = n
-        self._dir = tempfile.TemporaryDirectory(prefix="mjxskill-native-")
         self.procs = []
-        self._stop = weakref.finalize(self, _stop_workers, self.procs, self._dir)
-        model_path = Path(self._dir.name) / "model.mjb"
-        mujoco.mj_saveModel(engine.mj_model, str(model_path), None)
-        message = json.dumps(recipe(engine, model_path)).encode()
+        self._stop = weakref.finalize(self, _stop_workers, self.procs)
+        message, model = json.dumps(recipe(engine)).encode(), model_bytes(engine.mj_model)
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
         try:
             for _ in range(n):
                 proc = subprocess.Popen([sys.executable, "-m", "mjxskill.engine.native.worker"], stdin=subprocess.PIPE,
                                         stdout=subprocess.PIPE, env=env)
                 write_frame(proc.stdin, b"R", message)
+                write_frame(proc.stdin, b"M", model)
                 self.procs.append(proc)
             for proc in self.procs:
                 self._expect(proc, b"K")

@@ -1,7 +1,8 @@
 """A native engine worker process (started by ``mjxskill.engine.native.pool``; not a user command).
 
-Reads a recipe frame (JSON), builds the engine, answers ``K``; then for every job frame (NPZ:
-params and world fields) runs the episodes on one single-threaded MuJoCo batch and answers an ``O`` frame (NPZ: the
+Reads a recipe frame (JSON) and a model frame (MJB bytes), builds the engine, answers ``K``;
+then for every job frame (NPZ: params and world fields) runs the episodes on one single-threaded
+MuJoCo batch and answers an ``O`` frame (NPZ: the
 EpisodeResult fields). Any failure is answered with an ``E`` frame holding the traceback.
 """
 
@@ -16,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 
-def _build(spec: dict):
+def _build(spec: dict, model: bytes):
     # Imported here, after main has set SIGINT aside: a Ctrl-C during the seconds these imports
     # take reaches the parent, which stops us, not a traceback from every worker.
     import mujoco
@@ -33,7 +34,7 @@ def _build(spec: dict):
     return NativeRollout(scn, plan_task(scn, spec["goal"]), worlds=spec["worlds"],
                          episode_seconds=spec["episode_seconds"],
                          start_configs=None if configs is None else np.asarray(configs),
-                         mj_model=mujoco.MjModel.from_binary_path(spec["model"]), workers=1)
+                         mj_model=mujoco.MjModel.from_binary_path("model.mjb", {"model.mjb": model}), workers=1)
 
 
 def main() -> int:
@@ -48,7 +49,8 @@ def main() -> int:
     sys.stdout = sys.stderr  # anything printed by accident must not corrupt the frames
     try:
         kind, payload = read_frame(stdin)
-        engine = _build(json.loads(payload))
+        _, model = read_frame(stdin)
+        engine = _build(json.loads(payload), model)
         write_frame(stdout, b"K", b"")
         while True:
             kind, payload = read_frame(stdin)
