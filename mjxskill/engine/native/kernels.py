@@ -71,6 +71,73 @@ def _rate_limit(previous, target, max_delta):
 
 
 @numba.njit(cache=True, nogil=True)
+def _site_jacobian(i, chain, site, root, cdof, subtree_com, site_xpos, jac):
+    """Row i's site Jacobian (6, 7) as ``mj_jac``: translation rows cross(axis, offset) plus the
+    dof's linear part, the offset taken from the site's tree's centre of mass."""
+    ox = site_xpos[i, site, 0] - subtree_com[i, root, 0]
+    oy = site_xpos[i, site, 1] - subtree_com[i, root, 1]
+    oz = site_xpos[i, site, 2] - subtree_com[i, root, 2]
+    for j in range(7):
+        if chain[j]:
+            a0, a1, a2 = cdof[i, j, 0], cdof[i, j, 1], cdof[i, j, 2]
+            jac[0, j] = (a1 * oz - a2 * oy) + cdof[i, j, 3]
+            jac[1, j] = (a2 * ox - a0 * oz) + cdof[i, j, 4]
+            jac[2, j] = (a0 * oy - a1 * ox) + cdof[i, j, 5]
+            jac[3, j], jac[4, j], jac[5, j] = a0, a1, a2
+        else:
+            for k in range(6):
+                jac[k, j] = 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _pose_error(position, mat, ref_pos, ref_quat, quat, pose_err):
+    """Position error and ``quat2vel(quat * conj(ref))`` (the angle wrapped into (-pi, pi])."""
+    _mat2quat(mat, quat)
+    bw, bx, by, bz = ref_quat[0], -ref_quat[1], -ref_quat[2], -ref_quat[3]
+    aw, ax, ay, az = quat[0], quat[1], quat[2], quat[3]
+    ew = aw * bw - ax * bx - ay * by - az * bz
+    ex = aw * bx + ax * bw + ay * bz - az * by
+    ey = aw * by - ax * bz + ay * bw + az * bx
+    ez = aw * bz + ax * by - ay * bx + az * bw
+    norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+    angle = 2.0 * math.atan2(norm, ew)
+    if angle > math.pi:
+        angle -= 2.0 * math.pi
+    for k in range(3):
+        pose_err[k] = position[k] - ref_pos[k]
+    if norm < 1e-15:  # mjMINVAL: MuJoCo's x axis
+        pose_err[3], pose_err[4], pose_err[5] = 1.0 * angle, 0.0 * angle, 0.0 * angle
+    else:
+        pose_err[3], pose_err[4], pose_err[5] = ex / norm * angle, ey / norm * angle, ez / norm * angle
+
+
+@numba.njit(cache=True, nogil=True)
+def _damped_solve(jac, damping, chol, x):
+    """x = (J J^T + lambda I)^-1 J (6, 7), through the Cholesky factor of the symmetric positive
+    definite J J^T + lambda I, built row by row in ``chol``'s lower triangle."""
+    for a in range(6):
+        for b in range(a + 1):
+            acc = jac[a, 0] * jac[b, 0]
+            for j in range(1, 7):
+                acc += jac[a, j] * jac[b, j]
+            acc = acc + (damping if a == b else 0.0)
+            for c in range(b):
+                acc -= chol[a, c] * chol[b, c]
+            chol[a, b] = math.sqrt(acc) if a == b else acc / chol[b, b]
+    for j in range(7):
+        for a in range(6):
+            acc = jac[a, j]
+            for c in range(a):
+                acc -= chol[a, c] * x[c, j]
+            x[a, j] = acc / chol[a, a]
+        for a in range(5, -1, -1):
+            acc = x[a, j]
+            for c in range(a + 1, 6):
+                acc -= chol[c, a] * x[c, j]
+            x[a, j] = acc / chol[a, a]
+
+
+@numba.njit(cache=True, nogil=True)
 def impedance_rows(rows, chain, site, root, cdof, subtree_com, site_xpos, site_xmat, qpos, qvel, qfrc_bias,
                    ref_pos, ref_quat, cmd_wrench, cmd_stiffness, nullspace_target, torque, stiffness, wrench,
                    torque_limit, rates, ctrl):
@@ -86,80 +153,26 @@ def impedance_rows(rows, chain, site, root, cdof, subtree_com, site_xpos, site_x
     Writes each row's torques into ctrl (n, nu)[:, :7].
     """
     stiffness_step, wrench_step, torque_step, damping, k_ns = rates[0], rates[1], rates[2], rates[3], rates[4]
-    jac = np.empty((6, 7))
-    jjt = np.empty((6, 6))
-    x = np.empty((6, 7))
-    quat = np.empty(4)
-    err = np.empty(4)
-    pose_err = np.empty(6)
-    force = np.empty(6)
-    drive = np.empty(7)
+    jac, chol, x = np.empty((6, 7)), np.empty((6, 6)), np.empty((6, 7))
+    quat, pose_err, force, drive = np.empty(4), np.empty(6), np.empty(6), np.empty(7)
+    damping_ns = 2.0 * math.sqrt(k_ns)
     for r in range(rows.shape[0]):
         i = rows[r]
         for k in range(6):
             stiffness[r, k] = _rate_limit(stiffness[r, k], cmd_stiffness[r, k], stiffness_step)
             wrench[r, k] = _rate_limit(wrench[r, k], cmd_wrench[r, k], wrench_step)
-        # mj_jac at the site's point: translation rows cross(axis, offset) + linear part
-        ox = site_xpos[i, site, 0] - subtree_com[i, root, 0]
-        oy = site_xpos[i, site, 1] - subtree_com[i, root, 1]
-        oz = site_xpos[i, site, 2] - subtree_com[i, root, 2]
-        for j in range(7):
-            if chain[j]:
-                a0, a1, a2 = cdof[i, j, 0], cdof[i, j, 1], cdof[i, j, 2]
-                jac[0, j] = (a1 * oz - a2 * oy) + cdof[i, j, 3]
-                jac[1, j] = (a2 * ox - a0 * oz) + cdof[i, j, 4]
-                jac[2, j] = (a0 * oy - a1 * ox) + cdof[i, j, 5]
-                jac[3, j], jac[4, j], jac[5, j] = a0, a1, a2
-            else:
-                for k in range(6):
-                    jac[k, j] = 0.0
-        # orientation error: quat2vel(quat * conj(ref)), the angle wrapped into (-pi, pi]
-        _mat2quat(site_xmat[i, site], quat)
-        bw, bx, by, bz = ref_quat[r, 0], -ref_quat[r, 1], -ref_quat[r, 2], -ref_quat[r, 3]
-        aw, ax, ay, az = quat[0], quat[1], quat[2], quat[3]
-        err[0] = aw * bw - ax * bx - ay * by - az * bz
-        err[1] = aw * bx + ax * bw + ay * bz - az * by
-        err[2] = aw * by - ax * bz + ay * bw + az * bx
-        err[3] = aw * bz + ax * by - ay * bx + az * bw
-        norm = math.sqrt(err[1] * err[1] + err[2] * err[2] + err[3] * err[3])
-        angle = 2.0 * math.atan2(norm, err[0])
-        if angle > math.pi:
-            angle -= 2.0 * math.pi
-        for k in range(3):
-            pose_err[k] = site_xpos[i, site, k] - ref_pos[r, k]
-            pose_err[3 + k] = (1.0 if k == 0 else 0.0) * angle if norm < 1e-15 else err[1 + k] / norm * angle
-        # task-space force: spring, critical damping on the twist, the commanded wrench
-        for k in range(6):
+        _site_jacobian(i, chain, site, root, cdof, subtree_com, site_xpos, jac)
+        _pose_error(site_xpos[i, site], site_xmat[i, site], ref_pos[r], ref_quat[r], quat, pose_err)
+        for k in range(6):  # task-space force: spring, critical damping on the twist, the wrench
             twist = jac[k, 0] * qvel[i, 0]
             for j in range(1, 7):
                 twist += jac[k, j] * qvel[i, j]
             s = stiffness[r, k]
             force[k] = -s * pose_err[k] - 2.0 * math.sqrt(max(s, 0.0)) * twist + wrench[r, k]
-        # nullspace projector I - J^T (J J^T + lambda I)^-1 J, by Cholesky of the SPD J J^T + lambda I
-        for a in range(6):  # jjt's lower triangle becomes its Cholesky factor, row by row
-            for b in range(a + 1):
-                acc = jac[a, 0] * jac[b, 0]
-                for j in range(1, 7):
-                    acc += jac[a, j] * jac[b, j]
-                acc = acc + (damping if a == b else 0.0)
-                for c in range(b):
-                    acc -= jjt[a, c] * jjt[b, c]
-                jjt[a, b] = math.sqrt(acc) if a == b else acc / jjt[b, b]
-        for j in range(7):  # x = (J J^T + lambda I)^-1 J, column by column
-            for a in range(6):
-                acc = jac[a, j]
-                for c in range(a):
-                    acc -= jjt[a, c] * x[c, j]
-                x[a, j] = acc / jjt[a, a]
-            for a in range(5, -1, -1):
-                acc = x[a, j]
-                for c in range(a + 1, 6):
-                    acc -= jjt[c, a] * x[c, j]
-                x[a, j] = acc / jjt[a, a]
-        sqrt_kns = 2.0 * math.sqrt(k_ns)
+        _damped_solve(jac, damping, chol, x)
         for j in range(7):
-            drive[j] = k_ns * (nullspace_target[r, j] - qpos[i, j]) - sqrt_kns * qvel[i, j]
-        for j in range(7):
+            drive[j] = k_ns * (nullspace_target[r, j] - qpos[i, j]) - damping_ns * qvel[i, j]
+        for j in range(7):  # bias + (I - J^T x) drive + J^T force, rate- and torque-limited
             nullspace = drive[j]
             for c in range(7):
                 proj = jac[0, j] * x[0, c]
@@ -170,8 +183,7 @@ def impedance_rows(rows, chain, site, root, cdof, subtree_com, site_xpos, site_x
             for k in range(6):
                 tau += jac[k, j] * force[k]
             tau = _rate_limit(torque[r, j], tau, torque_step)
-            limit = torque_limit[j]
-            tau = min(max(tau, -limit), limit)
+            tau = min(max(tau, -torque_limit[j]), torque_limit[j])
             torque[r, j] = tau
             ctrl[i, j] = tau
 

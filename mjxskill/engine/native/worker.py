@@ -21,10 +21,9 @@ def _build(spec: dict, model: bytes):
     # Imported here, after main has set SIGINT aside: a Ctrl-C during the seconds these imports
     # take reaches the parent, which stops us, not a traceback from every worker.
     import mujoco
-
-    from mjxskill.engine.native.rollout import NativeRollout, sources_sha256
-    from mjxskill.scenario import load_scenario
-    from mjxskill.task import plan_task
+    from mjxskill.engine.native.rollout import NativeRollout, sources_sha256  # as mujoco, above
+    from mjxskill.scenario import load_scenario  # as mujoco, above
+    from mjxskill.task import plan_task  # as mujoco, above
 
     source = Path(spec["scenario"])
     scn = load_scenario(source)
