@@ -11,11 +11,14 @@ worlds from key 0), and prints as a table with the load average of each row:
 * ``loop``: the plain single-process loop over native MuJoCo (``NativeRollout.run_episode``:
   the numpy controller, the reference BT interpreter and ``mj_step`` one control step at a
   time): the baseline, measured before and after everything else (ratios use the mean);
-* ``native``: the native engine (episodes in lockstep, ``--workers`` processes);
+* ``native``: the native engine (episodes on MuJoCo batches with the compiled law, ``--workers``
+  processes, or one process whose batch steps on ``--threads`` threads); with one process and
+  one thread, the share of the call spent in MuJoCo's step;
 * ``mjx``: the compiled MJX rollout on 1 and on ``--devices`` host devices (a fresh process
   each: the device count is fixed when jax starts), at ``--batches`` parameter sets per call;
   compile time and XLA's buffers;
-* ``bare``: ``mj_step`` alone with a constant control (the physics ceiling of one core);
+* ``bare``: ``mj_step`` alone with a constant control (the physics ceiling of one core); every
+  row's ``x limit`` is its rate over cores x bare, the machine's physics limit;
 * agreement: per parameter set, the success rate on MJX and on the native engine in the same
   worlds, and in how many worlds the two agree;
 * memory per episode: XLA's buffers over the batch's episodes (MJX); an episode's model copy
@@ -23,7 +26,8 @@ worlds from key 0), and prints as a table with the load average of each row:
 
 The default is the real workload: the scenario's full episode length at the training batch
 (6 parameter sets x 7 worlds). ``--json`` writes ``mjx_steps_per_s``, ``native_steps_per_s``,
-``loop_steps_per_s``, ``best_engine``, ``best_steps_per_s``, ``best_x_loop`` and the rows.
+``loop_steps_per_s``, ``best_engine``, ``best_steps_per_s``, ``best_x_loop``,
+``physics_limit_steps_per_s``, ``best_share_of_limit`` and the rows.
 """
 
 from __future__ import annotations
@@ -155,6 +159,9 @@ def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1) -
     b, w = worlds.config_index.shape
     t0 = time.perf_counter()
     engine.start_workers()
+    # One parameter set first: each process loads the compiled law from numba's cache on its
+    # first call (~0.5 s), which a training run pays once, not per batch.
+    engine.run_worlds(params[:1], type(worlds)(*(x[:1] for x in worlds)))
     start_s = time.perf_counter() - t0
     timing = {}
     run = batched.run_batched
@@ -223,6 +230,8 @@ def main(argv=None) -> dict | None:
     parser.add_argument("--worlds", type=int, default=None, help="worlds per parameter set (default: the scenario's)")
     parser.add_argument("--devices", default=None, help="MJX host device counts, e.g. 1,2 (default 1,cores; 0: no MJX)")
     parser.add_argument("--workers", default=None, help="native engine worker processes, e.g. 1,2 (default 1,cores)")
+    parser.add_argument("--threads", default=None, help="threads of one native process's batch, e.g. 2 (default: "
+                        "cores, if more than 1)")
     parser.add_argument("--reps", type=int, default=1, help="timed MJX calls per configuration (the fastest counts)")
     parser.add_argument("--quick", action="store_true", help="2 s episodes (a smoke test; not the workload)")
     parser.add_argument("--cache-check", action="store_true", help="only MJX's compile-cache check")
@@ -256,7 +265,9 @@ def main(argv=None) -> dict | None:
           f"({engine.control_steps_per_episode} control steps), {cores} cores ({platform.processor() or platform.machine()}), "
           f"jax {jax.__version__}, mujoco {mujoco.__version__}, load average {os.getloadavg()[0]:.2f}", flush=True)
     rows = [loop(engine, params, worlds)]
+    threads = sorted({int(t) for t in (args.threads or str(cores)).split(",")} - {0, 1})
     rows += [native(scn, task, params, worlds, n, args.seconds) for n in workers]
+    rows += [native(scn, task, params, worlds, 1, args.seconds, threads=t) for t in threads]
     for d in devices:
         rows += mjx(d, args)
     rows.append(loop(engine, params, worlds))
@@ -264,15 +275,22 @@ def main(argv=None) -> dict | None:
     loops = [r for r in rows if r["engine"] == "loop"]
     loop_rate = sum(r["steps_per_s"] for r in loops) / len(loops)
 
-    print(f"\n{'engine':<8}{'procs/dev':>10}{'episodes':>9}{'steps/s':>10}{'x loop':>8}{'start/compile s':>16}"
-          f"{'MB/episode':>11}{'load':>6}")
+    # The machine's physics limit: every core running bare mj_step (measured on one, in this run).
+    limit = cores * rows[-1]["steps_per_s"]
+    for r in rows:
+        r["share_of_limit"] = r["steps_per_s"] / limit
+    print(f"\n{'engine':<8}{'procs/dev':>10}{'threads':>8}{'episodes':>9}{'steps/s':>10}{'x loop':>8}{'x limit':>8}"
+          f"{'physics':>8}{'start/compile s':>16}{'MB/episode':>11}{'load':>6}")
     for r in rows:
         procs = r.get("workers", r.get("devices", 1))
         setup = r.get("start_s", r.get("compile_s"))
-        mem = r.get("memory_per_episode_mb")
-        print(f"{r['engine']:<8}{procs:>10}{r.get('episodes', '-'):>9}{r['steps_per_s']:>10.0f}"
-              f"{r['steps_per_s'] / loop_rate:>8.2f}{'-' if setup is None else f'{setup:.1f}':>16}"
+        mem, physics = r.get("memory_per_episode_mb"), r.get("physics_share")
+        print(f"{r['engine']:<8}{procs:>10}{r.get('threads', '-'):>8}{r.get('episodes', '-'):>9}{r['steps_per_s']:>10.0f}"
+              f"{r['steps_per_s'] / loop_rate:>8.2f}{r['share_of_limit']:>8.2f}"
+              f"{'-' if physics is None else f'{physics:.2f}':>8}{'-' if setup is None else f'{setup:.1f}':>16}"
               f"{'-' if mem is None else f'{mem:.2f}':>11}{r['load_avg']:>6.2f}")
+    print(f"limit: {cores} cores x bare mj_step {rows[-1]['steps_per_s']:.0f} = {limit:.0f} control steps/s; "
+          f"physics: the share of a one-process, one-thread call spent in MuJoCo's step")
 
     fast = [r for r in rows if r["engine"] in ("native", "mjx")]
     best = max(fast, key=lambda r: r["steps_per_s"])
@@ -285,6 +303,7 @@ def main(argv=None) -> dict | None:
         mjx_steps_per_s=best_of["mjx"]["steps_per_s"] if best_of["mjx"] else None,
         best_engine=best["engine"], best_steps_per_s=best["steps_per_s"], best_x_loop=best["steps_per_s"] / loop_rate,
         bare_mj_step_steps_per_s=rows[-1]["steps_per_s"],
+        physics_limit_steps_per_s=limit, best_share_of_limit=best["steps_per_s"] / limit,
         load_avg=[r["load_avg"] for r in rows],
         rows=rows,
     )

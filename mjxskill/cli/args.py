@@ -12,6 +12,15 @@ def add_task_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("task", help="scenario name (push, peg) or path of a scenario YAML file")
 
 
+MAX_WORKERS = 256  # more processes than any one machine has cores would only cost memory
+
+
+def add_workers_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--workers", type=int_in(1, MAX_WORKERS), metavar="N",
+                        help="native engine: worker processes a call's episodes are split over (default: one per "
+                             "core, the fastest measured; 1: this process). Results do not depend on it")
+
+
 def add_validation_arguments(parser: argparse.ArgumentParser, when: str, default: str) -> None:
     """The pick's validation flags (``mjxskill.evaluation.validation``) of experiment and evaluate;
     ``when``: to which picks they apply, ``default``: what applies without the flag (for the help)."""
@@ -38,6 +47,19 @@ def int_at_least(minimum: int) -> Callable[[str], int]:
 
 
 positive_int = int_at_least(1)
+
+
+def int_in(minimum: int, maximum: int) -> Callable[[str], int]:
+    at_least = int_at_least(minimum)
+
+    def parse(text: str) -> int:
+        value = at_least(text)
+        if value > maximum:
+            raise argparse.ArgumentTypeError(f"must be at most {maximum}, got {value}")
+        return value
+
+    parse.__name__ = f"integer in [{minimum}, {maximum}]"
+    return parse
 
 
 def nonnegative_float(text: str) -> float:

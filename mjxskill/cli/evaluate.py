@@ -48,6 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--batch-size", type=cli_args.positive_int, help="candidates per compiled call (default: the run's batch size)")
     parser.add_argument("--episode-seconds", type=cli_args.setting_type(BY_NAME["episode_seconds"]),
                         help="episode length in s (default: the run's)")
+    cli_args.add_workers_argument(parser)
     parser.add_argument("--engine", choices=CHOICES, help="physics engine (default: the run's; the other one checks "
                         "how a solution transfers between engines)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="force bound of each repeated "
@@ -68,7 +69,8 @@ def _settings(args, config, seed: int) -> dict:
 def _rollout(args, scn, task, settings: dict, config):
     why = resolve_engine(args.engine)[1] if args.engine else "the run's"
     print(f"engine: {settings['engine']} ({why})", flush=True)
-    return build_rollout(scn, task, settings["engine"], worlds=1, episode_seconds=settings["episode_seconds"])
+    return build_rollout(scn, task, settings["engine"], worlds=1, episode_seconds=settings["episode_seconds"],
+                         workers=args.workers)
 
 
 def _say(scn, settings: dict, run, config, task) -> None:
@@ -211,7 +213,8 @@ def _experiment(args: argparse.Namespace) -> int:
                            f"{config.task} --resume {exp.path}")
     with exp.lock():
         protocol = change_validation(args, exp, protocol)
-        rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
+        rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds,
+                                workers=args.workers)
         try:
             for seed, opt in ready:
                 settings = repetition_settings(config, protocol, seed)

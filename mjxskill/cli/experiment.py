@@ -42,6 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "and report side by side with the paper.")
     cli_args.add_task_argument(parser)
     add_setting_arguments(parser, skip=("optimizer",), defaults={"repeats": "the scenario's repetitions"})  # it runs both
+    cli_args.add_workers_argument(parser)
     # train's --optimizer, refused by name (argparse would otherwise read it as --optimizer-option)
     parser.add_argument("--optimizer", type=_runs_both, help=argparse.SUPPRESS)
     parser.add_argument("--per-config", type=cli_args.positive_int, help="evaluation worlds per start configuration (default 5)")
@@ -136,7 +137,8 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
     cli.interrupt.set_message(f"interrupted: every finished batch and evaluated chunk is in {exp.path}; continue with "
                               f"python -m mjxskill.experiment {args.task} --resume {exp.path}")
     # A Ctrl-C while it is built: nothing new is trained yet, and mjxskill.cli.run says where the experiment is
-    rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds)
+    rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds,
+                            workers=args.workers)
     try:
         exp.add_session(time.monotonic() - started, config.engine)
 

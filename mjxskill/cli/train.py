@@ -50,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     cli_args.add_task_argument(parser)
     add_setting_arguments(parser)
+    cli_args.add_workers_argument(parser)
     parser.add_argument("--out", type=Path, help="run directory (default runs/<task>-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue the run in RUN_DIR to its budget")
     parser.add_argument("--prior-from", type=Path, metavar="RUN_DIR", dest="prior_from",
@@ -91,7 +92,8 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
     runs = run.sub_runs(config) if config.repeats > 1 else [run]
     sub, sub_config = run, config
     # A Ctrl-C while it is built: nothing is trained yet, and mjxskill.cli.run says where the run is
-    rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds)
+    rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds,
+                            workers=args.workers)
     started = time.monotonic()
     try:
         for sub in runs:
