@@ -140,7 +140,7 @@ BAD_INPUT = (
     (["train", "push", "--resume", "{run}", "--engine", "mjx"], "drop --engine mjx (the run has native)"),
     (["train", "push", "--engine", "warp"], "argument --engine: expected one of mjx, native, auto, got 'warp'"),
     (["train", "push", "--resume", "{run}", "--optimizer", "random"], "drop --optimizer random (the run has mobo)"),
-    (["train", "push", "--optimizer", "sobol"], "argument --optimizer: expected one of mobo, random, got 'sobol'"),
+    (["train", "push", "--optimizer", "sobol"], "argument --optimizer: expected one of mobo, random, optuna-nsga2, optuna-tpe, optuna-gp, got 'sobol'"),
     (["train", "{broken}"], "bt_hz"),
     (["train", "push", "--goal", "(skiros:at skiros:Nothing-1 skiros:ObjectGoalPose-1)"], "unknown object 'nothing-1'"),
     (["evaluate", "{tmp}"], "is not a run directory"),
