@@ -33,7 +33,9 @@ CONFIG = RunConfig(task="push", scenario="push", goal=TASK.goal, parameter_names
                    parameter_units=TASK.parameter_units, bounds=tuple(tuple(map(float, b)) for b in TASK.bounds),
                    objective_names=SCN.objective_names, budget=8, batch_size=3, n_init=3, worlds=2, seed=5,
                    episode_seconds=0.2, repeats=2, engine="native")
-PROTOCOL = Protocol(per_config=2, random_sets=3, max_force=None, validation_per_config=2, validation_candidates=3)
+BOUND_WHY = "the scenario's pick.max_force: half the training rows' commanded forces"
+PROTOCOL = Protocol(per_config=2, random_sets=3, max_force=0.8, validation_per_config=2, validation_candidates=3,
+                    max_force_source=BOUND_WHY)
 
 
 def training_rows(seed: int, kind: int) -> Evaluations:
@@ -112,14 +114,15 @@ def test_the_report_covers_the_finished_repetitions_with_the_stated_pick(experim
     assert report["task"] == "push" and report["status"] == {"repetitions_done": 1, "repetitions": 2}
     protocol = report["protocol"]
     for key, value in dict(budget=8, batch_size=3, n_init=3, worlds=2, seed=5, repeats=2, engine="native",
-                           per_config=2, random_sets=3, max_force=None, known_configs=N_KNOWN, unseen_configs=N_UNSEEN).items():
+                           per_config=2, random_sets=3, max_force=0.8, max_force_source=BOUND_WHY,
+                           known_configs=N_KNOWN, unseen_configs=N_UNSEEN).items():
         assert protocol[key] == value, key
-    # the pick, by hand: the highest training success within the operators' largest commanded force
+    # the pick, by hand: the highest training success within the stated 0.8 N of commanded force
     opt = exp.optimizer.sub_runs(CONFIG)[1]
     front = opt.front(opt.config())
     assert report["picked"][0]["seed"] == 6
-    params = np.array([[m.values[n] for n in TASK.parameter_names] for m in SCN.manual_parameters.values()])
-    bound = expected(rollout, params, N_KNOWN + N_UNSEEN, 2, SCN.bt_hz)[1].max()
+    bound = 0.8
+    assert report["picked"][0]["bound_source"] == BOUND_WHY
     ok = front.peak_commanded_force <= bound  # the commanded force, not the measured contact force
     assert not ok.all() and front.success_rate[~ok].max() == 1  # the bound excludes a fully successful solution
     # the three best in training, validated in 2 worlds from each known configuration (the
@@ -165,6 +168,7 @@ def test_the_report_files_and_the_side_by_side_table(experiment):
     assert "![success rates](success.png)" in text
     assert "Rule: of the Pareto solutions whose commanded force" in text and f"rolled out again in {2 * N_KNOWN} fresh worlds" in text
     assert "| training success | validation success |" in text
+    assert f"Bound: 0.8 N, {BOUND_WHY}" in text  # the bound and where it comes from
 
 
 def test_hypervolume_in_the_space_normalized_by_every_run():
@@ -344,6 +348,26 @@ def test_an_experiment_written_before_validation_picks_by_training_success():
     assert (old.validation_per_config, old.per_config, old.random_sets) == (0, 2, 3)
     assert pick_rule(old, 4).startswith("the Pareto solution with the highest training success rate")
     assert Protocol.from_yaml(PROTOCOL.to_yaml("push"), "experiment.yaml") == PROTOCOL  # round trip
+
+
+def test_an_experiment_whose_bound_was_the_operators_gets_the_scenarios(experiment, tmp_path):
+    import shutil
+
+    exp, _ = experiment
+    copy = Experiment(tmp_path / "exp")
+    shutil.copytree(exp.path, copy.path)
+    # written before the bound was stated: null meant the largest force an operator set commands
+    legacy = PROTOCOL.to_yaml("push").replace("max_force: 0.8", "max_force: null")
+    (copy.path / "experiment.yaml").write_text(legacy[: legacy.index("max_force_source")])
+    assert copy.protocol().max_force is None and copy.protocol().max_force_source is None
+    protocol, said = copy.settle_bound(SCN.pick)
+    assert protocol.max_force == 10.0 and protocol.max_force_source == f"the scenario's pick.max_force: {SCN.pick.why}"
+    assert "was the largest force an operator set commands; it is now 10 N" in said and "evaluations are kept" in said
+    assert copy.protocol() == protocol  # written back
+    assert copy.settle_bound(SCN.pick) == (protocol, None)  # settled once
+    # a number written before the source was kept was --max-force's
+    given = Protocol.from_yaml(legacy[: legacy.index("max_force_source")].replace("max_force: null", "max_force: 3"), "x")
+    assert (given.max_force, given.max_force_source) == (3.0, "given (--max-force)")
 
 
 @pytest.mark.parametrize("name, text, message", DAMAGED)

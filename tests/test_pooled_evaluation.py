@@ -13,7 +13,8 @@ from mjxskill.scenario import load_scenario
 from mjxskill.task import plan_task
 from mjxskill.evaluation.evaluate_run import CHUNKS, FOLDER, RESULT, evaluate_run, evaluation_current, evaluation_settings, load_evaluation
 from mjxskill.evaluation.baselines import Candidates, Evaluation, mean_success_seconds
-from mjxskill.evaluation.pooled import Pick, contenders, group_force_and_time, pick, pooled_samples, pooled_tests
+from mjxskill.evaluation.pooled import Pick, contenders, force_bound, group_force_and_time, pick, pooled_samples, pooled_tests
+from mjxskill.scenario.schema import PickBound
 from mjxskill.runs.run_dir import Evaluations
 from mjxskill.evaluation.validation import Validation
 from scripted import ScriptedRollout, expected
@@ -125,12 +126,15 @@ def front_of(ev: Evaluation, success_rate, commanded_force, first_objective) -> 
                        np.asarray(commanded_force, float))  # the pick reads the commanded force only
 
 
-def test_the_pick_is_the_most_successful_training_solution_within_the_operators_force():
+def test_the_pick_is_the_most_successful_training_solution_within_the_stated_force():
     ev = toy_evaluation(np.ones((3, 3)), manual_force=[4.0, 6.0])
-    # training: row 2 succeeds most but presses 9 N, beyond the operators' largest (6 N)
+    # training: row 2 succeeds most but presses 9 N, beyond a 6 N bound
     front = front_of(ev, [0.5, 0.8, 1.0], [2.0, 5.0, 9.0], [1.0, 2.0, 3.0])
-    assert pick(front, ev) == Pick(1, 6.0, "the largest force an operator set commands")
-    assert pick(front, ev, max_force=10).row == 2 and pick(front, ev, max_force=10).source == "given"
+    assert pick(front, ev, max_force=6.0) == Pick(1, 6.0, "given (--max-force)")
+    # the operators' sets (6 N at most here) no longer bound it: without a bound row 2 is picked
+    unbounded = pick(front, ev)
+    assert unbounded.row == 2 and unbounded.bound is None and unbounded.source.startswith("none")
+    assert pick(front, ev, max_force=10).row == 2
     assert pick(front, ev, max_force=1).row is None  # nothing within 1 N: the run has no pick
     tied = front_of(ev, [0.8, 0.8, 0.8], [1.0, 1.0, 1.0], [1.0, 5.0, 3.0])
     assert pick(tied, ev).row == 1  # ties: the higher first objective
@@ -138,21 +142,29 @@ def test_the_pick_is_the_most_successful_training_solution_within_the_operators_
         pick(front_of(ev, [0.5, 0.8], [1, 1], [1, 2]), ev)  # a front that is not the evaluated one
 
 
+def test_the_bound_is_the_commands_else_the_scenarios_with_its_reason():
+    stated = PickBound(10.0, "the skill's bound")
+    assert force_bound(4.0, stated) == (4.0, "given (--max-force)")
+    assert force_bound(None, stated) == (10.0, "the scenario's pick.max_force: the skill's bound")
+    assert force_bound(None, None)[0] is None
+    assert force_bound(None, SCN.pick)[0] == 10.0  # push.yaml's
+
+
 def test_a_validated_pick_takes_the_contender_most_successful_in_the_validation_worlds():
     ev = toy_evaluation(np.ones((5, 3)), manual_force=[4.0, 6.0])
     # rows 0 and 1 tie at 100 % training success; row 0 has the higher first objective (the
     # training pick) but is a knife-edge set (20 % in validation), row 1 is robust (90 %); row 3
-    # presses beyond the operators' 6 N, row 4 trails in training and is not validated
+    # presses beyond a 6 N bound, row 4 trails in training and is not validated
     front = front_of(ev, [1.0, 1.0, 0.8, 1.0, 0.5], [2.0, 3.0, 1.0, 9.0, 1.0], [5.0, 4.0, 3.0, 9.0, 1.0])
-    assert pick(front, ev).row == 0
+    assert pick(front, ev, 6.0).row == 0
     assert contenders(front, 6.0, 3) == [0, 1, 2] and contenders(front, None, 2) == [3, 0]
     assert contenders(front, 0.5, 3) == []
-    validated = pick(front, ev, validation=Validation((0, 1, 2), np.array([0.2, 0.9, 0.9]), 20))
-    assert validated == Pick(1, 6.0, "the largest force an operator set commands")  # 0.9 tie: the training success
-    assert pick(front, ev, validation=Validation((0, 1, 2), np.array([0.2, 0.5, 0.9]), 20)).row == 2
+    validated = pick(front, ev, 6.0, Validation((0, 1, 2), np.array([0.2, 0.9, 0.9]), 20), "stated")
+    assert validated == Pick(1, 6.0, "stated")  # 0.9 tie: the training success
+    assert pick(front, ev, 6.0, Validation((0, 1, 2), np.array([0.2, 0.5, 0.9]), 20)).row == 2
     assert pick(front, ev, max_force=0.5, validation=Validation((), np.zeros(0), 20)).row is None
     with pytest.raises(Exception, match="validate the run again"):
-        pick(front, ev, validation=Validation((0, 2), np.array([0.2, 0.9]), 20))  # not the two in contention
+        pick(front, ev, 6.0, Validation((0, 2), np.array([0.2, 0.9]), 20))  # not the two in contention
 
 
 def test_the_validation_rolls_out_the_contenders_in_fresh_known_worlds_and_is_reused(run):

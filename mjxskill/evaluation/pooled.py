@@ -5,10 +5,11 @@ with the highest training success rate among those whose COMMANDED force
 (``peak_commanded_force``: the largest feed-forward force the skills command in an episode,
 mean over the training worlds) is at most the bound, ties broken by the higher first objective
 (``mjxskill.evaluation.selection.choose``'s rule, but on the commanded force: ``select
---max-force`` bounds the measured contact force). The bound is the one given, else the largest
-force any operator set commands in that run's evaluation, so that the picked solution never
-commands more than the hardest-pressing operator (the paper's operators' chosen force against
-the learned one: both are set forces, not measured ones); without operator sets there is no bound.
+--max-force`` bounds the measured contact force). The bound is the one the command gives
+(``--max-force``), else the scenario's ``pick.max_force`` with its reason (``force_bound``);
+without either the pick is unbounded. It is a number someone states, not one derived from the
+operators' sets: those are illustrative examples, and a bound read off them excluded robust
+solutions that pressed a little harder than the hardest-pressing example.
 The pick reads only the training front, as an operator would; its evaluation is its row in the
 run's evaluation. **Validated** (an experiment's default, ``mjxskill.evaluation.validation``): the
 K solutions within the bound with the highest training success are rolled out again in fresh
@@ -56,23 +57,29 @@ class Pick(NamedTuple):
     source: str
 
 
-def force_bound(ev: Evaluation, max_force: float | None) -> tuple[float | None, str]:
-    """The pick's bound on the commanded force, N, for a run evaluated in ``ev`` (see the module
-    docstring)."""
+GIVEN = "given (--max-force)"
+
+
+def force_bound(max_force: float | None, stated=None) -> tuple[float | None, str]:
+    """The pick's bound on the commanded force, N, and where it comes from: ``max_force`` (the
+    command's) when given, else ``stated`` (the scenario's ``PickBound``), else none."""
     if max_force is not None:
-        return float(max_force), "given"
-    manual = [i for i, g in enumerate(ev.candidates.groups) if g == "manual"]
-    if not manual or ev.peak_commanded_force is None:
-        return None, "no operator sets: no bound"
-    return float(np.max(ev.peak_commanded_force[manual])), "the largest force an operator set commands"
+        return float(max_force), GIVEN
+    if stated is not None:
+        return float(stated.max_force), f"the scenario's pick.max_force: {stated.why}"
+    return None, "none (the scenario states no pick.max_force and none was given)"
 
 
-def pick(front, ev: Evaluation, max_force: float | None = None, validation=None) -> Pick:
+def pick(front, ev: Evaluation, max_force: float | None = None, validation=None, source: str | None = None) -> Pick:
     """The picked Pareto solution of a run (``front``: its training Pareto rows, the ones ``ev``
-    evaluated as ``pareto-<k>``). ``validation`` (``mjxskill.evaluation.validation.Validation``
-    of the rows :func:`contenders` names): the highest validation success among them decides."""
+    evaluated as ``pareto-<k>``) within ``max_force`` N of commanded force (None: unbounded;
+    ``source``: where that bound comes from, default ``force_bound``'s words for a bound
+    given or none). ``validation``
+    (``mjxskill.evaluation.validation.Validation`` of the rows :func:`contenders` names): the
+    highest validation success among them decides."""
     check_front(front, ev)
-    bound, source = force_bound(ev, max_force)
+    bound = None if max_force is None else float(max_force)
+    source = force_bound(bound)[1] if source is None else source
     if validation is None:
         return Pick(choose_commanded(front, bound), bound, source)
     rows = contenders(front, bound, validation.candidates or len(validation.rows))
@@ -188,5 +195,5 @@ def pooled_table(samples: dict, tests: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["BASELINES", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "check_front", "choose_commanded", "contenders", "force_bound", "group_force_and_time", "group_means",
+__all__ = ["BASELINES", "GIVEN", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "check_front", "choose_commanded", "contenders", "force_bound", "group_force_and_time", "group_means",
            "pick", "picked_row", "plot_pooled", "pooled_samples", "pooled_table", "pooled_tests"]

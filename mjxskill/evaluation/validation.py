@@ -33,7 +33,7 @@ from mjxskill.scenario.fields import read_text
 from mjxskill.runs.atomic_write import write_json
 from mjxskill.evaluation.evaluate_run import FOLDER
 from mjxskill.evaluation.baselines import evaluate_chunk
-from mjxskill.evaluation.pooled import contenders, force_bound
+from mjxskill.evaluation.pooled import contenders
 from mjxskill.runs.run_dir import Evaluations, Run
 
 FILE = "validation.json"
@@ -65,10 +65,10 @@ def _same(a: dict, b: dict) -> bool:
     return all(a.get(k) == b.get(k) for k in ("per_config", "seed", "engine", "episode_seconds"))
 
 
-def in_contention(front: Evaluations, ev, max_force: float | None, n: int) -> list[int]:
+def in_contention(front: Evaluations, max_force: float | None, n: int) -> list[int]:
     """The Pareto rows a validated pick chooses from: the ``n`` within the pick's force bound
-    (from the run's evaluation ``ev``) with the best training success."""
-    return contenders(front, force_bound(ev, max_force)[0], n)
+    ``max_force`` (N of commanded force; None: unbounded) with the best training success."""
+    return contenders(front, max_force, n)
 
 
 def validation_worlds(rollout, per_config: int, seed: int):

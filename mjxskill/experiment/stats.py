@@ -30,6 +30,7 @@ from mjxskill.experiment.directory import (
 from mjxskill.training.front import HV_MARGIN, hypervolume_history, pareto_mask_of
 from mjxskill.evaluation.pooled import (
     Pick,
+    force_bound,
     group_force_and_time,
     group_means,
     pick,
@@ -75,13 +76,13 @@ def finished_repetitions(exp: Experiment, config: RunConfig, protocol: Protocol)
         validation = None
         settings = repetition_validation(config, protocol, seed)
         if settings is not None:
-            rows = in_contention(front, ev, protocol.max_force, protocol.validation_candidates)
+            rows = in_contention(front, protocol.max_force, protocol.validation_candidates)
             validation = load_validation(opt, front, rows, settings)
             if validation is None:
                 continue
         reps.append(Repetition(seed, opt.evaluations(opt_config), rnd.evaluations(rnd_config), front, ev,
-                               pick(front, ev, protocol.max_force, validation), validation,
-                               pick(front, ev, protocol.max_force)))
+                               pick(front, ev, protocol.max_force, validation, protocol.max_force_source), validation,
+                               pick(front, ev, protocol.max_force, source=protocol.max_force_source)))
     return reps
 
 
@@ -174,7 +175,8 @@ def summarize(exp: Experiment) -> dict:
                                     zip(config.parameter_names, *config.bounds, config.parameter_units)},
                      "objectives": list(config.objective_names), "scenario": config.scenario,
                      "per_config": protocol.per_config, "random_sets": protocol.random_sets,
-                     "max_force": protocol.max_force, "validation_per_config": protocol.validation_per_config,
+                     "max_force": protocol.max_force, "max_force_source": protocol.max_force_source,
+                     "validation_per_config": protocol.validation_per_config,
                      "validation_candidates": protocol.validation_candidates,
                      "known_configs": n_known, "unseen_configs": None if not reps else int((~reps[0].evaluation.known).sum()),
                      "evaluation_seeds": "each repetition's own training seed"},
@@ -198,8 +200,8 @@ def pick_rule(protocol: Protocol, n_known: int | None) -> str:
     """The pick rule in words (report.json's ``pick_rule``)."""
     force = ("commanded force (peak_commanded_force: the largest feed-forward force the skills command in an episode, "
              "mean over the training worlds; not the measured contact force) is at most the bound")
-    bound = "Bound: " + (f"{protocol.max_force:g} N (given)" if protocol.max_force is not None else
-                         "the largest force an operator set commands in the repetition's evaluation")
+    source = protocol.max_force_source or force_bound(protocol.max_force)[1]
+    bound = "Bound: " + (source if protocol.max_force is None else f"{protocol.max_force:g} N, {source}")
     if not protocol.validation_per_config:
         return (f"the Pareto solution with the highest training success rate among those whose {force}; ties: the "
                 f"higher first objective. {bound}")
