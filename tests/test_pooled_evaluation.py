@@ -13,7 +13,8 @@ from mjxskill.scenario import load_scenario
 from mjxskill.task import plan_task
 from mjxskill.evaluation.evaluate_run import CHUNKS, FOLDER, RESULT, evaluate_run, evaluation_current, evaluation_settings, load_evaluation
 from mjxskill.evaluation.baselines import Candidates, Evaluation, mean_success_seconds
-from mjxskill.evaluation.pooled import Pick, contenders, force_bound, group_force_and_time, pick, pooled_samples, pooled_tests
+from mjxskill.evaluation.pooled import (Pick, contenders, force_bound, full_episode_seconds, group_force_and_time,
+                                        paired_seconds, pick, pooled_samples, pooled_tests)
 from mjxskill.scenario.schema import PickBound
 from mjxskill.runs.run_dir import Evaluations
 from mjxskill.evaluation.validation import Validation
@@ -50,6 +51,12 @@ def test_an_evaluation_measures_success_force_and_time_per_configuration(run):
     np.testing.assert_allclose(ev.peak_commanded_force, force)
     np.testing.assert_allclose(ev.success_seconds, seconds)  # NaN where no world succeeded
     assert ev.config_names[N_KNOWN] == "unseen-0" and ev.known.sum() == N_KNOWN
+    # per world: the tick the tree returned SUCCESS, (tick + 1) / bt_hz s; NaN where it failed
+    worlds = np.array([[[(t + 1) / SCN.bt_hz if ok else np.nan
+                         for r in range(3) for ok, _, t in [rollout.outcome(p, c, r)]]
+                        for c in range(N_KNOWN + N_UNSEEN)] for p in ev.candidates.params])
+    np.testing.assert_array_equal(ev.world_seconds, worlds)
+    assert load_evaluation(run)[0].world_seconds.shape == (n, N_KNOWN + N_UNSEEN, 3)
     # the mean time over several candidates weights each configuration by its successes
     rows = [0, 1, 2]
     times = [(t + 1) / SCN.bt_hz for i in rows for c in range(N_KNOWN + N_UNSEEN) for r in range(3)
@@ -204,6 +211,36 @@ def test_the_validation_rolls_out_the_contenders_in_fresh_known_worlds_and_is_re
         (run.path / FOLDER / FILE).write_text(damaged)
         with pytest.raises(RunError, match=f"{FILE} is not a readable validation"):
             load_validation(run, front, [0], vsettings())
+
+
+def timed_evaluation(picked, operators) -> Evaluation:
+    """A Pareto row per ``picked`` (C, W) and a manual row per ``operators`` (C, W): times to success, NaN: failed."""
+    groups = ("pareto",) * len(picked) + ("manual",) * len(operators)
+    names = tuple(f"pareto-{i}" for i in range(len(picked))) + tuple(f"op{i}" for i in range(len(operators)))
+    seconds = np.array([*picked, *operators], float)
+    return Evaluation(Candidates(names, groups, np.zeros((len(groups), 1))), np.isfinite(seconds).mean(axis=2),
+                      np.array([True, False]), ("known-0", "unseen-0"), world_seconds=seconds)
+
+
+def test_time_to_success_is_compared_on_paired_worlds_and_with_failures_as_full_episodes():
+    nan = np.nan
+    # two configurations x two worlds; run 1 picks pareto-0, run 2 pareto-1 (which never succeeds)
+    one = timed_evaluation([[[2, nan], [4, 6]]], [[[3, 5], [nan, 8]], [[nan, nan], [5, nan]]])
+    two = timed_evaluation([[[9, 9], [9, 9]], [[nan, nan], [nan, nan]]], [[[1, 1], [1, 1]], [[nan, nan], [nan, nan]]])
+    evals, picks = [one, two], [Pick(0, None, "x"), Pick(1, None, "x")]
+    # paired, by hand: worlds where the pick and an operator set both succeeded: run 1 pairs
+    # (2, 3) and (6, 8) with op0, (4, 5) with op1; run 2's pick succeeds nowhere
+    assert paired_seconds(evals, picks, "picked", "manual") == pytest.approx((12 / 3, 16 / 3, 3))
+    # failures as the 10 s episode: the pick 2, 10, 4, 6 and four times 10 -> 62 / 8; the operators
+    # 3, 5, 10, 8 | 10, 10, 5, 10 | 1, 1, 1, 1 | 10, 10, 10, 10 -> 105 / 16
+    assert full_episode_seconds(evals, picks, "picked", 10.0) == pytest.approx(62 / 8)
+    assert full_episode_seconds(evals, picks, "manual", 10.0) == pytest.approx(105 / 16)
+    # the pick is faster where both succeed and slower once its failures count: the rows can disagree
+    assert 12 / 3 < 16 / 3 and 62 / 8 > 105 / 16
+    # an evaluation without per-world times gives no number rather than a wrong one
+    old = one._replace(world_seconds=None)
+    assert paired_seconds([old], picks[:1], "picked", "manual")[2] == 0
+    assert np.isnan(full_episode_seconds([old], picks[:1], "picked", 10.0))
 
 
 def test_pooled_samples_are_one_per_run_candidate_and_configuration():

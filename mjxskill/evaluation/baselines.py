@@ -51,8 +51,10 @@ class Evaluation(NamedTuple):
     peak_commanded_force (N,) the largest force the skills COMMANDED in an episode, N, mean over
     the candidate's worlds (what an operator sets; the experiment's pick bounds it);
     success_seconds (N, C) mean time until the tree returned SUCCESS over the successful worlds
-    of each configuration, s (NaN where none succeeded). The metrics are None when the rollout
-    does not report them."""
+    of each configuration, s (NaN where none succeeded); world_seconds (N, C, W) that time in
+    each of the W worlds of a configuration, NaN where the world failed or the tree did not
+    return SUCCESS (what the paired and full-episode times need; None in an evaluation written
+    before it was kept). The metrics are None when the rollout does not report them."""
 
     candidates: Candidates
     success: np.ndarray
@@ -63,6 +65,7 @@ class Evaluation(NamedTuple):
     mean_contact_force: np.ndarray | None = None
     peak_commanded_force: np.ndarray | None = None
     success_seconds: np.ndarray | None = None
+    world_seconds: np.ndarray | None = None
 
     def mean(self, known: bool) -> np.ndarray:
         """(N,) mean success over the known (or the unseen) configurations."""
@@ -86,8 +89,9 @@ def build_candidates(task, pareto_params: np.ndarray, n_random: int, seed: int) 
 
 
 # What one chunk of an evaluation keeps (when the rollout reports it): success and METRICS per
-# configuration (b, C), the commanded force per candidate (b,), the time to success (b, C).
-CHUNK_FIELDS = ("success", *METRICS, "peak_commanded_force", "success_seconds")
+# configuration (b, C), the commanded force per candidate (b,), the time to success (b, C) and
+# per world (b, C, W).
+CHUNK_FIELDS = ("success", *METRICS, "peak_commanded_force", "success_seconds", "world_seconds")
 
 
 def evaluation_worlds(rollout, per_config: int, seed: int):
@@ -131,6 +135,7 @@ def evaluate_chunk(rollout, chunk: np.ndarray, worlds, n_cfg: int, per_config: i
         count = done.sum(axis=2)
         with np.errstate(invalid="ignore", divide="ignore"):
             result["success_seconds"] = np.where(count > 0, seconds.sum(axis=2) / np.maximum(count, 1), np.nan)
+        result["world_seconds"] = np.where(done, seconds, np.nan)
     return result
 
 

@@ -177,6 +177,40 @@ def group_force_and_time(evals: list[Evaluation], picks: list[Pick], group: str)
     return force, (weighted / weights if weights else float("nan"))
 
 
+def full_episode_seconds(evals: list[Evaluation], picks: list[Pick], group: str, episode_seconds: float) -> float:
+    """Mean time to success over every world of the group's candidates pooled over the runs, a
+    world that did not succeed (or whose tree never returned SUCCESS) counted as the full episode
+    ``episode_seconds``: a group that fails more is slower, where the mean over its successes
+    alone would count only the fast ones. NaN: no run has per-world times."""
+    times = [np.where(np.isfinite(t), t, episode_seconds).ravel()
+             for ev, p in zip(evals, picks) if ev.world_seconds is not None
+             for t in [ev.world_seconds[group_rows(ev, group, p)]]]
+    times = np.concatenate(times) if times else np.zeros(0)
+    return float(times.mean()) if len(times) else float("nan")
+
+
+def paired_seconds(evals: list[Evaluation], picks: list[Pick], group: str, other: str) -> tuple[float, float, int]:
+    """(mean time to success of ``group``, of ``other``, number of pairs) over the worlds where a
+    candidate of each succeeded: every (run, world, candidate of group, candidate of other) with
+    both successful is one pair, so both means are over the same worlds. NaN, NaN, 0: no pair
+    (or no per-world times)."""
+    a_all, b_all = [], []
+    for ev, p in zip(evals, picks):
+        if ev.world_seconds is None:
+            continue
+        for i in group_rows(ev, group, p):
+            for j in group_rows(ev, other, p):
+                a, b = ev.world_seconds[i].ravel(), ev.world_seconds[j].ravel()
+                both = np.isfinite(a) & np.isfinite(b)
+                a_all.append(a[both])
+                b_all.append(b[both])
+    a = np.concatenate(a_all) if a_all else np.zeros(0)
+    b = np.concatenate(b_all) if b_all else np.zeros(0)
+    if not len(a):
+        return float("nan"), float("nan"), 0
+    return float(a.mean()), float(b.mean()), int(len(a))
+
+
 def plot_pooled(samples: dict, path, title: str) -> dict:
     """Box plots of the pooled groups, picked against each; returns box_plot's tests."""
     labelled = {POOLED_LABELS[g]: v for g, v in samples.items()}
@@ -195,5 +229,6 @@ def pooled_table(samples: dict, tests: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["BASELINES", "GIVEN", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "check_front", "choose_commanded", "contenders", "force_bound", "group_force_and_time", "group_means",
+__all__ = ["BASELINES", "GIVEN", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "check_front", "choose_commanded", "contenders", "force_bound", "full_episode_seconds", "group_force_and_time", "group_means",
+           "paired_seconds",
            "pick", "picked_row", "plot_pooled", "pooled_samples", "pooled_table", "pooled_tests"]
