@@ -148,6 +148,23 @@ def test_the_report_covers_the_finished_repetitions_with_the_stated_pick(experim
     if np.ptp(np.concatenate([success[0, :N_KNOWN], rnd[:, :N_KNOWN].ravel()])) > 0:
         assert report["mann_whitney"]["random"]["known"] == pytest.approx(direct)
     assert report["front_size"]["mean"] == len(front) and report["front_size"]["sd"] is None  # one repetition
+    # time to success by brute force over the scripted worlds: per world the time or None (failed)
+    def times(p):
+        return [(t + 1) / SCN.bt_hz if ok else None for c in range(N_KNOWN + N_UNSEEN) for r in range(2)
+                for ok, _, t in [rollout.outcome(p, c, r)]]
+
+    mine = times(front.params[best])
+    operators = [times(np.array([m.values[n] for n in TASK.parameter_names])) for m in SCN.manual_parameters.values()]
+    pairs = [(a, b) for op in operators for a, b in zip(mine, op) if a is not None and b is not None]
+    t = report["time_to_success"]
+    assert t["paired"] == pytest.approx({"picked_s": np.mean([a for a, _ in pairs]), "operators_s": np.mean([b for _, b in pairs]),
+                                         "paired_worlds": len(pairs)})
+    full = lambda ts: np.mean([CONFIG.episode_seconds if x is None else x for x in ts])  # noqa: E731
+    assert t["full_episode"] == pytest.approx({"picked_s": full(mine), "operators_s": full(sum(operators, []))})
+    paired, whole = [row for row in report["paper"] if "faster" in row["quantity"]]
+    assert "where both succeed" in paired["quantity"]
+    assert paired["ours"] == pytest.approx(1 - t["paired"]["picked_s"] / t["paired"]["operators_s"])
+    assert "full 0.2 s episode" in whole["quantity"] and whole["ours"] == pytest.approx(1 - full(mine) / full(sum(operators, [])))
 
 
 def _random_sets(run):

@@ -27,7 +27,10 @@ from mjxskill.training.report import pyplot
 
 
 GROUPS = ("pareto", "planner", "random", "manual")
-GROUP_LABELS = {"pareto": "Pareto (learned)", "planner": "planner only", "random": "random", "manual": "operators"}
+# The operators' sets are the scenario's manual_parameters: examples invented for this repository
+# (the paper's operators' sets are unpublished), and every table and plot says so.
+GROUP_LABELS = {"pareto": "Pareto (learned)", "planner": "planner only", "random": "random",
+                "manual": "operators (illustrative)"}
 
 
 class Candidates(NamedTuple):
@@ -284,12 +287,12 @@ def table(ev: Evaluation, tests: dict) -> str:
             row.append(f"{ev.peak_contact_force[i].mean():.1f}")
     widths = [max(len(r[c]) for r in [head, *rows]) for c in range(len(head))]
     fmt = lambda r: "  ".join(x.ljust(w) if c < 2 else x.rjust(w) for c, (x, w) in enumerate(zip(r, widths)))  # noqa: E731
-    lines = [fmt(head), *map(fmt, rows), "", "group              known  unseen  (mean success; Mann-Whitney U vs Pareto)"]
+    lines = [fmt(head), *map(fmt, rows), "", f"{'group':<24} known  unseen  (mean success; Mann-Whitney U vs Pareto)"]
     for g in GROUPS:
         if g not in ev.candidates.groups:
             continue
         k, u = group_samples(ev, g, True), group_samples(ev, g, False)
         note = "" if g == "pareto" else "  " + ", ".join(
             f"{lab} p={tests[(lab, g)][0]:.3g} {tests[(lab, g)][1]}" for lab in ("known", "unseen") if (lab, g) in tests)
-        lines.append(f"{GROUP_LABELS[g]:<18} {k.mean():>5.0%}  {u.mean() if len(u) else float('nan'):>6.0%}{note}")
+        lines.append(f"{GROUP_LABELS[g]:<24} {k.mean():>5.0%}  {u.mean() if len(u) else float('nan'):>6.0%}{note}")
     return "\n".join(lines)

@@ -220,12 +220,12 @@ def plot_pooled(samples: dict, path, title: str) -> dict:
 def pooled_table(samples: dict, tests: dict) -> str:
     """Mean success per group and the picked solutions' p-values against each baseline."""
     means = group_means(samples)
-    lines = [f"{'group':<18} {'known':>6} {'unseen':>7}  samples  Mann-Whitney U, picked vs group"]
+    lines = [f"{'group':<24} {'known':>6} {'unseen':>7}  samples  Mann-Whitney U, picked vs group"]
     for g, (known, unseen) in samples.items():
         m = means[g]
         cells = [f"{v:>6.0%}" if v is not None else f"{'-':>6}" for v in (m["known"], m["unseen"])]
         note = ", ".join(f"{side} p={p:.3g} {stars_of(p)}" for side, p in tests.get(g, {}).items() if p is not None)
-        lines.append(f"{POOLED_LABELS[g]:<18} {cells[0]} {cells[1]:>7}  {len(known):>3}+{len(unseen):<3}  {note}")
+        lines.append(f"{POOLED_LABELS[g]:<24} {cells[0]} {cells[1]:>7}  {len(known):>3}+{len(unseen):<3}  {note}")
     return "\n".join(lines)
 
 
