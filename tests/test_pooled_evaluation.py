@@ -174,6 +174,18 @@ def test_a_validated_pick_takes_the_contender_most_successful_in_the_validation_
         pick(front, ev, 6.0, Validation((0, 2), np.array([0.2, 0.9]), 20))  # not the two in contention
 
 
+def test_of_validated_contenders_equally_successful_the_faster_is_picked():
+    ev = toy_evaluation(np.ones((3, 3)), manual_force=[4.0])
+    # training: row 0 best (100 %, highest first objective); in validation rows 0 and 2 tie at
+    # 90 %, row 2 reaching success in 6.5 s on average (failures as the whole episode), row 0 in 8 s
+    front = front_of(ev, [1.0, 0.9, 0.8], [1.0, 1.0, 1.0], [3.0, 2.0, 1.0])
+    timed = Validation((0, 1, 2), np.array([0.9, 0.5, 0.9]), 20, 3, np.array([8.0, 2.0, 6.5]))
+    assert pick(front, ev, 6.0, timed).row == 2
+    # the fastest of all (row 1) succeeds less: success decides first
+    assert pick(front, ev, 6.0, timed._replace(seconds=np.array([8.0, 2.0, 8.0]))).row == 0  # equal times: training
+    assert pick(front, ev, 6.0, timed._replace(seconds=None)).row == 0  # no times: the training success decides
+
+
 def test_the_validation_rolls_out_the_contenders_in_fresh_known_worlds_and_is_reused(run):
     from mjxskill.evaluation.validation import FILE, load_validation, validate, validation_settings
 
@@ -189,12 +201,17 @@ def test_the_validation_rolls_out_the_contenders_in_fresh_known_worlds_and_is_re
     # only the known start configurations: the unseen ones stay for the evaluation
     success = expected(rollout, front.params[[2, 0]], N_KNOWN, 2, SCN.bt_hz)[0].mean(axis=1)
     np.testing.assert_allclose(v.success, success)
+    # the mean time to success over the same worlds, a failure counted as the 0.2 s episode
+    seconds = [np.mean([(t + 1) / SCN.bt_hz if ok else 0.2 for c in range(N_KNOWN) for r in range(2)
+                        for ok, _, t in [rollout.outcome(p, c, r)]]) for p in front.params[[2, 0]]]
+    np.testing.assert_allclose(v.seconds, seconds)
     assert [len(c) for c in rollout.calls] == [2]  # one call of the two rows, not padded to a batch
     doc = json.loads((run.path / FOLDER / FILE).read_text())
     assert doc["rows"] == [2, 0] and doc["worlds"] == 2 * N_KNOWN
     again = ScriptedRollout(SCN, TASK.bounds)
     v2, reused = validate(run, front, [0], again, vsettings(candidates=1))  # a subset: reused
     assert reused and again.calls == [] and v2.rows == (0,) and v2.success[0] == pytest.approx(success[1])
+    assert v2.seconds_of(0) == pytest.approx(seconds[1])
     assert load_validation(run, front, [1], vsettings()) is None  # row 1 was not validated
     assert load_validation(run, front, [0], vsettings(seed=4)) is None  # other worlds
     moved = Evaluations(front.iteration, front.params + 0.01, *front[2:])  # not _replace: len() is rows
@@ -203,10 +220,16 @@ def test_the_validation_rolls_out_the_contenders_in_fresh_known_worlds_and_is_re
     empty, reused = validate(run, front, [], again, vsettings())
     assert empty.rows == () and again.calls == [] and load_validation(run, front, [], vsettings()).rows == ()
     good = (run.path / FOLDER / FILE).read_text()
+    # one written before times were kept is made again, not used without them
+    old = json.loads(good)
+    del old["seconds"]
+    (run.path / FOLDER / FILE).write_text(json.dumps(old))
+    assert load_validation(run, front, [0], vsettings()) is None
+    (run.path / FOLDER / FILE).write_text(good)
     for damaged in ('{"format": "mjxskill.validation/1", "rows": [0], "success": [1.5]}',
                     good.replace('"worlds": 8', '"worlds": 1e400'), good.replace('"worlds": 8', '"worlds": 8.5'),
                     good.replace('"rows": [\n  2,', '"rows": [\n  true,'), good.replace('"rows": [\n  2,\n  0\n ]', '"rows": []'),
-                    good[:-20], "[" * 100000 + "]" * 100000):
+                    good[:-20], "[" * 100000 + "]" * 100000, good.replace('"seconds": [', '"seconds": [-1, ')):
         assert damaged != good
         (run.path / FOLDER / FILE).write_text(damaged)
         with pytest.raises(RunError, match=f"{FILE} is not a readable validation"):

@@ -14,7 +14,8 @@ The pick reads only the training front, as an operator would; its evaluation is 
 run's evaluation. **Validated** (an experiment's default, ``mjxskill.evaluation.validation``): the
 K solutions within the bound with the highest training success are rolled out again in fresh
 worlds of the known start configurations, and the highest success there decides (ties: the
-training success, then the first objective), so that a knife-edge set that was lucky in its few
+lower mean time to success there, a failure counted as the full episode; then the training
+success, then the first objective), so that a knife-edge set that was lucky in its few
 training worlds is not picked over a robust one.
 
 **The samples** of a group (Mann-Whitney U, box plots): one success rate per (run, candidate,
@@ -88,7 +89,9 @@ def pick(front, ev: Evaluation, max_force: float | None = None, validation=None,
     if not rows:
         return Pick(None, bound, source)
     r = np.asarray(rows)
-    order = np.lexsort((-front.objectives[r, 0], -front.success_rate[r], -np.asarray(validation.success)))
+    # equal validation success: the faster (failures as full episodes), then the training success
+    seconds = np.zeros(len(r)) if validation.seconds is None else np.nan_to_num(validation.seconds, nan=np.inf)
+    order = np.lexsort((-front.objectives[r, 0], -front.success_rate[r], seconds, -np.asarray(validation.success)))
     return Pick(int(r[order[0]]), bound, source)
 
 

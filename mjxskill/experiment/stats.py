@@ -240,7 +240,8 @@ def pick_rule(protocol: Protocol, n_known: int | None) -> str:
     return (f"of the Pareto solutions whose {force}, the {protocol.validation_candidates} with the highest training "
             f"success rate (ties: the higher first objective) are rolled out again in {worlds} from each known start "
             "configuration, drawn from the repetition's seed apart from the training and evaluation worlds); the one "
-            "with the highest success rate there is picked; ties: the higher training success rate, then the higher "
+            "with the highest success rate there is picked; ties: the lower mean time to success there (a failure "
+            "counted as the full episode), then the higher training success rate, then the higher "
             f"first objective. {bound}")
 
 
@@ -273,6 +274,8 @@ def _picked(r: Repetition, config: RunConfig) -> dict:
     if r.validation is not None:
         out["validation_rates"] = {str(row): rate for row, rate in zip(r.validation.rows, map(float, r.validation.success))}
         out["validation_worlds"] = r.validation.worlds
+        if r.validation.seconds is not None:
+            out["validation_seconds"] = {str(row): t for row, t in zip(r.validation.rows, map(float, r.validation.seconds))}
     return out
 
 
