@@ -3,6 +3,7 @@ place of the physics: which runs it holds, which repetitions are finished, the p
 groups and tests, the normalized hypervolume and front sizes, report.json and report.md."""
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -186,6 +187,8 @@ def test_the_report_files_and_the_side_by_side_table(experiment):
     assert "Rule: of the Pareto solutions whose commanded force" in text and f"rolled out again in {2 * N_KNOWN} fresh worlds" in text
     assert "| training success | validation success |" in text
     assert f"Bound: 0.8 N, {BOUND_WHY}" in text  # the bound and where it comes from
+    assert "### The picked success against the force bound" in text and "| 0.8 N (used) | 1 of 1 |" in text
+    assert "operators (illustrative)" in text and "not the paper's operators', whose sets are unpublished" in text
 
 
 def test_hypervolume_in_the_space_normalized_by_every_run():
@@ -340,6 +343,34 @@ def test_hypervolume_of_repetitions_is_taken_in_the_space_of_their_union():
     assert alone["optimizer"][0] == pytest.approx(box(0, 1) + box(1, 0) - 0.01)
     assert alone["optimizer"][0] != pytest.approx(hv["optimizer"][0])
     assert hypervolumes([]) == {"optimizer": [], "random_search": []}
+
+
+def test_the_bound_sweep_picks_again_at_each_bound_from_what_the_experiment_has():
+    from mjxskill.evaluation.validation import Validation
+    from mjxskill.experiment.stats import Repetition, bound_sweep, sweep_bounds
+    from test_pooled_evaluation import front_of, toy_evaluation
+
+    # three Pareto rows commanding 2, 5 and 9 N, 50, 80 and 100 % in training; evaluated at
+    # 100 % (row 0), 50 % known / 0 % unseen (row 1), 25 % / 100 % (row 2); the validation rolled
+    # out the two contenders within 10 N (rows 2 and 1: 20 % and 90 %)
+    ev = toy_evaluation(np.array([[1.0, 1.0, 1.0], [0.5, 0.5, 0.0], [0.0, 0.5, 1.0]]), manual_force=[4.0])
+    front = front_of(ev, [0.5, 0.8, 1.0], [2.0, 5.0, 9.0], [1.0, 2.0, 3.0])
+    validation = Validation((2, 1), np.array([0.2, 0.9]), 20, 2, np.array([6.0, 7.0]))
+    rep = Repetition(0, None, None, front, ev, None, validation, None)
+    protocol = Protocol(max_force=10.0, validation_per_config=5, validation_candidates=2, max_force_source="stated")
+    assert sweep_bounds(10.0, [front]) == [2.0, 4.0, 6.0, 8.0, 10.0]  # fifths of 10 N (above the fronts' 9 N)
+    assert sweep_bounds(3.0, [front]) == [1.8, 3.0, 3.6, 5.4, 7.2, 9.0]  # the bound among fifths of the fronts' 9 N
+    rows = {r["bound_N"]: r for r in bound_sweep([rep], protocol)}
+    # by hand: within 2 or 4 N only row 0 (not validated: its training success picks it); within
+    # 6 or 8 N rows 1 and 0, row 1 the better in training (row 0 never validated); within 10 N
+    # the validated contenders 2 and 1: row 1, 90 % against 20 %
+    for bound, (known, unseen, force, validated) in {2.0: (1.0, 1.0, 2.0, 0), 4.0: (1.0, 1.0, 2.0, 0),
+                                                     6.0: (0.5, 0.0, 5.0, 0), 8.0: (0.5, 0.0, 5.0, 0),
+                                                     10.0: (0.5, 0.0, 5.0, 1)}.items():
+        r = rows[bound]
+        assert (r["known"], r["unseen"], r["mean_commanded_force_N"], r["validated"]) == (known, unseen, force, validated), bound
+        assert r["repetitions_with_pick"] == 1 and r["used"] == (bound == 10.0)
+    assert bound_sweep([rep], replace(protocol, max_force=1.0))[0]["repetitions_with_pick"] == 0  # nothing within 1 N
 
 
 GOOD_PROTOCOL = "format: mjxskill.experiment/1\ntask: push\nper_config: 2\nrandom_sets: 3\nmax_force: null\n"

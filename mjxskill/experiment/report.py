@@ -6,7 +6,8 @@ report.json: ``task``; ``status`` (repetitions done of all); ``protocol`` (every
 ``pick_rule`` and ``picked`` (per repetition, with the bound, where it comes from and the
 validation's success rates and times);
 ``training_pick`` (the picks the training success alone makes, where they differ, and their
-success rates: what the validation changed); ``front_size`` (``mean``, ``sd``, per
+success rates: what the validation changed); ``bound_sweep`` (per force bound: repetitions with a
+pick, how many of those picks are validated, their known and unseen success and commanded force); ``front_size`` (``mean``, ``sd``, per
 repetition, and the random search's); ``groups`` (group -> ``known``, ``unseen`` mean success
 rates); ``samples`` (their counts); ``mann_whitney`` (baseline -> ``known``, ``unseen``: p of the
 picked solutions against it); ``force_and_time`` (group -> ``peak_commanded_force_N``, the
@@ -153,7 +154,29 @@ def _picked_section(s: dict, figures: bool) -> list[str]:
             for r in s["picked"]]
     lines += _table(["seed", "Pareto row", "bound", *(n.split(".")[-1] for n in names), "training success",
                      *(["validation success"] if validated else []), "commanded force [N]", "known", "unseen"], rows)
-    return lines + [""] + _validation_effect(s)
+    return lines + [""] + _validation_effect(s) + _sweep(s)
+
+
+def _sweep(s: dict) -> list[str]:
+    """How the picked success changes with the force bound (``stats.bound_sweep``)."""
+    sweep = s.get("bound_sweep") or []
+    if not sweep:
+        return []
+    validated = sweep[0]["validated"] is not None
+    n = s["status"]["repetitions_done"]
+    rows = [[f"{r['bound_N']:g} N" + (" (used)" if r["used"] else ""), f"{r['repetitions_with_pick']} of {n}"]
+            + ([f"{r['validated']} of {n}"] if validated else [])
+            + [_pct(r["known"]), _pct(r["unseen"]), _num(r["mean_commanded_force_N"], "{:.2f} N")] for r in sweep]
+    lines = ["### The picked success against the force bound", ""]
+    lines += _table(["bound", "repetitions with a pick", *(["picks validated"] if validated else []), "known", "unseen",
+                     "mean commanded force of the picks"], rows)
+    note = ("From the training fronts and the evaluation, which holds every Pareto solution: no rollout is made. ")
+    if validated:
+        note += ("Where a repetition's validation did not roll out the contenders at a bound, its pick there is by "
+                 "training success alone (the 'picks validated' column counts the others); validating them would take "
+                 f"{s['protocol']['validation_candidates']} x {s['protocol']['validation_per_config']} episodes per known "
+                 "start configuration and repetition more.")
+    return lines + ["", note, ""]
 
 
 def _fronts_section(s: dict, figures: bool) -> list[str]:

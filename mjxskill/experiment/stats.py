@@ -30,6 +30,7 @@ from mjxskill.experiment.directory import (
 from mjxskill.training.front import HV_MARGIN, hypervolume_history, pareto_mask_of
 from mjxskill.evaluation.pooled import (
     Pick,
+    contenders,
     force_bound,
     full_episode_seconds,
     paired_seconds,
@@ -210,6 +211,7 @@ def summarize(exp: Experiment) -> dict:
         "pick_rule": pick_rule(protocol, n_known),
         "picked": [_picked(r, config) for r in reps],
         "training_pick": training_pick(reps),
+        "bound_sweep": bound_sweep(reps, protocol),
         "front_size": front,
         "groups": means,
         "samples": {g: {"known": len(v[0]), "unseen": len(v[1])} for g, v in samples.items()},
@@ -224,6 +226,49 @@ def summarize(exp: Experiment) -> dict:
         "sessions": state["sessions"],
         "paper": paper_rows(config.task, front, means, force_time, times),
     }
+
+
+SWEEP_STEPS = 5  # bounds in the sweep: fifths of the largest force on any front (or of the bound, if larger)
+
+
+def sweep_bounds(bound: float | None, fronts: list[Evaluations]) -> list[float]:
+    """The bounds of the report's sweep: ``SWEEP_STEPS`` evenly spaced up to the larger of the
+    pick's bound and the largest commanded force on any front (the last one bounds nothing),
+    and the pick's bound itself, in N to 0.1 N."""
+    forces = np.concatenate([f.peak_commanded_force for f in fronts]) if fronts else np.zeros(0)
+    forces = forces[np.isfinite(forces)]
+    top = max(bound or 0.0, float(forces.max()) if len(forces) else 0.0)
+    grid = {round(top * k / SWEEP_STEPS, 1) for k in range(1, SWEEP_STEPS + 1)} | ({float(bound)} if bound is not None else set())
+    return sorted(b for b in grid if b > 0 or top == 0)
+
+
+def bound_sweep(reps: list[Repetition], protocol: Protocol) -> list[dict]:
+    """How the picked success changes with the force bound, from what the experiment has: the
+    training fronts, the evaluation (it evaluated every Pareto solution) and the validation. At a
+    bound whose contenders the repetition's validation rolled out, the pick is validated as the
+    experiment's is; otherwise it is the training success's alone (``validated`` counts the
+    former). No rollout is made."""
+    out = []
+    for bound in sweep_bounds(protocol.max_force, [r.front for r in reps]):
+        picks, validated = [], 0
+        for r in reps:
+            rows = contenders(r.front, bound, protocol.validation_candidates)
+            v = r.validation
+            if v is not None and set(rows) <= set(v.rows):
+                index = [v.rows.index(row) for row in rows]
+                sub = Validation(tuple(rows), v.success[index], v.worlds, protocol.validation_candidates,
+                                 None if v.seconds is None else v.seconds[index])
+                picks.append(pick(r.front, r.evaluation, bound, sub))
+                validated += 1
+            else:
+                picks.append(pick(r.front, r.evaluation, bound))
+        means = group_means(pooled_samples([r.evaluation for r in reps], picks)).get("picked", {})
+        forces = [float(r.front.peak_commanded_force[p.row]) for r, p in zip(reps, picks) if p.row is not None]
+        out.append({"bound_N": bound, "used": protocol.max_force is not None and bound == float(protocol.max_force),
+                    "repetitions_with_pick": len(forces), "validated": validated if any(r.validation for r in reps) else None,
+                    "known": means.get("known"), "unseen": means.get("unseen"),
+                    "mean_commanded_force_N": float(np.mean(forces)) if forces else None})
+    return out
 
 
 def pick_rule(protocol: Protocol, n_known: int | None) -> str:
@@ -279,5 +324,5 @@ def _picked(r: Repetition, config: RunConfig) -> dict:
     return out
 
 
-__all__ = ["PAPER", "Repetition", "finished_repetitions", "time_to_success", "hypervolumes", "normalization", "normalized_curve", "pick_rule",
+__all__ = ["PAPER", "Repetition", "bound_sweep", "finished_repetitions", "sweep_bounds", "time_to_success", "hypervolumes", "normalization", "normalized_curve", "pick_rule",
            "summarize", "training_pick"]
