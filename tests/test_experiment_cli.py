@@ -53,6 +53,12 @@ def test_the_experiment_writes_every_repetition_and_the_report(experiment):
     assert all("validate_seconds" in times[f"optimizer/seed-{s}"] for s in (0, 1))
     assert "repetition 2 of 2 (seed 1): validation of the pick" in stdout
     assert report["protocol"]["validation_per_config"] == 5 and report["training_pick"]["validated"]
+    # no --max-force: push.yaml's pick.max_force, 10 N, with its reason, in the protocol and the report
+    assert "pick bound 10 N (the scenario's pick.max_force)" in stdout
+    assert report["protocol"]["max_force"] == 10.0 and report["protocol"]["max_force_source"].startswith(
+        "the scenario's pick.max_force: The paper states no force limit")
+    assert all(p["bound_N"] == 10.0 for p in report["picked"])
+    assert "Bound: 10 N, the scenario's pick.max_force: The paper states no force limit" in (out / "report.md").read_text()
     assert all(p["validation_worlds"] == 5 * 4 for p in report["picked"])  # 4 known start configurations
     for name in ("report.md", "fronts.png", "hypervolume.png", "success.png"):
         assert (out / name).is_file()

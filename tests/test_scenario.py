@@ -243,6 +243,9 @@ MUTATIONS = {
     "unknown reward kind": ("kind: exp_ee_to_reference", "kind: exp_ee_to_ref", r"rewards\[3\].kind", "'exp_ee_to_ref' is not one of"),
     "joint angle outside its limit": ("- [-0.1200, 0.7679,", "- [-0.1200, 2.7679,", r"robot.start_configs\[0\]\[1\]", "outside the joint limit"),
     "n_init above budget": ("  n_init: 48", "  n_init: 480", "optimizer.n_init", "exceeds the budget 400"),
+    # The pick's force bound: a number >= 0 with its reason.
+    "pick bound negative": ("  max_force: 10.0\n", "  max_force: -3\n", "pick.max_force", "expected a number >= 0, got -3"),
+    "pick bound not a number": ("  max_force: 10.0\n", "  max_force: lots\n", "pick.max_force", "expected a number, got 'lots'"),
     "manual parameter not learnable": ("operator_a: {Push.offset_x_start: -0.03,", "operator_a: {Push.offset_z_start: -0.03,",
                                        "manual_parameters.operator_a.Push.offset_z_start", "not a learnable parameter"),
     "manual parameter outside bounds": ("operator_b: {Push.offset_x_start: -0.04,", "operator_b: {Push.offset_x_start: 0.5,",
@@ -336,6 +339,38 @@ def assert_located(error: str, file, key_path: str, message: str, mutated: str, 
         assert line == mutated[: mutated.rindex(anchor)].count("\n") + 1, error
     else:  # a missing top-level key is reported at the document's start
         assert line == 1 + next(i for i, l in enumerate(mutated.splitlines()) if l and not l.startswith("#")), error
+
+
+def test_the_pick_bound_is_the_scenarios_number_with_its_reason(push, peg):
+    # 10 N: PegInsertion.force's bound (the most a learned set may command); push's constant
+    # 7 N press lies within it
+    for scn in (push, peg):
+        assert scn.pick.max_force == 10.0 and "10 N" in scn.pick.why and "\n" not in scn.pick.why
+
+
+@pytest.mark.parametrize("block, key_path, message", [
+    ("pick:\n  max_force: 5.0\n", "pick", "missing key 'why'"),
+    ("pick:\n  max_force: 5.0\n  why: ''\n", "pick.why", "expected the reason for the bound"),
+    ("pick:\n  max_force: 5.0\n  why: [a]\n", "pick.why", "expected a single value"),
+    ("pick:\n  why: gentle\n", "pick", "missing key 'max_force'"),
+    ("pick:\n  max_force: .inf\n  why: gentle\n", "pick.max_force", "expected a finite number"),
+])
+def test_a_bad_pick_bound_is_an_error_naming_it(tmp_path, block, key_path, message):
+    start = PUSH_TEXT.index("pick:\n")
+    end = PUSH_TEXT.index("\n\n", start) + 1
+    mutated = PUSH_TEXT[:start] + block + PUSH_TEXT[end:]
+    path = tmp_path / "push.yaml"
+    path.write_text(mutated)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    assert_located(str(info.value), path, key_path, message, mutated, key_path.split(".")[-1] + ":")
+
+
+def test_a_scenario_without_a_pick_bound_states_none(tmp_path):
+    start = PUSH_TEXT.index("pick:\n")
+    path = tmp_path / "push.yaml"
+    path.write_text(PUSH_TEXT[:start] + PUSH_TEXT[PUSH_TEXT.index("\n\n", start) + 2:])
+    assert load_scenario(path).pick is None
 
 
 @pytest.mark.parametrize("kind", list(MUTATIONS))

@@ -29,7 +29,7 @@ from mjxskill.engine.build import CHOICES, build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 from mjxskill.evaluation.baselines import table
 from mjxskill.evaluation.evaluate_run import FOLDER, differences_from_earlier, evaluate_run, evaluation_settings
-from mjxskill.evaluation.pooled import group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
+from mjxskill.evaluation.pooled import force_bound, group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
 from mjxskill.evaluation.validation import in_contention, validate, validation_settings
 from mjxskill.experiment.directory import Experiment, is_done, repetition_settings, runs_of
 from mjxskill.runs.layout import directory_kind, experiment_holding
@@ -51,8 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
     cli_args.add_workers_argument(parser)
     parser.add_argument("--engine", choices=CHOICES, help="physics engine (default: the run's; the other one checks "
                         "how a solution transfers between engines)")
-    parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="force bound of each repeated "
-                        "run's picked solution, N (default: the largest force an operator set commands)")
+    parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="bound on the commanded force "
+                        "of each repeated run's picked solution, N (default: the scenario's pick.max_force)")
     parser.add_argument("--replace", action="store_true", help="replace an earlier evaluation made with other settings "
                         "(without it, evaluate refuses and keeps that one)")
     cli_args.add_validation_arguments(parser, "a repeated run or an experiment, before each run's pick", "default 5; an "
@@ -105,6 +105,7 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
     for sub in subs:  # every front is there before anything is compiled
         sub.front(sub.config())
     scn, task = load_run_task(run, config)
+    bound = force_bound(args.max_force, scn.pick)
     seed = 0 if args.seed is None else args.seed
     if not args.replace:
         for i, sub in enumerate(subs):
@@ -123,12 +124,12 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
             if not repeated:
                 print(table(ev, tests))
             print(f"wrote {sub.path / FOLDER}")
-            validation = _validate(args, sub, sub_config, ev, rollout, settings) if repeated else None
+            validation = _validate(args, sub, sub_config, bound, rollout, settings) if repeated else None
             results.append((sub, sub_config, ev, validation))
     finally:
         rollout.close()
     if repeated:
-        print(_pool(run, config, results, args.max_force))
+        print(_pool(run, config, results, bound))
     return 0
 
 
@@ -146,15 +147,16 @@ def _keep_earlier(run, settings: dict) -> None:
                            "it, so it is kept: evaluate with --replace to replace it, or evaluate a copy of the run")
 
 
-def _validate(args, sub, config, ev, rollout, settings: dict):
-    """The validation of one sub-run's pick (``mjxskill.evaluation.validation``; None: asked for none)."""
+def _validate(args, sub, config, bound, rollout, settings: dict):
+    """The validation of one sub-run's pick within ``bound`` ((N or None, source): ``force_bound``)
+    (``mjxskill.evaluation.validation``; None: asked for none)."""
     per = 5 if args.validation_per_config is None else args.validation_per_config
     if not per:
         return None
     k = args.validation_candidates or 3
     front = sub.front(config)
     with sub.lock():
-        validation, reused = validate(sub, front, in_contention(front, ev, args.max_force, k), rollout,
+        validation, reused = validate(sub, front, in_contention(front, bound[0], k), rollout,
                                       validation_settings(per, k, settings["seed"], settings["engine"],
                                                           settings["episode_seconds"]))
     print(f"{sub.path}: the pick's {len(validation.rows)} best candidates in {validation.worlds} validation worlds"
@@ -162,9 +164,10 @@ def _validate(args, sub, config, ev, rollout, settings: dict):
     return validation
 
 
-def _pool(run, config, results, max_force) -> str:
-    """Picks, pooled groups and tests of a repeated run into ``DIR/evaluation/``."""
-    picks = [pick(sub.front(c), ev, max_force, validation) for sub, c, ev, validation in results]
+def _pool(run, config, results, bound) -> str:
+    """Picks within ``bound`` ((N or None, source)), pooled groups and tests of a repeated run into
+    ``DIR/evaluation/``."""
+    picks = [pick(sub.front(c), ev, bound[0], validation, bound[1]) for sub, c, ev, validation in results]
     validations = [v for *_, v in results]
     results = [(sub, c, ev) for sub, c, ev, _ in results]
     samples = pooled_samples([ev for _, _, ev in results], picks)
@@ -180,15 +183,15 @@ def _pool(run, config, results, max_force) -> str:
            "groups": group_means(samples), "samples": {g: {"known": len(v[0]), "unseen": len(v[1])} for g, v in samples.items()},
            "mann_whitney": tests}
     (out / "pooled.json").write_text(json.dumps(doc, indent=1) + "\n")
-    lines = [f"seed {c.seed}: picked Pareto row {p.row} (bound {p.bound if p.bound is None else f'{p.bound:.2f} N'}: {p.source})"
-             for (_, c, _), p in zip(results, picks)]
+    lines = [f"seed {c.seed}: picked Pareto row {p.row}" for (_, c, _), p in zip(results, picks)]
+    lines.append("bound on the commanded force: " + ("none" if bound[0] is None else f"{bound[0]:g} N") + f", {bound[1]}")
     return "\n".join([*lines, "", pooled_table(samples, tests), f"wrote {out / 'success.png'} and {out / 'pooled.json'}"])
 
 
 def _experiment(args: argparse.Namespace) -> int:
     # lazy: an experiment's driver and report, and the experiment command's flags, cost evaluate
     # --help and its bad-input errors ~0.03 s (+7 %); only an experiment directory needs them
-    from mjxskill.cli.experiment import change_validation
+    from mjxskill.cli.experiment import change_validation, settle_bound
     from mjxskill.experiment.driver import evaluate_timed, validate_timed
     from mjxskill.experiment.report import write_report
 
@@ -213,6 +216,7 @@ def _experiment(args: argparse.Namespace) -> int:
                            f"{config.task} --resume {exp.path}")
     with exp.lock():
         protocol = change_validation(args, exp, protocol)
+        protocol = settle_bound(exp, scn)
         rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds,
                                 workers=args.workers)
         try:

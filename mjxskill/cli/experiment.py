@@ -27,11 +27,12 @@ from mjxskill.errors import CommandError
 from mjxskill.experiment.directory import Experiment, Protocol, random_search_config
 from mjxskill.experiment.driver import run_experiment
 from mjxskill.experiment.report import write_report
+from mjxskill.evaluation.pooled import GIVEN, force_bound
 from mjxskill.runs.run_task import load_run_task, scenario_and_task
 from mjxskill.task import describe, planning_texts
 
 # The evaluation's flags: name -> (default, what the protocol field is called)
-EVALUATION_DEFAULTS = {"per_config": 5, "random": 10, "max_force": None}
+EVALUATION_DEFAULTS = {"per_config": 5, "random": 10, "max_force": None}  # max_force None: the scenario's
 VALIDATION = ("validation_per_config", "validation_candidates")  # the pick's validation: may change on resume
 
 
@@ -48,7 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--per-config", type=cli_args.positive_int, help="evaluation worlds per start configuration (default 5)")
     parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets per evaluation (default 10)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N",
-                        help="force bound of the picked solution, N (default: the largest force an operator set commands)")
+                        help="bound on the picked solution's commanded force, N (default: the scenario's pick.max_force)")
     cli_args.add_validation_arguments(parser, "before each pick", "default 5; on --resume the experiment's own, which "
                                               "this flag changes: the picks are made again, nothing is retrained")
     parser.add_argument("--out", type=Path, help="experiment directory (default runs/<task>-experiment-<timestamp>)")
@@ -84,6 +85,23 @@ def change_validation(args: argparse.Namespace, exp, protocol):
     return new
 
 
+def settle_bound(exp, scn):
+    """The scenario's bound for an experiment made before bounds were stated
+    (``Experiment.settle_bound``), said when it changes; returns the protocol in force."""
+    protocol, said = exp.settle_bound(scn.pick)
+    if said is not None:
+        print(said, flush=True)
+    return protocol
+
+
+def bound_words(protocol) -> str:
+    """The pick's bound and where it comes from, for a line (the reason is the report's)."""
+    if protocol.max_force is None:
+        return "none"
+    source = protocol.max_force_source or GIVEN
+    return f"{protocol.max_force:g} N ({source.split(':')[0]})"
+
+
 def _validation_words(protocol) -> str:
     if not protocol.validation_per_config:
         return "by training success alone (no validation)"
@@ -106,14 +124,16 @@ def _main(args: argparse.Namespace) -> int:
             exp.random_search.check(random_search_config(config))
             scn, task = load_run_task(exp.optimizer, config, scenario=args.task)
             change_validation(args, exp, protocol)  # after every check: a refused resume changes nothing
+            settle_bound(exp, scn)
             return _run(args, exp, config, scn, task, started)
     scn, task = scenario_and_task(args.task, args.goal)
     if args.repeats is None:
         args.repeats = scn.optimizer.repetitions
     config = new_config(args, scn, task)
+    bound, source = force_bound(args.max_force, scn.pick)
     protocol = Protocol(per_config=args.per_config or EVALUATION_DEFAULTS["per_config"],
                         random_sets=EVALUATION_DEFAULTS["random"] if args.random is None else args.random,
-                        max_force=args.max_force,
+                        max_force=bound, max_force_source=source,
                         **{field: getattr(args, field) for field in VALIDATION if getattr(args, field) is not None})
     exp = Experiment(args.out or Path("runs") / f"{scn.name}-experiment-{time.strftime('%Y%m%d-%H%M%S')}")
     exp.create(config, protocol, scn.source, planning_texts(task))
@@ -128,8 +148,7 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
           f"optimizer and of random search; {config.budget} evaluations in batches of {config.batch_size}, "
           f"{config.n_init} random warm-up, {config.worlds} worlds, {config.episode_seconds:g} s episodes")
     print(f"evaluation per repetition: {protocol.per_config} worlds per start configuration, {protocol.random_sets} "
-          f"random sets; pick bound " + (f"{protocol.max_force:g} N" if protocol.max_force is not None else
-                                         "the operators' largest commanded force")
+          f"random sets; pick bound " + bound_words(protocol)
           + f"; picks made {_validation_words(protocol)}")
     print(f"experiment directory: {exp.path}", flush=True)
     why = "the experiment's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]

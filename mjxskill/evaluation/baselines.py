@@ -27,7 +27,10 @@ from mjxskill.training.report import pyplot
 
 
 GROUPS = ("pareto", "planner", "random", "manual")
-GROUP_LABELS = {"pareto": "Pareto (learned)", "planner": "planner only", "random": "random", "manual": "operators"}
+# The operators' sets are the scenario's manual_parameters: examples invented for this repository
+# (the paper's operators' sets are unpublished), and every table and plot says so.
+GROUP_LABELS = {"pareto": "Pareto (learned)", "planner": "planner only", "random": "random",
+                "manual": "operators (illustrative)"}
 
 
 class Candidates(NamedTuple):
@@ -51,8 +54,10 @@ class Evaluation(NamedTuple):
     peak_commanded_force (N,) the largest force the skills COMMANDED in an episode, N, mean over
     the candidate's worlds (what an operator sets; the experiment's pick bounds it);
     success_seconds (N, C) mean time until the tree returned SUCCESS over the successful worlds
-    of each configuration, s (NaN where none succeeded). The metrics are None when the rollout
-    does not report them."""
+    of each configuration, s (NaN where none succeeded); world_seconds (N, C, W) that time in
+    each of the W worlds of a configuration, NaN where the world failed or the tree did not
+    return SUCCESS (what the paired and full-episode times need; None in an evaluation written
+    before it was kept). The metrics are None when the rollout does not report them."""
 
     candidates: Candidates
     success: np.ndarray
@@ -63,6 +68,7 @@ class Evaluation(NamedTuple):
     mean_contact_force: np.ndarray | None = None
     peak_commanded_force: np.ndarray | None = None
     success_seconds: np.ndarray | None = None
+    world_seconds: np.ndarray | None = None
 
     def mean(self, known: bool) -> np.ndarray:
         """(N,) mean success over the known (or the unseen) configurations."""
@@ -86,8 +92,9 @@ def build_candidates(task, pareto_params: np.ndarray, n_random: int, seed: int) 
 
 
 # What one chunk of an evaluation keeps (when the rollout reports it): success and METRICS per
-# configuration (b, C), the commanded force per candidate (b,), the time to success (b, C).
-CHUNK_FIELDS = ("success", *METRICS, "peak_commanded_force", "success_seconds")
+# configuration (b, C), the commanded force per candidate (b,), the time to success (b, C) and
+# per world (b, C, W).
+CHUNK_FIELDS = ("success", *METRICS, "peak_commanded_force", "success_seconds", "world_seconds")
 
 
 def evaluation_worlds(rollout, per_config: int, seed: int):
@@ -131,6 +138,7 @@ def evaluate_chunk(rollout, chunk: np.ndarray, worlds, n_cfg: int, per_config: i
         count = done.sum(axis=2)
         with np.errstate(invalid="ignore", divide="ignore"):
             result["success_seconds"] = np.where(count > 0, seconds.sum(axis=2) / np.maximum(count, 1), np.nan)
+        result["world_seconds"] = np.where(done, seconds, np.nan)
     return result
 
 
@@ -279,12 +287,12 @@ def table(ev: Evaluation, tests: dict) -> str:
             row.append(f"{ev.peak_contact_force[i].mean():.1f}")
     widths = [max(len(r[c]) for r in [head, *rows]) for c in range(len(head))]
     fmt = lambda r: "  ".join(x.ljust(w) if c < 2 else x.rjust(w) for c, (x, w) in enumerate(zip(r, widths)))  # noqa: E731
-    lines = [fmt(head), *map(fmt, rows), "", "group              known  unseen  (mean success; Mann-Whitney U vs Pareto)"]
+    lines = [fmt(head), *map(fmt, rows), "", f"{'group':<24} known  unseen  (mean success; Mann-Whitney U vs Pareto)"]
     for g in GROUPS:
         if g not in ev.candidates.groups:
             continue
         k, u = group_samples(ev, g, True), group_samples(ev, g, False)
         note = "" if g == "pareto" else "  " + ", ".join(
             f"{lab} p={tests[(lab, g)][0]:.3g} {tests[(lab, g)][1]}" for lab in ("known", "unseen") if (lab, g) in tests)
-        lines.append(f"{GROUP_LABELS[g]:<18} {k.mean():>5.0%}  {u.mean() if len(u) else float('nan'):>6.0%}{note}")
+        lines.append(f"{GROUP_LABELS[g]:<24} {k.mean():>5.0%}  {u.mean() if len(u) else float('nan'):>6.0%}{note}")
     return "\n".join(lines)

@@ -4,8 +4,10 @@
 
     evaluation.json   the whole evaluation as plain data (its settings, the candidates, success,
                       position error, measured contact force (peak, mean) and time to success
-                      per start configuration, the commanded force peak_commanded_force per
-                      candidate; NaN as null): what the pooled evaluations and the reports read
+                      per start configuration, the time to success per world (world_seconds,
+                      null where a world did not succeed), the commanded force
+                      peak_commanded_force per candidate; NaN as null): what the pooled
+                      evaluations and the reports read
     evaluation.csv    one row per candidate (``mjxskill.evaluation.baselines.write_csv``)
     success.png       box plots of the groups, Mann-Whitney U against the Pareto group
     chunks.jsonl      while it runs: each finished chunk of candidates, one JSON line, flushed
@@ -49,7 +51,12 @@ FOLDER = "evaluation"
 RESULT = "evaluation.json"
 CHUNKS = "chunks.jsonl"
 FORMAT = "mjxskill.evaluation/2"
-PER_CANDIDATE = ("peak_commanded_force",)  # (N,); the other CHUNK_FIELDS are (N, C)
+PER_CANDIDATE = ("peak_commanded_force",)  # (N,)
+PER_WORLD = ("world_seconds",)  # (N, C, W); the other CHUNK_FIELDS are (N, C)
+
+
+def _shape(field: str, n: int, n_cfg: int) -> tuple[int, ...]:
+    return (n,) if field in PER_CANDIDATE else (n, n_cfg, -1) if field in PER_WORLD else (n, n_cfg)
 
 
 def evaluation_settings(per_config: int, n_random: int, seed: int, batch_size: int, engine: str,
@@ -152,7 +159,7 @@ def load_evaluation(run: Run) -> tuple[Evaluation, dict]:
         c = doc["candidates"]
         n, n_cfg = len(c["names"]), len(doc["config_names"])
         candidates = Candidates(tuple(c["names"]), tuple(c["groups"]), _array(c["params"], (n, -1)))
-        optional = {k: (None if doc.get(k) is None else _array(doc[k], (n,) if k in PER_CANDIDATE else (n, n_cfg)))
+        optional = {k: (None if doc.get(k) is None else _array(doc[k], _shape(k, n, n_cfg)))
                     for k in CHUNK_FIELDS if k != "success"}
         ev = Evaluation(candidates, _array(doc["success"], (n, n_cfg)), np.array(doc["known"], bool),
                         tuple(doc["config_names"]), **optional)
@@ -204,7 +211,8 @@ def _read_chunks(path: Path, settings: dict, candidates: Candidates) -> dict:
             if start % settings["batch_size"] or not np.array_equal(params, candidates.params[start : start + len(params)]):
                 continue
             n = len(params)
-            result = {k: _array(line[k], (n,) if k in PER_CANDIDATE else (n, -1)) for k in CHUNK_FIELDS if k in line}
+            n_cfg = len(line["success"][0]) if n else 0
+            result = {k: _array(line[k], _shape(k, n, n_cfg)) for k in CHUNK_FIELDS if k in line}
             if "success" in result and len(result["success"]) == n:
                 done[start] = result
         except (ValueError, KeyError, TypeError, AttributeError):

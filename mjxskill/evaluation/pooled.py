@@ -5,15 +5,17 @@ with the highest training success rate among those whose COMMANDED force
 (``peak_commanded_force``: the largest feed-forward force the skills command in an episode,
 mean over the training worlds) is at most the bound, ties broken by the higher first objective
 (``mjxskill.evaluation.selection.choose``'s rule, but on the commanded force: ``select
---max-force`` bounds the measured contact force). The bound is the one given, else the largest
-force any operator set commands in that run's evaluation, so that the picked solution never
-commands more than the hardest-pressing operator (the paper's operators' chosen force against
-the learned one: both are set forces, not measured ones); without operator sets there is no bound.
+--max-force`` bounds the measured contact force). The bound is the one the command gives
+(``--max-force``), else the scenario's ``pick.max_force`` with its reason (``force_bound``);
+without either the pick is unbounded. It is a number someone states, not one derived from the
+operators' sets: those are illustrative examples, and a bound read off them excluded robust
+solutions that pressed a little harder than the hardest-pressing example.
 The pick reads only the training front, as an operator would; its evaluation is its row in the
 run's evaluation. **Validated** (an experiment's default, ``mjxskill.evaluation.validation``): the
 K solutions within the bound with the highest training success are rolled out again in fresh
 worlds of the known start configurations, and the highest success there decides (ties: the
-training success, then the first objective), so that a knife-edge set that was lucky in its few
+lower mean time to success there, a failure counted as the full episode; then the training
+success, then the first objective), so that a knife-edge set that was lucky in its few
 training worlds is not picked over a robust one.
 
 **The samples** of a group (Mann-Whitney U, box plots): one success rate per (run, candidate,
@@ -56,23 +58,29 @@ class Pick(NamedTuple):
     source: str
 
 
-def force_bound(ev: Evaluation, max_force: float | None) -> tuple[float | None, str]:
-    """The pick's bound on the commanded force, N, for a run evaluated in ``ev`` (see the module
-    docstring)."""
+GIVEN = "given (--max-force)"
+
+
+def force_bound(max_force: float | None, stated=None) -> tuple[float | None, str]:
+    """The pick's bound on the commanded force, N, and where it comes from: ``max_force`` (the
+    command's) when given, else ``stated`` (the scenario's ``PickBound``), else none."""
     if max_force is not None:
-        return float(max_force), "given"
-    manual = [i for i, g in enumerate(ev.candidates.groups) if g == "manual"]
-    if not manual or ev.peak_commanded_force is None:
-        return None, "no operator sets: no bound"
-    return float(np.max(ev.peak_commanded_force[manual])), "the largest force an operator set commands"
+        return float(max_force), GIVEN
+    if stated is not None:
+        return float(stated.max_force), f"the scenario's pick.max_force: {stated.why}"
+    return None, "none (the scenario states no pick.max_force and none was given)"
 
 
-def pick(front, ev: Evaluation, max_force: float | None = None, validation=None) -> Pick:
+def pick(front, ev: Evaluation, max_force: float | None = None, validation=None, source: str | None = None) -> Pick:
     """The picked Pareto solution of a run (``front``: its training Pareto rows, the ones ``ev``
-    evaluated as ``pareto-<k>``). ``validation`` (``mjxskill.evaluation.validation.Validation``
-    of the rows :func:`contenders` names): the highest validation success among them decides."""
+    evaluated as ``pareto-<k>``) within ``max_force`` N of commanded force (None: unbounded;
+    ``source``: where that bound comes from, default ``force_bound``'s words for a bound
+    given or none). ``validation``
+    (``mjxskill.evaluation.validation.Validation`` of the rows :func:`contenders` names): the
+    highest validation success among them decides."""
     check_front(front, ev)
-    bound, source = force_bound(ev, max_force)
+    bound = None if max_force is None else float(max_force)
+    source = force_bound(bound)[1] if source is None else source
     if validation is None:
         return Pick(choose_commanded(front, bound), bound, source)
     rows = contenders(front, bound, validation.candidates or len(validation.rows))
@@ -81,7 +89,9 @@ def pick(front, ev: Evaluation, max_force: float | None = None, validation=None)
     if not rows:
         return Pick(None, bound, source)
     r = np.asarray(rows)
-    order = np.lexsort((-front.objectives[r, 0], -front.success_rate[r], -np.asarray(validation.success)))
+    # equal validation success: the faster (failures as full episodes), then the training success
+    seconds = np.zeros(len(r)) if validation.seconds is None else np.nan_to_num(validation.seconds, nan=np.inf)
+    order = np.lexsort((-front.objectives[r, 0], -front.success_rate[r], seconds, -np.asarray(validation.success)))
     return Pick(int(r[order[0]]), bound, source)
 
 
@@ -170,6 +180,40 @@ def group_force_and_time(evals: list[Evaluation], picks: list[Pick], group: str)
     return force, (weighted / weights if weights else float("nan"))
 
 
+def full_episode_seconds(evals: list[Evaluation], picks: list[Pick], group: str, episode_seconds: float) -> float:
+    """Mean time to success over every world of the group's candidates pooled over the runs, a
+    world that did not succeed (or whose tree never returned SUCCESS) counted as the full episode
+    ``episode_seconds``: a group that fails more is slower, where the mean over its successes
+    alone would count only the fast ones. NaN: no run has per-world times."""
+    times = [np.where(np.isfinite(t), t, episode_seconds).ravel()
+             for ev, p in zip(evals, picks) if ev.world_seconds is not None
+             for t in [ev.world_seconds[group_rows(ev, group, p)]]]
+    times = np.concatenate(times) if times else np.zeros(0)
+    return float(times.mean()) if len(times) else float("nan")
+
+
+def paired_seconds(evals: list[Evaluation], picks: list[Pick], group: str, other: str) -> tuple[float, float, int]:
+    """(mean time to success of ``group``, of ``other``, number of pairs) over the worlds where a
+    candidate of each succeeded: every (run, world, candidate of group, candidate of other) with
+    both successful is one pair, so both means are over the same worlds. NaN, NaN, 0: no pair
+    (or no per-world times)."""
+    a_all, b_all = [], []
+    for ev, p in zip(evals, picks):
+        if ev.world_seconds is None:
+            continue
+        for i in group_rows(ev, group, p):
+            for j in group_rows(ev, other, p):
+                a, b = ev.world_seconds[i].ravel(), ev.world_seconds[j].ravel()
+                both = np.isfinite(a) & np.isfinite(b)
+                a_all.append(a[both])
+                b_all.append(b[both])
+    a = np.concatenate(a_all) if a_all else np.zeros(0)
+    b = np.concatenate(b_all) if b_all else np.zeros(0)
+    if not len(a):
+        return float("nan"), float("nan"), 0
+    return float(a.mean()), float(b.mean()), int(len(a))
+
+
 def plot_pooled(samples: dict, path, title: str) -> dict:
     """Box plots of the pooled groups, picked against each; returns box_plot's tests."""
     labelled = {POOLED_LABELS[g]: v for g, v in samples.items()}
@@ -179,14 +223,15 @@ def plot_pooled(samples: dict, path, title: str) -> dict:
 def pooled_table(samples: dict, tests: dict) -> str:
     """Mean success per group and the picked solutions' p-values against each baseline."""
     means = group_means(samples)
-    lines = [f"{'group':<18} {'known':>6} {'unseen':>7}  samples  Mann-Whitney U, picked vs group"]
+    lines = [f"{'group':<24} {'known':>6} {'unseen':>7}  samples  Mann-Whitney U, picked vs group"]
     for g, (known, unseen) in samples.items():
         m = means[g]
         cells = [f"{v:>6.0%}" if v is not None else f"{'-':>6}" for v in (m["known"], m["unseen"])]
         note = ", ".join(f"{side} p={p:.3g} {stars_of(p)}" for side, p in tests.get(g, {}).items() if p is not None)
-        lines.append(f"{POOLED_LABELS[g]:<18} {cells[0]} {cells[1]:>7}  {len(known):>3}+{len(unseen):<3}  {note}")
+        lines.append(f"{POOLED_LABELS[g]:<24} {cells[0]} {cells[1]:>7}  {len(known):>3}+{len(unseen):<3}  {note}")
     return "\n".join(lines)
 
 
-__all__ = ["BASELINES", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "check_front", "choose_commanded", "contenders", "force_bound", "group_force_and_time", "group_means",
+__all__ = ["BASELINES", "GIVEN", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "check_front", "choose_commanded", "contenders", "force_bound", "full_episode_seconds", "group_force_and_time", "group_means",
+           "paired_seconds",
            "pick", "picked_row", "plot_pooled", "pooled_samples", "pooled_table", "pooled_tests"]

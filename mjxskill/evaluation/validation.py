@@ -9,15 +9,18 @@ reached 93-100 % at the same training success (docs/experiments/peg). Before the
 with the highest training success are rolled out in ``per_config`` fresh worlds from each
 *known* start configuration, drawn from the evaluation's seed (an experiment's: the
 repetition's) on a stream of their own (not the training batches' worlds, not the
-evaluation's); the pick takes the highest validation success.
+evaluation's); the pick takes the highest validation success, and of equal ones the fastest:
+the lowest mean time to success over the validation worlds, a failure counted as the full
+episode.
 An operator could do the same on the real cell before committing to a set; the unseen start
 configurations stay unseen until the evaluation.
 
-``RUN_DIR/evaluation/validation.json``: the settings, the validated Pareto rows, their parameters
-and success rates. It is *current* for a pick when it has the same worlds (per_config, seed,
-engine, episode length) and validated every row in contention with the same parameters (a
-validation of more candidates serves one of fewer); a current one is reused (the same inputs
-give the same numbers). It is small and quick to make, so a killed validation is run again
+``RUN_DIR/evaluation/validation.json``: the settings, the validated Pareto rows, their parameters,
+success rates and times. It is *current* for a pick when it has the same worlds (per_config, seed,
+engine, episode length), validated every row in contention with the same parameters (a
+validation of more candidates serves one of fewer) and holds their times (one written before
+times were kept is made again); a current one is reused (the same inputs give the same
+numbers). It is small and quick to make, so a killed validation is run again
 whole. With no solution within the bound there is nothing to validate and no file.
 """
 
@@ -33,7 +36,7 @@ from mjxskill.scenario.fields import read_text
 from mjxskill.runs.atomic_write import write_json
 from mjxskill.evaluation.evaluate_run import FOLDER
 from mjxskill.evaluation.baselines import evaluate_chunk
-from mjxskill.evaluation.pooled import contenders, force_bound
+from mjxskill.evaluation.pooled import contenders
 from mjxskill.runs.run_dir import Evaluations, Run
 
 FILE = "validation.json"
@@ -44,15 +47,21 @@ STREAM = 0x7A11D  # the validation worlds' PRNG stream (training: 0x0ED0, evalua
 class Validation(NamedTuple):
     """rows: the validated Pareto rows (the contenders, best in training first); success: their
     success rates (len(rows),) over ``worlds`` validation worlds each; candidates: how many
-    contenders were asked for (None: len(rows))."""
+    contenders were asked for (None: len(rows)); seconds: their mean time to success over those
+    worlds, a failure counted as the full episode (what decides between equal success rates;
+    None: the rollout reports no times)."""
 
     rows: tuple[int, ...]
     success: np.ndarray
     worlds: int
     candidates: int | None = None
+    seconds: np.ndarray | None = None
 
     def success_of(self, row: int) -> float:
         return float(self.success[self.rows.index(row)])
+
+    def seconds_of(self, row: int) -> float | None:
+        return None if self.seconds is None else float(self.seconds[self.rows.index(row)])
 
 
 def validation_settings(per_config: int, candidates: int, seed: int, engine: str, episode_seconds: float) -> dict:
@@ -65,10 +74,10 @@ def _same(a: dict, b: dict) -> bool:
     return all(a.get(k) == b.get(k) for k in ("per_config", "seed", "engine", "episode_seconds"))
 
 
-def in_contention(front: Evaluations, ev, max_force: float | None, n: int) -> list[int]:
+def in_contention(front: Evaluations, max_force: float | None, n: int) -> list[int]:
     """The Pareto rows a validated pick chooses from: the ``n`` within the pick's force bound
-    (from the run's evaluation ``ev``) with the best training success."""
-    return contenders(front, force_bound(ev, max_force)[0], n)
+    ``max_force`` (N of commanded force; None: unbounded) with the best training success."""
+    return contenders(front, max_force, n)
 
 
 def validation_worlds(rollout, per_config: int, seed: int):
@@ -79,15 +88,23 @@ def validation_worlds(rollout, per_config: int, seed: int):
     return rollout.worlds_per_config(jax.random.fold_in(jax.random.PRNGKey(seed), STREAM), per_config, known), len(known)
 
 
-def validate_rows(rollout, params: np.ndarray, per_config: int, seed: int, pad_to: int = 0) -> np.ndarray:
-    """The success rate of each row of ``params`` over the validation worlds of ``seed``, in one
-    call padded to ``pad_to`` rows (the number of candidates asked for: one compiled shape for
-    MJX whatever the number in contention; the world count differs from training's and the
-    evaluation's, so MJX compiles that shape once more)."""
+def validate_rows(rollout, params: np.ndarray, per_config: int, seed: int, pad_to: int = 0,
+                  episode_seconds: float | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """(success rate, mean time to success with a failure counted as the ``episode_seconds``
+    episode; None when the rollout reports no times) of each row of ``params`` over the
+    validation worlds of ``seed``, in one call padded to ``pad_to`` rows (the number of
+    candidates asked for: one compiled shape for MJX whatever the number in contention; the
+    world count differs from training's and the evaluation's, so MJX compiles that shape once
+    more)."""
     if not len(params):
-        return np.zeros(0)
+        return np.zeros(0), np.zeros(0)
     worlds, n_cfg = validation_worlds(rollout, per_config, seed)
-    return evaluate_chunk(rollout, params, worlds, n_cfg, per_config, max(len(params), pad_to))["success"].mean(axis=1)
+    out = evaluate_chunk(rollout, params, worlds, n_cfg, per_config, max(len(params), pad_to))
+    success = out["success"].mean(axis=1)
+    times = out.get("world_seconds")
+    if times is None or episode_seconds is None:
+        return success, None
+    return success, np.where(np.isfinite(times), times, episode_seconds).reshape(len(params), -1).mean(axis=1)
 
 
 def validate(run: Run, front: Evaluations, rows: Sequence[int], rollout, settings: dict) -> tuple[Validation, bool]:
@@ -97,12 +114,13 @@ def validate(run: Run, front: Evaluations, rows: Sequence[int], rollout, setting
     old = load_validation(run, front, rows, settings)
     if old is not None:
         return old, True
-    success = validate_rows(rollout, front.params[list(rows)], settings["per_config"], settings["seed"],
-                            settings["candidates"])
+    success, seconds = validate_rows(rollout, front.params[list(rows)], settings["per_config"], settings["seed"],
+                                     settings["candidates"], settings["episode_seconds"])
     n_known = len(rollout.scenario.robot.start_configs)
-    result = Validation(rows, success, settings["per_config"] * n_known, settings["candidates"])
+    result = Validation(rows, success, settings["per_config"] * n_known, settings["candidates"], seconds)
     doc = {"format": FORMAT, "settings": settings, "worlds": result.worlds, "rows": list(rows),
-           "params": front.params[list(rows)].tolist(), "success": success.tolist()}
+           "params": front.params[list(rows)].tolist(), "success": success.tolist(),
+           "seconds": None if seconds is None else seconds.tolist()}
     (run.path / FOLDER).mkdir(exist_ok=True)
     write_json(run.path / FOLDER / FILE, doc)
     return result, False
@@ -113,17 +131,31 @@ def load_validation(run: Run, front: Evaluations, rows: Sequence[int], settings:
     None when there is none or it is of other worlds or parameters. No rows: an empty
     validation, no file needed. RunError when the file is damaged."""
     if not len(rows):
-        return Validation((), np.zeros(0), 0, settings["candidates"])
+        return Validation((), np.zeros(0), 0, settings["candidates"], np.zeros(0))
     stored = _read(run)
     if stored is None:
         return None
     doc, stored_rows, worlds, params, success = stored
     if not _same(doc["settings"], settings) or not set(rows) <= set(stored_rows):
         return None
+    if "seconds" not in doc:  # written before times were kept: made again (quick), for the pick's tie-break
+        return None
     index = [stored_rows.index(r) for r in rows]
     if any(r >= len(front) for r in rows) or not np.array_equal(params[index], front.params[list(rows)]):
         return None
-    return Validation(tuple(rows), success[index], worlds, settings["candidates"])
+    seconds = None if doc["seconds"] is None else _seconds(doc["seconds"], len(stored_rows), run)[index]
+    return Validation(tuple(rows), success[index], worlds, settings["candidates"], seconds)
+
+
+def _seconds(values, n: int, run: Run) -> np.ndarray:
+    try:
+        seconds = np.array(values, np.float64).reshape(n)
+        if not np.all(np.isfinite(seconds) & (seconds >= 0)):
+            raise ValueError("times >= 0 expected")
+    except (TypeError, ValueError, OverflowError) as err:
+        raise RunError(f"{run.path / FOLDER / FILE} is not a readable validation ({err}); delete it "
+                       "(it is made again in a minute)") from None
+    return seconds
 
 
 def validated_success(run: Run, front: Evaluations) -> tuple[np.ndarray, int] | None:

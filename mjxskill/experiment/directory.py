@@ -26,6 +26,7 @@ from mjxskill.runs.atomic_write import write_json, write_text
 from mjxskill.evaluation.evaluate_run import evaluation_settings
 from mjxskill.runs.run_dir import Run, RunConfig, created_whole
 from mjxskill.runs.run_lock import RunLock, lock_run
+from mjxskill.evaluation.pooled import GIVEN, force_bound
 from mjxskill.evaluation.validation import validation_settings
 from mjxskill.runs.layout import EXPERIMENT, OPTIMIZER_RUNS, RANDOM_RUNS
 
@@ -37,7 +38,10 @@ STATE = "state.json"
 class Protocol:
     """How each repetition is evaluated. per_config: worlds from each known and each unseen
     start configuration; random_sets: uniform parameter sets; max_force: the pick's force bound,
-    N (None: the largest force an operator set commands, ``mjxskill.evaluation.pooled``);
+    N (None: unbounded), settled when the experiment is made (``--max-force``, else the
+    scenario's ``pick.max_force``); max_force_source: where it came from, in words (None in an
+    experiment.yaml written before the bound was stated, whose null meant the largest force an
+    operator set commands: ``Experiment.settle_bound`` replaces it with the scenario's);
     validation_per_config: fresh worlds from each known start configuration in which the
     validation_candidates best solutions within the bound are rolled out again before the pick
     (``mjxskill.evaluation.validation``; 0: the training success alone decides, as in an
@@ -48,22 +52,29 @@ class Protocol:
     max_force: float | None = None
     validation_per_config: int = 5
     validation_candidates: int = 3
+    max_force_source: str | None = None
 
     def to_yaml(self, task: str) -> str:
         return yaml.safe_dump({"format": FORMAT, "task": task, "per_config": self.per_config,
                                "random_sets": self.random_sets, "max_force": self.max_force,
                                "validation_per_config": self.validation_per_config,
-                               "validation_candidates": self.validation_candidates}, sort_keys=False)
+                               "validation_candidates": self.validation_candidates,
+                               "max_force_source": self.max_force_source}, sort_keys=False)
 
     @classmethod
     def from_yaml(cls, text: str, where: str) -> "Protocol":
         root = compose_text(text, where, RunError)
         f = root.mapping(required=("format", "task", "per_config", "random_sets", "max_force"),
-                         optional=("validation_per_config", "validation_candidates"))
+                         optional=("validation_per_config", "validation_candidates", "max_force_source"))
         if f["format"].is_null() or f["format"].scalar() != FORMAT:
             f["format"].fail(f"not an mjxskill experiment (format {FORMAT!r} expected)")
+        max_force = None if f["max_force"].is_null() else f["max_force"].number(nonnegative=True)
+        if "max_force_source" in f and not f["max_force_source"].is_null():
+            source = f["max_force_source"].string()
+        else:  # written before the source was kept: a number was --max-force's; null is unsettled
+            source = None if max_force is None else GIVEN
         return cls(per_config=f["per_config"].integer(minimum=1), random_sets=f["random_sets"].integer(minimum=0),
-                   max_force=None if f["max_force"].is_null() else f["max_force"].number(nonnegative=True),
+                   max_force=max_force, max_force_source=source,
                    validation_per_config=f["validation_per_config"].integer(minimum=0) if "validation_per_config" in f else 0,
                    validation_candidates=f["validation_candidates"].integer(minimum=1) if "validation_candidates" in f else 3)
 
@@ -112,6 +123,22 @@ class Experiment:
         protocol = replace(self.protocol(), validation_per_config=per_config, validation_candidates=candidates)
         write_text(self.path / EXPERIMENT, protocol.to_yaml(self.config().task))
         return protocol
+
+    def settle_bound(self, stated) -> tuple[Protocol, str | None]:
+        """An experiment.yaml written before the pick's bound was stated has ``max_force: null``,
+        which meant the largest force an operator set commands (illustrative sets): it gets the
+        scenario's bound ``stated`` (``PickBound`` or None), written back with its source, so its
+        picks are made again within it (the runs and evaluations are kept). Returns the protocol
+        in force and a line saying what changed (None: nothing)."""
+        protocol = self.protocol()
+        if protocol.max_force_source is not None:
+            return protocol, None
+        bound, source = force_bound(None, stated)
+        new = replace(protocol, max_force=bound, max_force_source=source)
+        write_text(self.path / EXPERIMENT, new.to_yaml(self.config().task))
+        said = "none" if bound is None else f"{bound:g} N"
+        return new, (f"{self.path}: the pick's force bound was the largest force an operator set commands; it is now "
+                     f"{said}, {source}; the picks are made again, the runs and evaluations are kept")
 
     def config(self) -> RunConfig:
         """The training configuration (the optimizer's), checked against the random search's."""

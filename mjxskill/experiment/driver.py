@@ -15,7 +15,7 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-from mjxskill.evaluation.evaluate_run import evaluate_run, load_evaluation
+from mjxskill.evaluation.evaluate_run import evaluate_run
 from mjxskill.experiment.directory import (
     Experiment,
     Protocol,
@@ -82,7 +82,7 @@ def validate_timed(exp: Experiment, run: Run, rollout, config: RunConfig, protoc
     t0 = time.monotonic()
     with run.lock():
         front = run.front(run_config)
-        rows = in_contention(front, load_evaluation(run)[0], protocol.max_force, protocol.validation_candidates)
+        rows = in_contention(front, protocol.max_force, protocol.validation_candidates)
         _, reused = validate(run, front, rows, rollout, settings)
     if not reused:
         exp.add_time(time_key(KINDS[run_config.optimizer], run_config.seed), "validate_seconds", time.monotonic() - t0)

@@ -21,7 +21,7 @@ from mjxskill.scenario.schema import (
     MAX_EPISODE_SECONDS, Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping,
 )
 from mjxskill.scenario.vocabulary import SHAPES
-from mjxskill.scenario.sections import optimizer, randomization, rewards, success
+from mjxskill.scenario.sections import optimizer, pick, randomization, rewards, success
 from mjxskill.scenario.skills import (
     manual_parameters, parameter_priors, skill, skill_fields, skill_parameter_overrides,
 )
@@ -65,7 +65,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
             "robot", "objects", "goal", "objectives", "rewards", "success", "randomization",
             "optimizer",
         ),
-        optional=("manual_parameters", "parameter_priors", "skills", "skill_library", "skill_parameters"),
+        optional=("manual_parameters", "parameter_priors", "skills", "skill_library", "skill_parameters", "pick"),
     )
     types = _types(top["types"])
     predicates = _predicates(top["predicates"], types)
@@ -116,6 +116,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         optimizer=optimizer(top["optimizer"]),
         manual_parameters=manual_parameters(top.get("manual_parameters"), skills),
         parameter_priors=parameter_priors(top.get("parameter_priors"), skills),
+        pick=pick(top.get("pick")),
         locations=frozen_mapping(_locations(top, robot_field, objects_field)),
     )
     try:  # the goal's syntax and names (planning it is mjxskill.task's)

@@ -278,6 +278,16 @@ class Optimizer:
 
 
 @dataclass(frozen=True)
+class PickBound:
+    """The YAML's ``pick``: the bound on the commanded force (``peak_commanded_force``, N) within
+    which an experiment and ``evaluate`` pick one solution per run, and why that number (the
+    report states both). A command's ``--max-force`` overrides it."""
+
+    max_force: float
+    why: str
+
+
+@dataclass(frozen=True)
 class ManualSet:
     """An operator's parameter set from the YAML's ``manual_parameters``.
 
@@ -317,6 +327,8 @@ class Scenario:
     references), so that those errors name the file, key and line too (``where``).
     parameter_priors: learnable parameter name ("<skill>.<parameter>") -> ParameterPrior, where
     the operator believes good values lie (the optimizer's prior, ``mjxskill.training.priors``).
+    pick: the pick's force bound and its reason (None: the scenario states none, and a pick
+    without ``--max-force`` is unbounded).
     """
 
     name: str
@@ -341,6 +353,7 @@ class Scenario:
     locations: Mapping[str, str] = field(default_factory=lambda: MappingProxyType({}))
     libraries: tuple[str, ...] = ()
     parameter_priors: Mapping[str, ParameterPrior] = field(default_factory=lambda: MappingProxyType({}))
+    pick: PickBound | None = None
 
     def where(self, key_path: str) -> str:
         """``"file: key path (line N)"`` of a YAML entry (the file alone when not recorded)."""

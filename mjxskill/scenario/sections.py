@@ -1,4 +1,4 @@
-"""The task sections of a scenario YAML: rewards, success test, randomization, optimizer."""
+"""The task sections of a scenario YAML: rewards, success test, randomization, optimizer, pick."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from mjxskill.scenario.schema import (
     MAX_SEED,
     MIN_N_INIT,
     Optimizer,
+    PickBound,
     Randomization,
     Reward,
     Success,
@@ -121,3 +122,15 @@ def optimizer(field: Field) -> Optimizer:
     return opt
 
 
+
+
+def pick(field: Field | None) -> PickBound | None:
+    """``pick``: ``max_force`` (N, >= 0) and ``why`` (the reason for that number, which the
+    report states beside it: a bound nobody can account for is not accepted)."""
+    if field is None:
+        return None
+    f = field.mapping(required=("max_force", "why"))
+    why = f["why"].scalar()
+    if not isinstance(why, str) or not why.strip():
+        f["why"].fail(f"expected the reason for the bound (text), got {why!r}")
+    return PickBound(f["max_force"].number(nonnegative=True), " ".join(why.split()))
