@@ -210,8 +210,3 @@ class NativeRollout(RolloutBase):
         if self._pool is not None:
             self._pool.close()
             self._pool = None
-        self.cluster = None  # the ClusterInfo of the Ray cluster the calls run on
-        if cluster is not None:
-            from mjxskill.engine.native.ray_pool import connect  # lazy: Ray is an optional extra
-
-            self.cluster = connect(cluster)
