@@ -16,7 +16,6 @@ import os
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -89,8 +88,9 @@ def test_cluster_results_are_one_process_results_even_when_an_actor_dies(cluster
         # a call during which one actor is killed: its slice runs again on the other one
         victim, got = pool.actors[0], {}
         call = threading.Thread(target=lambda: got.update(out=remote.run_worlds(params, worlds)))
+        pool.submitted.clear()
         call.start()
-        time.sleep(0.5)
+        assert pool.submitted.wait(timeout=60)
         ray.kill(victim, no_restart=True)
         call.join(timeout=300)
         assert "out" in got, "the call did not finish"
