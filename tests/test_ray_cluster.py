@@ -99,18 +99,18 @@ def test_cluster_results_are_one_process_results_even_when_an_actor_dies(cluster
         _same(remote.run_worlds(params, worlds), expected)  # and the next call too
 
 
-def _train(tmp: Path, name: str, *extra: str) -> subprocess.CompletedProcess:
+def _train(tmp: Path, name: str, *extra: str, command: str = "mjxskill.train") -> subprocess.CompletedProcess:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
     args = ["push", "--budget", "12", "--batch-size", "6", "--init", "6", "--worlds", "2", "--episode-seconds", "2",
             "--seed", "0", "--engine", "native", "--quiet", "--out", str(tmp / name), *extra]
-    return subprocess.run([sys.executable, "-m", "mjxskill.train", *args], cwd=tmp, env=env, capture_output=True,
+    return subprocess.run([sys.executable, "-m", command, *args], cwd=tmp, env=env, capture_output=True,
                           text=True, timeout=900)
 
 
 def test_train_on_the_cluster_writes_the_evaluations_of_a_local_run(cluster, tmp_path):
     on_ray = _train(tmp_path, "ray", "--ray-address", cluster.address)
     assert on_ray.returncode == 0, on_ray.stderr[-3000:]
-    assert "ray: 2 nodes, 2 CPUs" in on_ray.stdout
+    assert "ray: 2 nodes, 2 CPUs" in on_ray.stdout and "on 2 actors" in on_ray.stdout
     local = _train(tmp_path, "local")
     assert local.returncode == 0, local.stderr[-3000:]
     assert (tmp_path / "ray" / "evaluations.csv").read_bytes() == (tmp_path / "local" / "evaluations.csv").read_bytes()
@@ -123,8 +123,10 @@ def test_an_unreachable_cluster_is_one_error_line_and_nothing_written(tmp_path):
     with __import__("socket").socket() as s:  # a port nothing listens on
         s.bind(("127.0.0.1", 0))
         address = f"127.0.0.1:{s.getsockname()[1]}"
-    done = _train(tmp_path, "run", "--ray-address", address)
-    assert done.returncode == 2
-    errors = [line for line in done.stderr.splitlines() if "error:" in line]
-    assert len(errors) == 1 and address in errors[0], done.stderr
-    assert not (tmp_path / "run").exists()
+    for command in ("mjxskill.train", "mjxskill.experiment"):
+        done = _train(tmp_path, "run", "--ray-address", address, command=command)
+        assert done.returncode == 2
+        errors = [line for line in done.stderr.splitlines() if "error:" in line]
+        assert len(errors) == 1 and address in errors[0] and errors[0].startswith(command), done.stderr
+        assert not (tmp_path / "run").exists()
+        assert not done.stdout
