@@ -101,7 +101,7 @@ def test_cluster_results_are_one_process_results_even_when_an_actor_dies(cluster
 
 def _train(tmp: Path, name: str, *extra: str, command: str = "mjxskill.train") -> subprocess.CompletedProcess:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
-    args = ["push", "--budget", "12", "--batch-size", "6", "--init", "6", "--worlds", "2", "--episode-seconds", "2",
+    args = ["push", "--budget", "12", "--batch-size", "6", "--init", "6", "--worlds", "2", "--episode-seconds", "1",
             "--seed", "0", "--engine", "native", "--quiet", "--out", str(tmp / name), *extra]
     return subprocess.run([sys.executable, "-m", command, *args], cwd=tmp, env=env, capture_output=True,
                           text=True, timeout=900)
