@@ -7,6 +7,8 @@ import argparse
 import math
 from typing import Callable
 
+from mjxskill.errors import CommandError
+
 
 def add_task_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("task", help="scenario name (push, peg) or path of a scenario YAML file")
@@ -34,8 +36,6 @@ def connect_cluster(args: argparse.Namespace, engine: str):
     naming the address). Only the native engine runs on a cluster."""
     if getattr(args, "ray_address", None) is None:
         return None
-    from mjxskill.errors import CommandError
-
     if engine != "native":
         raise CommandError(f"--ray-address runs the native engine's episodes; this run's engine is {engine} "
                            "(MJX across hosts is jax.distributed's: README, Scaling)")

@@ -14,6 +14,8 @@ same key, ``run_worlds``, ``sample_worlds``, ``worlds_per_config``, ``trace``,
 
 from __future__ import annotations
 
+from mjxskill.errors import ClusterError
+
 ENGINES = ("mjx", "native")
 CHOICES = (*ENGINES, "auto")
 
@@ -40,8 +42,6 @@ def build_rollout(scn, task, engine: str, *, worlds: int | None = None, episode_
     on (``mjxskill.engine.native.ray_pool``); MJX on many hosts is ``jax.distributed``'s
     (README, "Scaling"), so the MJX engine refuses it."""
     if engine == "mjx" and cluster is not None:
-        from mjxskill.errors import ClusterError
-
         raise ClusterError("a Ray cluster runs the native engine's episodes; MJX across hosts is jax.distributed's "
                            "(README, Scaling): use --engine native with --ray-address")
     if engine == "mjx":
