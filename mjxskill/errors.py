@@ -54,6 +54,12 @@ class ResumeConflict(RunError):
         self.run, self.conflicts = run, tuple(conflicts)
 
 
+class ClusterError(UserError):
+    """A Ray cluster that cannot be used: not found (``auto``), not reachable at the address
+    given, or refusing the connection; or Ray not installed (``mjxskill.engine.native.ray_pool``).
+    The message names the address."""
+
+
 class RequestError(UserError, ValueError):
     """A request to the explore page's server that is malformed: a value that is not a number or
     an integer, a body that is not a JSON object (``mjxskill.explore.server``; answered 400)."""
@@ -79,5 +85,5 @@ class Notice(UserWarning):
     ``prog: warning: message`` line."""
 
 
-__all__ = ["CommandError", "GoalError", "Notice", "PlanError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
+__all__ = ["ClusterError", "CommandError", "GoalError", "Notice", "PlanError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
            "ServerBusy", "SettingError", "UserError"]

@@ -22,12 +22,23 @@ def test_the_table_is_the_run_configuration_and_the_flags():
     assert {s.name for s in SETTINGS} <= fields  # each setting is a RunConfig field
     assert fields - {s.name for s in SETTINGS} == {"task", "scenario", "parameter_names", "parameter_units", "bounds",
                                                    "objective_names", "optimizer_options", "prior",
-                                                   "optimizer_defaults"}  # the rest: the plan's
+                                                   "optimizer_defaults", "cluster"}  # the rest: the plan's
     # (the prior: the scenario's or --prior-from's, mjxskill.training.priors; the generation of
-    # gp's defaults the run began with)
+    # gp's defaults the run began with; cluster: "ray" when made to run on a Ray cluster)
     options = {a.dest: a for a in build_parser()._actions}
     for s in SETTINGS:
         assert options[s.name].option_strings == [s.flag]
+
+
+def test_a_run_made_for_a_ray_cluster_says_so_and_a_bad_value_is_refused():
+    config = dataclasses.replace(make_config(repeats=1), cluster="ray")
+    assert "cluster: ray" in config.to_yaml()
+    assert RunConfig.from_yaml(config.to_yaml(), "run/config.yaml") == config
+    older = yaml.safe_load(make_config(repeats=1).to_yaml())
+    del older["cluster"]  # a config.yaml written before clusters: made on one machine
+    assert RunConfig.from_yaml(yaml.safe_dump(older, sort_keys=False), "old/config.yaml").cluster is None
+    with pytest.raises(RunError, match="cluster.*expected one of ray or null, got 'dask'"):
+        RunConfig.from_yaml(config.to_yaml().replace("cluster: ray", "cluster: dask"), "run/config.yaml")
 
 
 def test_a_setting_added_later_takes_its_default_in_an_older_config(tmp_path):

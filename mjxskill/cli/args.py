@@ -7,6 +7,8 @@ import argparse
 import math
 from typing import Callable
 
+from mjxskill.errors import CommandError
+
 
 def add_task_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("task", help="scenario name (push, peg) or path of a scenario YAML file")
@@ -19,6 +21,33 @@ def add_workers_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int_in(1, MAX_WORKERS), metavar="N",
                         help="native engine: worker processes a call's episodes are split over (default: one per "
                              "core, the fastest measured; 1: this process). Results do not depend on it")
+
+
+def add_cluster_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--ray-address", dest="ray_address", metavar="auto|HOST:PORT",
+                        help="native engine: run a call's episodes on the Ray cluster at this address, one actor per "
+                             "CPU of the cluster (auto: the one `ray start` started here, or $RAY_ADDRESS; pip install "
+                             "'mjxskill[ray]'). Results do not depend on it")
+
+
+def connect_cluster(args: argparse.Namespace, engine: str):
+    """The ``ClusterInfo`` of ``--ray-address`` (None without it), connected now: before a run
+    directory is made, so that a cluster that cannot be reached writes nothing (ClusterError,
+    naming the address). Only the native engine runs on a cluster."""
+    if getattr(args, "ray_address", None) is None:
+        return None
+    if engine != "native":
+        raise CommandError(f"--ray-address runs the native engine's episodes; this run's engine is {engine} "
+                           "(MJX across hosts is jax.distributed's: README, Scaling)")
+    from mjxskill.engine.native.ray_pool import connect  # lazy: Ray is an optional extra
+
+    return connect(args.ray_address)
+
+
+def describe_cluster(info) -> str:
+    """The header line of a run on a cluster: ``ray: N nodes, C CPUs`` and what runs there."""
+    return (f"{info.describe()} at {info.address}: the native engine's episodes on {info.cpus} actor"
+            f"{'s' * (info.cpus != 1)} (one per CPU), the optimizer and the run's files here")
 
 
 def add_validation_arguments(parser: argparse.ArgumentParser, when: str, default: str) -> None:

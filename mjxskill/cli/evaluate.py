@@ -49,6 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--episode-seconds", type=cli_args.setting_type(BY_NAME["episode_seconds"]),
                         help="episode length in s (default: the run's)")
     cli_args.add_workers_argument(parser)
+    cli_args.add_cluster_argument(parser)
     parser.add_argument("--engine", choices=CHOICES, help="physics engine (default: the run's; the other one checks "
                         "how a solution transfers between engines)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N", help="bound on the commanded force "
@@ -69,8 +70,10 @@ def _settings(args, config, seed: int) -> dict:
 def _rollout(args, scn, task, settings: dict, config):
     why = resolve_engine(args.engine)[1] if args.engine else "the run's"
     print(f"engine: {settings['engine']} ({why})", flush=True)
+    if args.cluster is not None:
+        print(cli_args.describe_cluster(args.cluster), flush=True)
     return build_rollout(scn, task, settings["engine"], worlds=1, episode_seconds=settings["episode_seconds"],
-                         workers=args.workers)
+                         workers=args.workers, cluster=args.ray_address)
 
 
 def _say(scn, settings: dict, run, config, task) -> None:
@@ -110,6 +113,7 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
     if not args.replace:
         for i, sub in enumerate(subs):
             _keep_earlier(sub, _settings(args, sub.config(), seed + i))
+    args.cluster = cli_args.connect_cluster(args, _settings(args, config, seed)["engine"])  # before anything is written
     rollout = _rollout(args, scn, task, _settings(args, config, seed), config)
     results = []
     try:
@@ -208,6 +212,7 @@ def _experiment(args: argparse.Namespace) -> int:
         conflicts.append("--replace (an experiment keeps the evaluations of its protocol)")
     if conflicts:
         raise CommandError(f"{exp.path} is evaluated with its own protocol; drop {', '.join(conflicts)}")
+    args.cluster = cli_args.connect_cluster(args, config.engine)  # before anything is written
     scn, task = load_run_task(exp.optimizer, config)
     ready = [(config.seed + i, opt) for i, (opt, rnd) in enumerate(exp.runs(config))
              if is_done(opt, opt.config()) and is_done(rnd, rnd.config())]
@@ -217,8 +222,10 @@ def _experiment(args: argparse.Namespace) -> int:
     with exp.lock():
         protocol = change_validation(args, exp, protocol)
         protocol = settle_bound(exp, scn)
+        if args.cluster is not None:
+            print(cli_args.describe_cluster(args.cluster), flush=True)
         rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds,
-                                workers=args.workers)
+                                workers=args.workers, cluster=args.ray_address)
         try:
             for seed, opt in ready:
                 settings = repetition_settings(config, protocol, seed)

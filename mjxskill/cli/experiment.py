@@ -14,6 +14,7 @@ figures in the experiment directory, rewritten after each repetition. The flags 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 from typing import Sequence
@@ -44,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
     cli_args.add_task_argument(parser)
     add_setting_arguments(parser, skip=("optimizer",), defaults={"repeats": "the scenario's repetitions"})  # it runs both
     cli_args.add_workers_argument(parser)
+    cli_args.add_cluster_argument(parser)
     # train's --optimizer, refused by name (argparse would otherwise read it as --optimizer-option)
     parser.add_argument("--optimizer", type=_runs_both, help=argparse.SUPPRESS)
     parser.add_argument("--per-config", type=cli_args.positive_int, help="evaluation worlds per start configuration (default 5)")
@@ -115,6 +117,7 @@ def _main(args: argparse.Namespace) -> int:
         exp = Experiment(args.resume)
         protocol = exp.protocol()
         config = resumed_config(args, exp.optimizer.path)
+        args.cluster = cli_args.connect_cluster(args, config.engine)
         conflicts = _protocol_conflicts(args, protocol)
         if conflicts:
             raise CommandError(f"--resume continues {args.resume} with its own protocol; drop {', '.join(conflicts)}")
@@ -130,6 +133,9 @@ def _main(args: argparse.Namespace) -> int:
     if args.repeats is None:
         args.repeats = scn.optimizer.repetitions
     config = new_config(args, scn, task)
+    args.cluster = cli_args.connect_cluster(args, config.engine)  # before the experiment directory is made
+    if args.cluster is not None:
+        config = dataclasses.replace(config, cluster="ray")
     bound, source = force_bound(args.max_force, scn.pick)
     protocol = Protocol(per_config=args.per_config or EVALUATION_DEFAULTS["per_config"],
                         random_sets=EVALUATION_DEFAULTS["random"] if args.random is None else args.random,
@@ -153,11 +159,13 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
     print(f"experiment directory: {exp.path}", flush=True)
     why = "the experiment's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
     print(f"engine: {config.engine} ({why})", flush=True)
+    if args.cluster is not None:
+        print(cli_args.describe_cluster(args.cluster), flush=True)
     cli.interrupt.set_message(f"interrupted: every finished batch and evaluated chunk is in {exp.path}; continue with "
                               f"python -m mjxskill.experiment {args.task} --resume {exp.path}")
     # A Ctrl-C while it is built: nothing new is trained yet, and mjxskill.cli.run says where the experiment is
     rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds,
-                            workers=args.workers)
+                            workers=args.workers, cluster=args.ray_address)
     try:
         exp.add_session(time.monotonic() - started, config.engine)
 

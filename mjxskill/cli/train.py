@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import time
 from pathlib import Path
 from typing import Sequence
@@ -51,6 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     cli_args.add_task_argument(parser)
     add_setting_arguments(parser)
     cli_args.add_workers_argument(parser)
+    cli_args.add_cluster_argument(parser)
     parser.add_argument("--out", type=Path, help="run directory (default runs/<task>-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue the run in RUN_DIR to its budget")
     parser.add_argument("--prior-from", type=Path, metavar="RUN_DIR", dest="prior_from",
@@ -62,6 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _main(args: argparse.Namespace) -> int:
     if args.resume is not None:
         config = resumed_config(args)
+        args.cluster = cli_args.connect_cluster(args, config.engine)
         run = Run(args.resume)
         lock = run.lock()  # before anything is read for resuming: one writer per run
         with lock:
@@ -70,6 +73,9 @@ def _main(args: argparse.Namespace) -> int:
             return _train(args, run, config, scn, task)
     scn, task = scenario_and_task(args.task, args.goal)
     config = new_config(args, scn, task)
+    args.cluster = cli_args.connect_cluster(args, config.engine)  # before the run directory is made
+    if args.cluster is not None:
+        config = dataclasses.replace(config, cluster="ray")
     run = Run(args.out or Path("runs") / f"{scn.name}-{time.strftime('%Y%m%d-%H%M%S')}")
     run.create(config, scn.source, planning_texts(task))
     with run.lock():
@@ -87,13 +93,15 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
     print(f"run directory: {run.path}", flush=True)
     why = "the run's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
     print(f"engine: {config.engine} ({why})", flush=True)
+    if args.cluster is not None:
+        print(cli_args.describe_cluster(args.cluster), flush=True)
     cli.interrupt.set_message(f"interrupted: every finished batch is in {run.path}; continue with "
                               f"python -m mjxskill.train {args.task} --resume {run.path}")
     runs = run.sub_runs(config) if config.repeats > 1 else [run]
     sub, sub_config = run, config
     # A Ctrl-C while it is built: nothing is trained yet, and mjxskill.cli.run says where the run is
     rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds,
-                            workers=args.workers)
+                            workers=args.workers, cluster=args.ray_address)
     started = time.monotonic()
     try:
         for sub in runs:

@@ -14,6 +14,8 @@ same key, ``run_worlds``, ``sample_worlds``, ``worlds_per_config``, ``trace``,
 
 from __future__ import annotations
 
+from mjxskill.errors import ClusterError
+
 ENGINES = ("mjx", "native")
 CHOICES = (*ENGINES, "auto")
 
@@ -34,8 +36,14 @@ def resolve_engine(name: str, backend: str | None = None) -> tuple[str, str]:
 
 
 def build_rollout(scn, task, engine: str, *, worlds: int | None = None, episode_seconds: float | None = None,
-                  start_configs=None, mj_model=None, workers: int | None = None):
-    """The rollout of ``task`` in ``scn`` on ``engine`` ("mjx" or "native"; resolve "auto" first)."""
+                  start_configs=None, mj_model=None, workers: int | None = None, cluster: str | None = None):
+    """The rollout of ``task`` in ``scn`` on ``engine`` ("mjx" or "native"; resolve "auto" first).
+    ``cluster``: a Ray cluster's address ("auto" or HOST:PORT) the native engine's episodes run
+    on (``mjxskill.engine.native.ray_pool``); MJX on many hosts is ``jax.distributed``'s
+    (README, "Scaling"), so the MJX engine refuses it."""
+    if engine == "mjx" and cluster is not None:
+        raise ClusterError("a Ray cluster runs the native engine's episodes; MJX across hosts is jax.distributed's "
+                           "(README, Scaling): use --engine native with --ray-address")
     if engine == "mjx":
         # lazy, as the native engine below: a run imports only the engine it runs (MJX ~2 s more than jax)
         from mjxskill.engine.mjx.compiled import compile_rollout
@@ -46,5 +54,5 @@ def build_rollout(scn, task, engine: str, *, worlds: int | None = None, episode_
         from mjxskill.engine.native.rollout import NativeRollout  # lazy: a run imports only the engine it runs
 
         return NativeRollout(scn, task, worlds=worlds, episode_seconds=episode_seconds,
-                             start_configs=start_configs, mj_model=mj_model, workers=workers)
+                             start_configs=start_configs, mj_model=mj_model, workers=workers, cluster=cluster)
     raise ValueError(f"unknown engine {engine!r}; expected one of {', '.join(ENGINES)}")

@@ -23,6 +23,7 @@ from mjxskill.runs.evaluations_csv import FORCE_COLUMNS
 from mjxskill.runs.settings import NO_DEFAULT, SETTINGS, cross_problems, optimizer_option_value
 
 FORMAT = "mjxskill.run/1"
+CLUSTERS = ("ray",)  # what a run's ``cluster`` may say besides null
 IDENTITY = ("task", "scenario", "parameter_names", "parameter_units", "bounds", "objective_names")
 
 
@@ -64,6 +65,10 @@ class RunConfig:
     # DEFAULTS_BY_GENERATION): the options it does not name keep those defaults when it resumes.
     # Absent from config.yaml: 1, every run before the hypervolume defaults (issue 19).
     optimizer_defaults: int = field(default_factory=lambda: _optimizer_generations()[1])
+    # "ray": the run was made to run its native episodes on a Ray cluster (--ray-address; the
+    # address is not kept: it names a machine, not the run); None: on this machine. The results
+    # do not depend on it, so a resume may run elsewhere.
+    cluster: str | None = None
 
     def to_yaml(self) -> str:
         data = {"format": FORMAT, **asdict(self)}
@@ -85,7 +90,7 @@ class RunConfig:
         f = root.mapping(
             required=("format", *IDENTITY, *(s.name for s in SETTINGS if s.default is NO_DEFAULT)),
             optional=(*(s.name for s in SETTINGS if s.default is not NO_DEFAULT), "optimizer_options", "prior",
-                      "optimizer_defaults"),
+                      "optimizer_defaults", "cluster"),
         )
         names = _names(f["parameter_names"], "parameter")
         units = _texts(f["parameter_units"])
@@ -125,10 +130,15 @@ class RunConfig:
             if isinstance(generation, bool) or generation not in known:
                 f["optimizer_defaults"].fail(f"expected a generation of the optimizer's defaults "
                                              f"({', '.join(map(str, known))}), got {generation!r}")
+        cluster = None
+        if "cluster" in f and not f["cluster"].is_null():
+            cluster = f["cluster"].scalar()
+            if cluster not in CLUSTERS:
+                f["cluster"].fail(f"expected one of {', '.join(CLUSTERS)} or null, got {cluster!r}")
         config = cls(task=f["task"].string(), scenario=f["scenario"].string(), parameter_names=names,
                      parameter_units=units, bounds=(tuple(bounds[0]), tuple(bounds[1])),
                      objective_names=_names(f["objective_names"], "objective"), optimizer_options=options, prior=prior,
-                     optimizer_defaults=generation, **values)
+                     optimizer_defaults=generation, cluster=cluster, **values)
         problem = optimizer_problem(config)
         if problem:
             f.get("optimizer_options", root).fail(problem)

@@ -8,7 +8,8 @@ numpy lockstep (``mjxskill.engine.native.lockstep``: one vectorized numpy law pe
 all episodes, the reference of the compiled law); and the engine's own, ``run_worlds`` and
 ``__call__``: all episodes of a call on MuJoCo batches with the compiled law
 (``mjxskill.engine.native.batched``), split over ``workers`` processes
-(``mjxskill.engine.native.pool``), each batch stepped by ``threads`` threads. Same MJCF model and timestep as the compiled rollout,
+(``mjxskill.engine.native.pool``) or over the actors of a Ray cluster (``cluster``,
+``mjxskill.engine.native.ray_pool``), each batch stepped by ``threads`` threads. Same MJCF model and timestep as the compiled rollout,
 same worlds (``mjxskill.engine.common.worlds``), same world-model poses for the skills, same
 divergence containment (``mjxskill.engine.common.types``); float64 throughout where MJX runs float32.
 Nothing of the compiled rollout or of MJX is imported: this engine is the independent reference
@@ -68,11 +69,14 @@ class NativeRollout(RolloutBase):
     """The episodes of ``task`` in ``scn`` on native MuJoCo (arguments as ``compile_rollout``;
     nothing is compiled). workers: processes ``run_worlds`` splits a call's episodes over
     (default: one per core; 1 runs them in this process); threads: the threads that step the
-    batch of a call run in this process (workers == 1). Results depend on neither."""
+    batch of a call run in this process (workers == 1). cluster: the address of a Ray cluster
+    ("auto" or HOST:PORT) whose CPUs run the calls' episodes instead of local workers (one actor
+    per CPU; ``pip install 'mjxskill[ray]'``); connected at once, ClusterError if it cannot be.
+    Results depend on none of these."""
 
     def __init__(self, scn, task=None, *, worlds: int | None = None, episode_seconds: float | None = None,
                  start_configs: np.ndarray | None = None, mj_model: mujoco.MjModel | None = None,
-                 workers: int | None = None, threads: int = 1):
+                 workers: int | None = None, threads: int = 1, cluster: str | None = None):
         if task is None:
             task = plan_task(scn)
         if mj_model is None:
@@ -83,6 +87,11 @@ class NativeRollout(RolloutBase):
         self.workers = default_workers() if workers is None else max(1, int(workers))
         self.threads = max(1, int(threads))
         self._pool = None
+        self.cluster = None  # the ClusterInfo of the Ray cluster the calls run on
+        if cluster is not None:
+            from mjxskill.engine.native.ray_pool import connect  # lazy: Ray is an optional extra
+
+            self.cluster = connect(cluster)
         # The scenario and skill library files as this engine read them: workers rebuild from
         # them and check they are unchanged.
         self.scenario_sha256 = sources_sha256(scn)
@@ -170,14 +179,18 @@ class NativeRollout(RolloutBase):
         return summarize(res, worlds.config_index, self.objective_matrix, self.reward_names, xp=np)
 
     def _run_batched(self, params: np.ndarray, worlds: Worlds) -> list[EpisodeResult]:
-        if min(self.workers, len(params)) <= 1:
+        if self.cluster is None and min(self.workers, len(params)) <= 1:
             return run_batched(self, params, worlds, threads=self.threads)
         return self.start_workers().run(params, worlds)
 
     def start_workers(self):
-        """Starts the worker processes now (a call starts them when it first needs them: a few
-        seconds of imports each). Returns the pool."""
-        if self._pool is None and self.workers > 1:
+        """Starts the worker processes (or the Ray actors) now (a call starts them when it first
+        needs them: a few seconds of imports each). Returns the pool."""
+        if self._pool is None and self.cluster is not None:
+            from mjxskill.engine.native.ray_pool import RayPool  # lazy: Ray is an optional extra
+
+            self._pool = RayPool(self, self.cluster.address)
+        elif self._pool is None and self.workers > 1:
             self._pool = WorkerPool(self, self.workers)
         return self._pool
 
@@ -193,7 +206,7 @@ class NativeRollout(RolloutBase):
         return int(mujoco.mj_sizeModel(episode.model) + episode.data.nbuffer + episode.data.maxuse_arena)
 
     def close(self) -> None:
-        """Stops the worker processes (they also stop when this process exits)."""
+        """Stops the worker processes or the Ray actors (they also stop when this process exits)."""
         if self._pool is not None:
             self._pool.close()
             self._pool = None

@@ -17,7 +17,10 @@ from pathlib import Path
 import numpy as np
 
 
-def _build(spec: dict, model: bytes):
+def build_engine(spec: dict, model: bytes):
+    """The engine of a recipe (``mjxskill.engine.native.pool.recipe``) and MJB bytes, in this
+    process (workers=1); RuntimeError if the scenario's files are not those the recipe was made
+    from. A Ray actor builds its engine here too (``mjxskill.engine.native.ray_pool``)."""
     # Imported here, after main has set SIGINT aside: a Ctrl-C during the seconds these imports
     # take reaches the parent, which stops us, not a traceback from every worker.
     import mujoco
@@ -38,7 +41,7 @@ def _build(spec: dict, model: bytes):
 
 def main() -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops us
-    # imported only now, with SIGINT set aside (see _build)
+    # imported only now, with SIGINT set aside (see build_engine)
     from mjxskill.engine.native.batched import run_batched
     from mjxskill.engine.native.pool import pack_arrays, read_frame, unpack_arrays, write_frame
     from mjxskill.engine.common.types import EpisodeResult
@@ -49,7 +52,7 @@ def main() -> int:
     try:
         kind, payload = read_frame(stdin)
         _, model = read_frame(stdin)
-        engine = _build(json.loads(payload), model)
+        engine = build_engine(json.loads(payload), model)
         write_frame(stdout, b"K", b"")
         while True:
             kind, payload = read_frame(stdin)

@@ -1,0 +1,132 @@
+"""The native engine on a Ray cluster (issue 34): a local two-node cluster on loopback (head and
+one node, 1 CPU each, no dashboard, a small object store).
+
+- the library: ``NativeRollout(cluster=...)`` gives the results one process gives, bit for bit,
+  and a call during which one of its actors is killed finishes with those same results;
+- must-hold 1: ``train ... --engine native --ray-address ADDRESS`` writes the evaluations.csv of
+  the same run without Ray, and its header says ``ray: 2 nodes``;
+- an address where no cluster answers is one ``error:`` line naming it, exit 2, nothing written.
+
+Skipped where Ray is not installed (``pip install -e '.[ray]'``).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ray = pytest.importorskip("ray")
+cluster_utils = pytest.importorskip("ray.cluster_utils")
+
+ROOT = Path(__file__).resolve().parents[1]
+NODE = dict(num_cpus=1, object_store_memory=80 * 1024 * 1024, node_ip_address="127.0.0.1")
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A head and one more node on loopback; the workers import this checkout's mjxskill."""
+    saved = {k: os.environ.get(k) for k in ("PYTHONPATH", "RAY_USAGE_STATS_ENABLED")}
+    os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), saved["PYTHONPATH"]]))
+    os.environ["RAY_USAGE_STATS_ENABLED"] = "0"
+    local = cluster_utils.Cluster(initialize_head=True, head_node_args=dict(NODE, include_dashboard=False))
+    local.add_node(**NODE)
+    local.wait_for_nodes()
+    try:
+        yield local
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+        local.shutdown()
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+@pytest.fixture(scope="module")
+def push():
+    from mjxskill import load_scenario, plan_task
+
+    scn = load_scenario("push")
+    return scn, plan_task(scn)
+
+
+def _params(task, n: int, seed: int = 0) -> np.ndarray:
+    lower, upper = np.asarray(task.bounds)
+    return lower + (upper - lower) * np.random.default_rng(seed).random((n, len(lower)))
+
+
+def _same(a, b) -> None:
+    np.testing.assert_array_equal(a.objectives, b.objectives)
+    np.testing.assert_array_equal(a.success, b.success)
+    for name in a.metrics:
+        np.testing.assert_array_equal(a.metrics[name], b.metrics[name], err_msg=name)
+
+
+def test_cluster_results_are_one_process_results_even_when_an_actor_dies(cluster, push):
+    from mjxskill.engine.native.rollout import NativeRollout
+    import jax
+
+    scn, task = push
+    params = _params(task, 6)
+    with NativeRollout(scn, task, worlds=2, episode_seconds=1.0, workers=1) as local:
+        worlds = local.sample_worlds(jax.random.key(3), len(params))
+        expected = local.run_worlds(params, worlds)
+    with NativeRollout(scn, task, worlds=2, episode_seconds=1.0, cluster=cluster.address) as remote:
+        assert (remote.cluster.nodes, remote.cluster.cpus) == (2, 2)
+        pool = remote.start_workers()
+        assert len(pool.actors) == 2
+        _same(remote.run_worlds(params, worlds), expected)
+
+        # a call during which one actor is killed: its slice runs again on the other one
+        victim, got = pool.actors[0], {}
+        call = threading.Thread(target=lambda: got.update(out=remote.run_worlds(params, worlds)))
+        pool.submitted.clear()
+        call.start()
+        assert pool.submitted.wait(timeout=60)
+        ray.kill(victim, no_restart=True)
+        call.join(timeout=300)
+        assert "out" in got, "the call did not finish"
+        assert pool.retried >= 1 and victim not in pool.actors
+        _same(got["out"], expected)
+        _same(remote.run_worlds(params, worlds), expected)  # and the next call too
+
+
+def _train(tmp: Path, name: str, *extra: str, command: str = "mjxskill.train") -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+    args = ["push", "--budget", "12", "--batch-size", "6", "--init", "6", "--worlds", "2", "--episode-seconds", "1",
+            "--seed", "0", "--engine", "native", "--quiet", "--out", str(tmp / name), *extra]
+    return subprocess.run([sys.executable, "-m", command, *args], cwd=tmp, env=env, capture_output=True,
+                          text=True, timeout=900)
+
+
+def test_train_on_the_cluster_writes_the_evaluations_of_a_local_run(cluster, tmp_path):
+    on_ray = _train(tmp_path, "ray", "--ray-address", cluster.address)
+    assert on_ray.returncode == 0, on_ray.stderr[-3000:]
+    assert "ray: 2 nodes, 2 CPUs" in on_ray.stdout and "on 2 actors" in on_ray.stdout
+    local = _train(tmp_path, "local")
+    assert local.returncode == 0, local.stderr[-3000:]
+    assert (tmp_path / "ray" / "evaluations.csv").read_bytes() == (tmp_path / "local" / "evaluations.csv").read_bytes()
+    assert "cluster: ray" in (tmp_path / "ray" / "config.yaml").read_text()
+    assert cluster.address not in (tmp_path / "ray" / "config.yaml").read_text()
+    assert "cluster: null" in (tmp_path / "local" / "config.yaml").read_text()
+
+
+def test_an_unreachable_cluster_is_one_error_line_and_nothing_written(tmp_path):
+    with __import__("socket").socket() as s:  # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        address = f"127.0.0.1:{s.getsockname()[1]}"
+    for command in ("mjxskill.train", "mjxskill.experiment"):
+        done = _train(tmp_path, "run", "--ray-address", address, command=command)
+        assert done.returncode == 2
+        errors = [line for line in done.stderr.splitlines() if "error:" in line]
+        assert len(errors) == 1 and address in errors[0] and errors[0].startswith(command), done.stderr
+        assert not (tmp_path / "run").exists()
+        assert not done.stdout
