@@ -36,6 +36,7 @@ from mjxskill.engine.native.episode import NativeEpisode
 from mjxskill.engine.native.lockstep import run_lockstep
 from mjxskill.engine.native.pool import WorkerPool
 from mjxskill.sim.model import build_model
+from mjxskill.scenario import load_scenario
 from mjxskill.task import plan_task
 from mjxskill.engine.native.leaves import build_native_leaves
 from mjxskill.engine.common.arrays import HOST
@@ -47,6 +48,21 @@ from mjxskill.engine.common.worlds import Worlds, make_sampler, sample_worlds, w
 
 
 STEPPINGS = ("batch", "lockstep", "plain")
+
+
+def engine_from_recipe(spec: dict, model: bytes) -> "NativeRollout":
+    """The engine of a recipe (``mjxskill.engine.native.pool.recipe``) and MJB bytes, in this
+    process (workers=1): what a worker process or a Ray actor runs its slices on. RuntimeError
+    if the scenario's files are not those the recipe was made from."""
+    source = Path(spec["scenario"])
+    scn = load_scenario(source)
+    if sources_sha256(scn) != spec["sha256"]:
+        raise RuntimeError(f"{source} or a skill library it includes changed since the engine was built; build it again")
+    configs = spec["start_configs"]
+    return NativeRollout(scn, plan_task(scn, spec["goal"]), worlds=spec["worlds"],
+                         episode_seconds=spec["episode_seconds"],
+                         start_configs=None if configs is None else np.asarray(configs),
+                         mj_model=mujoco.MjModel.from_binary_path("model.mjb", {"model.mjb": model}), workers=1)
 
 
 def sources_sha256(scn) -> str:
@@ -189,7 +205,7 @@ class NativeRollout(RolloutBase):
         if self._pool is None and self.cluster is not None:
             from mjxskill.engine.native.ray_pool import RayPool  # lazy: Ray is an optional extra
 
-            self._pool = RayPool(self, self.cluster.address)
+            self._pool = RayPool(self, self.cluster.address, build=engine_from_recipe)
         elif self._pool is None and self.workers > 1:
             self._pool = WorkerPool(self, self.workers)
         return self._pool

@@ -12,38 +12,17 @@ import json
 import signal
 import sys
 import traceback
-from pathlib import Path
 
 import numpy as np
 
 
-def build_engine(spec: dict, model: bytes):
-    """The engine of a recipe (``mjxskill.engine.native.pool.recipe``) and MJB bytes, in this
-    process (workers=1); RuntimeError if the scenario's files are not those the recipe was made
-    from. A Ray actor builds its engine here too (``mjxskill.engine.native.ray_pool``)."""
-    # Imported here, after main has set SIGINT aside: a Ctrl-C during the seconds these imports
-    # take reaches the parent, which stops us, not a traceback from every worker.
-    import mujoco
-    from mjxskill.engine.native.rollout import NativeRollout, sources_sha256  # as mujoco, above
-    from mjxskill.scenario import load_scenario  # as mujoco, above
-    from mjxskill.task import plan_task  # as mujoco, above
-
-    source = Path(spec["scenario"])
-    scn = load_scenario(source)
-    if sources_sha256(scn) != spec["sha256"]:
-        raise RuntimeError(f"{source} or a skill library it includes changed since the engine was built; build it again")
-    configs = spec["start_configs"]
-    return NativeRollout(scn, plan_task(scn, spec["goal"]), worlds=spec["worlds"],
-                         episode_seconds=spec["episode_seconds"],
-                         start_configs=None if configs is None else np.asarray(configs),
-                         mj_model=mujoco.MjModel.from_binary_path("model.mjb", {"model.mjb": model}), workers=1)
-
-
 def main() -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops us
-    # imported only now, with SIGINT set aside (see build_engine)
+    # Imported only now, with SIGINT set aside: a Ctrl-C during the seconds these imports take
+    # reaches the parent, which stops us, not a traceback from every worker.
     from mjxskill.engine.native.batched import run_batched
     from mjxskill.engine.native.pool import pack_arrays, read_frame, unpack_arrays, write_frame
+    from mjxskill.engine.native.rollout import engine_from_recipe
     from mjxskill.engine.common.types import EpisodeResult
     from mjxskill.engine.common.worlds import Worlds
 
@@ -52,7 +31,7 @@ def main() -> int:
     try:
         kind, payload = read_frame(stdin)
         _, model = read_frame(stdin)
-        engine = build_engine(json.loads(payload), model)
+        engine = engine_from_recipe(json.loads(payload), model)
         write_frame(stdout, b"K", b"")
         while True:
             kind, payload = read_frame(stdin)
