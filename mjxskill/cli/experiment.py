@@ -21,14 +21,15 @@ from typing import Sequence
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.cli.progress import Progress
-from mjxskill.cli.run_settings import add_setting_arguments, new_config, resumed_config
+from mjxskill.cli.run_settings import (accept_scenario, add_accept_scenario_change, add_setting_arguments, new_config,
+                                        resumed_config)
 from mjxskill.engine.build import build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 from mjxskill.experiment.directory import Experiment, Protocol, random_search_config
 from mjxskill.experiment.driver import run_experiment
 from mjxskill.experiment.report import write_report
 from mjxskill.evaluation.pooled import GIVEN, force_bound
-from mjxskill.runs.run_task import load_run_task, scenario_and_task
+from mjxskill.runs.run_task import load_run_task, scenario_and_task, scenario_difference
 from mjxskill.task import describe, planning_texts
 
 # The evaluation's flags: name -> (default, what the protocol field is called)
@@ -54,7 +55,12 @@ def build_parser() -> argparse.ArgumentParser:
                                               "this flag changes: the picks are made again, nothing is retrained")
     parser.add_argument("--out", type=Path, help="experiment directory (default runs/<task>-experiment-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="EXP_DIR", help="continue the experiment in EXP_DIR")
+    add_accept_scenario_change(parser)
     return parser
+
+
+def _said(difference) -> str | None:
+    return None if difference is None else difference.text()
 
 
 def _runs_both(text: str) -> str:
@@ -123,6 +129,11 @@ def _main(args: argparse.Namespace) -> int:
             exp.optimizer.check(config)
             exp.random_search.check(random_search_config(config))
             scn, task = load_run_task(exp.optimizer, config, scenario=args.task)
+            if _said(scenario_difference(exp.random_search, scn)) != _said(scenario_difference(exp.optimizer, scn)):
+                raise CommandError(f"{exp.random_search.path} and {exp.optimizer.path} hold different copies of the "
+                                   "scenario; the two would not be comparable")
+            if accept_scenario(args, exp.optimizer, scn):
+                config = exp.config()
             change_validation(args, exp, protocol)  # after every check: a refused resume changes nothing
             settle_bound(exp, scn)
             return _run(args, exp, config, scn, task, started)

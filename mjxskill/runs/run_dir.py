@@ -12,6 +12,7 @@ Layout of a run directory::
     .lock                the writer's lock and who holds it (run_lock)
     evaluations.csv.orig-<n>, evaluations-set-aside.csv
                          after a resume that could not use every line (resume)
+    scenario.yaml.orig-<n> the copy before a resume accepted another scenario (run_task)
 
 ``evaluations.csv`` is the source of truth: a run is resumed by replaying its rows into a fresh
 optimizer state, so a run killed at any moment loses at most the batch it was evaluating, and
