@@ -32,6 +32,7 @@ from mjxskill.evaluation.evaluate_run import FOLDER, differences_from_earlier, e
 from mjxskill.evaluation.pooled import force_bound, group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
 from mjxskill.evaluation.validation import in_contention, validate, validation_settings
 from mjxskill.experiment.directory import Experiment, is_done, repetition_settings, runs_of
+from mjxskill.runs.atomic_write import refuse_links_out
 from mjxskill.runs.layout import directory_kind, experiment_holding
 from mjxskill.runs.run_dir import Run
 from mjxskill.runs.run_task import load_run_task
@@ -85,6 +86,7 @@ def _progress(done: int, total: int) -> None:
 
 
 def _main(args: argparse.Namespace) -> int:
+    refuse_links_out(args.run)  # before anything in it is read
     kind = directory_kind(args.run)
     if kind == "experiment":
         return _experiment(args)

@@ -29,6 +29,7 @@ from mjxskill.experiment.directory import Experiment, Protocol, random_search_co
 from mjxskill.experiment.driver import run_experiment
 from mjxskill.experiment.report import write_report
 from mjxskill.evaluation.pooled import GIVEN, force_bound
+from mjxskill.runs.atomic_write import refuse_links_out
 from mjxskill.runs.run_task import load_run_task, scenario_and_task, scenario_difference
 from mjxskill.task import describe, planning_texts
 
@@ -118,6 +119,7 @@ def _validation_words(protocol) -> str:
 def _main(args: argparse.Namespace) -> int:
     started = time.monotonic()
     if args.resume is not None:
+        refuse_links_out(args.resume)  # before anything in it is read
         exp = Experiment(args.resume)
         protocol = exp.protocol()
         config = resumed_config(args, exp.optimizer.path)

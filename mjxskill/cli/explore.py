@@ -17,6 +17,7 @@ from typing import Sequence
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.errors import CommandError
+from mjxskill.runs.atomic_write import refuse_links_out
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
@@ -43,6 +44,7 @@ def _main(args: argparse.Namespace) -> int:
     from mjxskill.explore.server import Explorer, make_explore_server
     from mjxskill.explore.solutions import Solutions
 
+    refuse_links_out(args.run)  # before anything in it is read
     explorer = Explorer(args.run, Solutions(args.run, per_config=args.per_config, seed=args.seed))
     try:
         server = make_explore_server(explorer, args.host, args.port)

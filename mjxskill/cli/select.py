@@ -28,6 +28,7 @@ from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.engine.build import build_rollout
 from mjxskill.errors import CommandError
+from mjxskill.runs.atomic_write import refuse_links_out
 from mjxskill.evaluation.render import RenderUnavailable, default_gl, render_episode, render_world
 from mjxskill.evaluation.selection import (
     best_unvalidated,
@@ -100,6 +101,7 @@ def _main(args: argparse.Namespace) -> int:
     from mjxskill.runs.run_dir import concat_all
     from mjxskill.training.report import front_table
 
+    refuse_links_out(args.run)  # before anything in it is read
     fronts, several = _fronts(args.run)
     if args.min_success is not None and args.min_success > 1:
         raise CommandError(f"--min-success is a rate between 0 and 1, got {args.min_success}")

@@ -33,6 +33,7 @@ from mjxskill.task import describe, planning_texts
 from mjxskill.training import report
 from mjxskill.training.loop import rollout_evaluator, train
 from mjxskill.training.priors import describe_prior
+from mjxskill.runs.atomic_write import refuse_links_out
 from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.run_task import load_run_task, scenario_and_task
 
@@ -62,6 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _main(args: argparse.Namespace) -> int:
+    for folder in (args.resume, args.prior_from):
+        if folder is not None:
+            refuse_links_out(folder)  # before anything in it is read
     if args.resume is not None:
         config = resumed_config(args)
         run = Run(args.resume)

@@ -2,7 +2,11 @@
 new one, never part of one (the text goes to ``NAME.tmp`` beside it, then ``os.replace``).
 
 A file that is a symbolic link is never written through: a link in a run directory to a file
-elsewhere would have that file replaced (``refuse_link``: one RunError naming the link)."""
+elsewhere would have that file replaced (``refuse_link``: one RunError naming the link). Nor is
+one read through when it leaves the directory: ``refuse_links_out`` walks a run or experiment
+directory before a command reads it (an ``explore/`` folder, an evaluation file or a ``seed-<s>``
+run linked elsewhere would be read, and written into, as the run's own); a link that stays
+inside is harmless and allowed."""
 
 from __future__ import annotations
 
@@ -19,6 +23,33 @@ def refuse_link(path: Path) -> None:
     if os.path.islink(path):
         raise RunError(f"{path} is a symbolic link (to {os.readlink(path)!r}); mjxskill writes a run's files only "
                        "in the run itself: replace the link by the file it points to, or remove it")
+
+
+MAX_ENTRIES = 1_000_000  # files and folders one walk looks at: a run with every frame rendered has thousands
+
+
+def refuse_links_out(root: Path) -> None:
+    """Raises RunError naming the first symbolic link below ``root`` (``root`` itself may be one:
+    the user named it) whose target is not inside ``root``; follows no link while walking."""
+    root = Path(root)
+    if not root.is_dir():
+        return  # "not a run directory" is said by whoever reads it
+    real_root = os.path.realpath(root)
+    seen = 0
+    for folder, dirs, files in os.walk(root):  # os.walk lists linked folders among dirs, never enters them
+        dirs.sort()
+        for name in sorted(dirs + files):
+            seen += 1
+            if seen > MAX_ENTRIES:
+                raise RunError(f"{root} holds more than {MAX_ENTRIES} files and folders; is it a run directory?")
+            path = os.path.join(folder, name)
+            if not os.path.islink(path):
+                continue
+            target = os.path.realpath(path)
+            if os.path.commonpath([real_root, target]) != real_root:
+                raise RunError(f"{path} is a symbolic link (to {os.readlink(path)!r}) that leaves {root}; mjxskill reads "
+                               "and writes a run's files only in the run itself: replace the link by what it points "
+                               "to, or remove it")
 
 
 def replace_whole(path: Path, write: Callable[[Path], None]) -> None:
@@ -51,4 +82,4 @@ def write_json(path: Path, doc) -> None:
     write_text(path, json.dumps(doc, indent=1) + "\n")
 
 
-__all__ = ["open_nofollow", "refuse_link", "replace_whole", "write_json", "write_text"]
+__all__ = ["open_nofollow", "refuse_link", "refuse_links_out", "replace_whole", "write_json", "write_text"]
