@@ -37,16 +37,18 @@ from mjxskill.runs.layout import directory_kind, experiment_holding
 from mjxskill.runs.run_dir import Run
 from mjxskill.runs.run_task import load_run_task
 from mjxskill.runs.settings import BY_NAME
+from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_RANDOM_SETS
+from mjxskill.scenario.schema import MAX_BATCH
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="mjxskill.evaluate", description="Success rates of the Pareto solutions against baselines, per start configuration.")
     parser.add_argument("run", type=Path, help="run, repeated run or experiment directory")
-    parser.add_argument("--per-config", type=cli_args.positive_int, help="worlds per start configuration (default 5)")
-    parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets (default 10)")
+    parser.add_argument("--per-config", type=cli_args.int_in(1, MAX_PER_CONFIG), help="worlds per start configuration (default 5)")
+    parser.add_argument("--random", type=cli_args.int_in(0, MAX_RANDOM_SETS), help="random parameter sets (default 10)")
     parser.add_argument("--seed", type=cli_args.seed_type(), help="seed of the worlds (the evaluation's and a repeated run's "
                         "validation's) and the random sets (default 0; a repeated run's sub-run i: seed + i)")
-    parser.add_argument("--batch-size", type=cli_args.positive_int, help="candidates per compiled call (default: the run's batch size)")
+    parser.add_argument("--batch-size", type=cli_args.int_in(1, MAX_BATCH), help="candidates per compiled call (default: the run's batch size)")
     parser.add_argument("--episode-seconds", type=cli_args.setting_type(BY_NAME["episode_seconds"]),
                         help="episode length in s (default: the run's)")
     cli_args.add_workers_argument(parser)

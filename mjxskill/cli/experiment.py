@@ -31,6 +31,7 @@ from mjxskill.experiment.report import write_report
 from mjxskill.evaluation.pooled import GIVEN, force_bound
 from mjxskill.runs.atomic_write import refuse_links_out
 from mjxskill.runs.run_task import load_run_task, scenario_and_task, scenario_difference
+from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_RANDOM_SETS
 from mjxskill.task import describe, planning_texts
 
 # The evaluation's flags: name -> (default, what the protocol field is called)
@@ -48,8 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
     cli_args.add_workers_argument(parser)
     # train's --optimizer, refused by name (argparse would otherwise read it as --optimizer-option)
     parser.add_argument("--optimizer", type=_runs_both, help=argparse.SUPPRESS)
-    parser.add_argument("--per-config", type=cli_args.positive_int, help="evaluation worlds per start configuration (default 5)")
-    parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets per evaluation (default 10)")
+    parser.add_argument("--per-config", type=cli_args.int_in(1, MAX_PER_CONFIG), help="evaluation worlds per start configuration (default 5)")
+    parser.add_argument("--random", type=cli_args.int_in(0, MAX_RANDOM_SETS), help="random parameter sets per evaluation (default 10)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N",
                         help="bound on the picked solution's commanded force, N (default: the scenario's pick.max_force)")
     cli_args.add_validation_arguments(parser, "before each pick", "default 5; on --resume the experiment's own, which "

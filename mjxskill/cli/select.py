@@ -52,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--format", choices=("png", "mp4"), default="png", help="PNG frames (default) or an MP4 (needs ffmpeg)")
     parser.add_argument("--config-index", type=cli_args.int_at_least(0), default=0, help="known start configuration to render from (default 0)")
     parser.add_argument("--seed", type=cli_args.seed_type(), default=0, help="seed of the rendered world's randomization")
-    parser.add_argument("--size", type=cli_args.positive_int, nargs=2, default=(640, 480), metavar=("W", "H"), help="frame size in pixels")
+    parser.add_argument("--size", type=cli_args.int_in(1, cli_args.MAX_FRAME_SIDE), nargs=2, default=(640, 480), metavar=("W", "H"), help="frame size in pixels")
     return parser
 
 

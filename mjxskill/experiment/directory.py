@@ -29,6 +29,7 @@ from mjxskill.runs.run_lock import RunLock, lock_run
 from mjxskill.evaluation.pooled import GIVEN, force_bound
 from mjxskill.evaluation.validation import validation_settings
 from mjxskill.runs.layout import EXPERIMENT, OPTIMIZER_RUNS, RANDOM_RUNS
+from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_RANDOM_SETS, MAX_VALIDATION_CANDIDATES
 
 FORMAT = "mjxskill.experiment/1"
 STATE = "state.json"
@@ -73,10 +74,11 @@ class Protocol:
             source = f["max_force_source"].string()
         else:  # written before the source was kept: a number was --max-force's; null is unsettled
             source = None if max_force is None else GIVEN
-        return cls(per_config=f["per_config"].integer(minimum=1), random_sets=f["random_sets"].integer(minimum=0),
+        return cls(per_config=f["per_config"].integer(minimum=1, maximum=MAX_PER_CONFIG),
+                   random_sets=f["random_sets"].integer(minimum=0, maximum=MAX_RANDOM_SETS),
                    max_force=max_force, max_force_source=source,
-                   validation_per_config=f["validation_per_config"].integer(minimum=0) if "validation_per_config" in f else 0,
-                   validation_candidates=f["validation_candidates"].integer(minimum=1) if "validation_candidates" in f else 3)
+                   validation_per_config=f["validation_per_config"].integer(minimum=0, maximum=MAX_PER_CONFIG) if "validation_per_config" in f else 0,
+                   validation_candidates=f["validation_candidates"].integer(minimum=1, maximum=MAX_VALIDATION_CANDIDATES) if "validation_candidates" in f else 3)
 
 
 def random_search_config(config: RunConfig) -> RunConfig:
