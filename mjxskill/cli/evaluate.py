@@ -201,6 +201,7 @@ def _experiment(args: argparse.Namespace) -> int:
 
     exp = Experiment(args.run)
     config, protocol = exp.config(), exp.protocol()
+    exp.state()  # the wall times the report shows: a damaged file is said before anything is written
     given = {"--per-config": (args.per_config, protocol.per_config), "--random": (args.random, protocol.random_sets),
              "--max-force": (args.max_force, protocol.max_force), "--episode-seconds": (args.episode_seconds, config.episode_seconds),
              "--engine": (args.engine and resolve_engine(args.engine)[0], config.engine)}

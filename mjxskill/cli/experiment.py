@@ -129,6 +129,7 @@ def _main(args: argparse.Namespace) -> int:
             raise CommandError(f"--resume continues {args.resume} with its own protocol; drop {', '.join(conflicts)}")
         with exp.lock():
             exp.config()  # both runs' configurations agree
+            exp.state()  # the wall times the report shows: a damaged file is said before anything is written
             exp.optimizer.check(config)
             exp.random_search.check(random_search_config(config))
             scn, task = load_run_task(exp.optimizer, config, scenario=args.task)

@@ -13,6 +13,7 @@ only where nothing is, and written by one process at a time.
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from dataclasses import dataclass, replace
@@ -165,8 +166,7 @@ class Experiment:
             return {"sessions": [], "times": {}}
         try:
             state = json.loads(read_text(path, RunError, "experiment state"))
-            if not isinstance(state.get("sessions"), list) or not isinstance(state.get("times"), dict):
-                raise ValueError("sessions and times expected")
+            _check_state(state)
         except (ValueError, AttributeError) as err:
             raise RunError(f"{path} is not an experiment state ({err}); delete it (only wall times are lost)") from None
         return state
@@ -188,6 +188,34 @@ class Experiment:
 
     def _write_state(self, state: dict) -> None:
         write_json(self.path / STATE, state)
+
+
+def _number(value) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value) and value >= 0
+
+
+SESSION_KEYS = {"started": lambda v: isinstance(v, str), "startup_seconds": _number, "engine": lambda v: isinstance(v, str),
+                "cpus": lambda v: v is None or (_number(v) and isinstance(v, int))}
+
+
+def _check_state(state) -> None:
+    """ValueError naming the first entry of state.json that is not what ``add_time`` and
+    ``add_session`` write (the report formats every one: a text where a number belongs was a
+    TypeError after report.json had been rewritten with it)."""
+    if not isinstance(state, dict) or not isinstance(state.get("sessions"), list) or not isinstance(state.get("times"), dict):
+        raise ValueError("sessions (a list) and times (a mapping) expected")
+    for i, session in enumerate(state["sessions"]):
+        if not isinstance(session, dict):
+            raise ValueError(f"sessions[{i}] is not a mapping")
+        for key, ok in SESSION_KEYS.items():
+            if key not in session or not ok(session[key]):
+                raise ValueError(f"sessions[{i}].{key} is {session.get(key, 'missing')!r}")
+    for key, entry in state["times"].items():
+        if not isinstance(entry, dict):
+            raise ValueError(f"times.{key} is not a mapping")
+        for field, value in entry.items():
+            if not _number(value):
+                raise ValueError(f"times.{key}.{field} is {value!r}, not a number of seconds or evaluations")
 
 
 def repetition_settings(config: RunConfig, protocol: Protocol, seed: int) -> dict:
