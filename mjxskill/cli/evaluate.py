@@ -32,7 +32,7 @@ from mjxskill.evaluation.evaluate_run import FOLDER, differences_from_earlier, e
 from mjxskill.evaluation.pooled import force_bound, group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
 from mjxskill.evaluation.validation import in_contention, validate, validation_settings
 from mjxskill.experiment.directory import Experiment, is_done, repetition_settings, runs_of
-from mjxskill.runs.atomic_write import refuse_links_out
+from mjxskill.runs.atomic_write import refuse_links_out, write_text
 from mjxskill.runs.layout import directory_kind, experiment_holding
 from mjxskill.runs.run_dir import Run
 from mjxskill.runs.run_task import load_run_task
@@ -186,7 +186,7 @@ def _pool(run, config, results, bound) -> str:
                       for (_, c, _), p, v in zip(results, picks, validations)],
            "groups": group_means(samples), "samples": {g: {"known": len(v[0]), "unseen": len(v[1])} for g, v in samples.items()},
            "mann_whitney": tests}
-    (out / "pooled.json").write_text(json.dumps(doc, indent=1) + "\n")
+    write_text(out / "pooled.json", json.dumps(doc, indent=1) + "\n")
     lines = [f"seed {c.seed}: picked Pareto row {p.row}" for (_, c, _), p in zip(results, picks)]
     lines.append("bound on the commanded force: " + ("none" if bound[0] is None else f"{bound[0]:g} N") + f", {bound[1]}")
     return "\n".join([*lines, "", pooled_table(samples, tests), f"wrote {out / 'success.png'} and {out / 'pooled.json'}"])

@@ -10,6 +10,8 @@ inside is harmless and allowed."""
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import os
 from pathlib import Path
@@ -24,6 +26,10 @@ def refuse_link(path: Path) -> None:
         raise RunError(f"{path} is a symbolic link (to {os.readlink(path)!r}); mjxskill writes a run's files only "
                        "in the run itself: replace the link by the file it points to, or remove it")
 
+
+# Errors of the machine, not of what the user gave: a command ends on them with exit code 1
+# (mjxskill.cli.run), never with the exit code 2 of bad input.
+DISK_FAULTS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO, errno.EROFS})
 
 MAX_ENTRIES = 1_000_000  # files and folders one walk looks at: a run with every frame rendered has thousands
 
@@ -54,13 +60,19 @@ def refuse_links_out(root: Path) -> None:
 
 def replace_whole(path: Path, write: Callable[[Path], None]) -> None:
     """``write(tmp)`` fills ``NAME.tmp`` beside ``path``, which then replaces ``path``; RunError
-    when ``path`` is a symbolic link."""
+    when ``path`` is a symbolic link. When writing fails (a full disk) ``path`` is unchanged and
+    ``NAME.tmp`` removed."""
     refuse_link(path)
     tmp = path.with_name(path.name + ".tmp")
     if os.path.lexists(tmp):  # left by a killed writer, or a link: removed, never written through
         os.unlink(tmp)
-    write(tmp)
-    os.replace(tmp, path)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:  # a full disk, Ctrl-C: the old file stays, no NAME.tmp is left
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
 
 
 def open_nofollow(path: Path, flags: int, mode: int = 0o644) -> int:
@@ -73,6 +85,31 @@ def open_nofollow(path: Path, flags: int, mode: int = 0o644) -> int:
         raise
 
 
+def save_figure(fig, path) -> None:
+    """A matplotlib figure as PNG, replaced whole (never drawn through a link, nothing left
+    half-written on a full disk)."""
+    replace_whole(Path(path), lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
+
+
+def append_text(path: Path, text: str) -> None:
+    """Appends ``text`` to ``path`` (made if missing; RunError when it is a link) and forces it to
+    disk before returning; when that fails (a full disk) the file is cut back to what it was, so
+    no part of ``text`` stays."""
+    fd = open_nofollow(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT)
+    try:
+        size = os.fstat(fd).st_size
+        data = memoryview(text.encode())
+        try:
+            while data:
+                data = data[os.write(fd, data):]
+            os.fsync(fd)
+        except OSError:
+            os.ftruncate(fd, size)
+            raise
+    finally:
+        os.close(fd)
+
+
 def write_text(path: Path, text: str) -> None:
     replace_whole(path, lambda tmp: tmp.write_text(text))
 
@@ -82,4 +119,4 @@ def write_json(path: Path, doc) -> None:
     write_text(path, json.dumps(doc, indent=1) + "\n")
 
 
-__all__ = ["open_nofollow", "refuse_link", "refuse_links_out", "replace_whole", "write_json", "write_text"]
+__all__ = ["DISK_FAULTS", "append_text", "open_nofollow", "refuse_link", "refuse_links_out", "replace_whole", "save_figure", "write_json", "write_text"]
