@@ -386,6 +386,11 @@ DAMAGED = (  # (file, its text, what the one error line says)
      "experiment.yaml: format (line 1): not an mjxskill experiment"),
     ("experiment.yaml", "format: mjxskill.experiment/1\nper_config: [\n", "experiment.yaml (line 3, column 1): not valid YAML"),
     ("state.json", "{not json", "state.json is not an experiment state"),
+    # wrong types: the report formats them (a TypeError after report.json was rewritten)
+    ("state.json", '{"sessions": [{"started": "x", "startup_seconds": "slow", "engine": "native", "cpus": 2}], "times": {}}',
+     "state.json is not an experiment state (sessions[0].startup_seconds is 'slow')"),
+    ("state.json", '{"sessions": [], "times": {"optimizer/seed-0": {"train_seconds": [1e999]}}}',
+     "state.json is not an experiment state (times.optimizer/seed-0.train_seconds is [inf]"),
 )
 
 
@@ -430,6 +435,20 @@ def test_a_damaged_experiment_file_is_one_error_line_naming_file_key_and_line(ex
     code, stderr = invoke(capsys, "experiment", "push", "--resume", copy)
     error_line(code, stderr, "experiment", str(copy / name), message)
     assert snapshot(copy) == before
+
+
+@pytest.mark.parametrize("name, text, message", [case for case in DAMAGED if case[0] == "state.json"])
+def test_evaluate_refuses_a_damaged_state_before_the_report_is_rewritten(experiment, tmp_path, capsys, name, text, message):
+    import shutil
+
+    exp, _ = experiment
+    copy = tmp_path / "exp"
+    shutil.copytree(exp.path, copy)
+    (copy / name).write_text(text)
+    before = snapshot(copy)
+    code, stderr = invoke(capsys, "evaluate", copy)
+    error_line(code, stderr, "evaluate", str(copy / name), message)
+    assert snapshot(copy) == before  # report.json and report.md included
 
 
 @pytest.mark.parametrize("args, message", (

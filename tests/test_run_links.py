@@ -8,7 +8,7 @@ default_gl()
 
 import pytest  # noqa: E402
 
-from cli_helpers import error_line, invoke  # noqa: E402
+from cli_helpers import error_line, invoke, snapshot  # noqa: E402
 from explore_runs import evaluations, make_push_run, push_config  # noqa: E402
 from mjxskill.errors import RunError  # noqa: E402
 from mjxskill.runs.run_lock import lock_run  # noqa: E402
@@ -67,3 +67,61 @@ def test_select_never_exports_through_a_linked_folder(run_and_outside, tmp_path,
     code, err = invoke(capsys, "select", run.path, "--pick", 0, "--no-render")
     error_line(code, err, "select", str(link), "is a symbolic link")
     assert list(users_folder.iterdir()) == []
+
+
+# -- reads: a link that leaves the directory is refused before anything is read -----------------
+READERS = {  # command -> its arguments before/after the run directory
+    "evaluate": ([], ["--per-config", 1, "--random", 0]),
+    "select": ([], ["--no-render"]),
+    "explore": ([], ["--port", 0]),
+    "train": (["push", "--resume"], []),
+}
+
+
+def _readers(command, run):
+    before, after = READERS[command]
+    return [*before, run.path, *after]
+
+
+@pytest.mark.parametrize("command", list(READERS))
+@pytest.mark.parametrize("what", ["explore folder", "evaluation file", "config.yaml"])
+def test_a_link_out_of_the_run_is_refused_before_it_is_read(run_and_outside, tmp_path, capsys, command, what):
+    run, outside = run_and_outside
+    if what == "explore folder":
+        elsewhere = tmp_path / "elsewhere"
+        elsewhere.mkdir()
+        (elsewhere / "worlds.json").write_text("{}")
+        link = _link(run, "explore", elsewhere)
+    elif what == "evaluation file":
+        (run.path / "evaluation").mkdir()
+        link = _link(run, "evaluation/evaluation.json", outside)
+    else:
+        users_config = tmp_path / "config.yaml"
+        users_config.write_text((run.path / "config.yaml").read_text())
+        link = _link(run, "config.yaml", users_config)
+    before = snapshot(run.path)
+    code, err = invoke(capsys, command, *_readers(command, run))
+    error_line(code, err, command, str(link), "is a symbolic link", "that leaves")
+    assert snapshot(run.path) == before and outside.read_text() == USERS
+
+
+def test_a_sub_run_linked_out_of_a_repeated_run_is_refused(tmp_path, capsys):
+    import shutil
+
+    from explore_runs import make_repeated_run
+
+    root = make_repeated_run(tmp_path / "push-x3")
+    moved = tmp_path / "seed-1-elsewhere"
+    shutil.move(root.path / "seed-1", moved)
+    (root.path / "seed-1").symlink_to(moved)
+    for command in ("select", "train"):
+        code, err = invoke(capsys, command, *(["push", "--resume"] if command == "train" else []), root.path)
+        error_line(code, err, command, str(root.path / "seed-1"), "that leaves")
+
+
+def test_a_link_that_stays_inside_the_run_is_read(run_and_outside, capsys):
+    run, _ = run_and_outside
+    (run.path / "notes.txt").symlink_to("plan.txt")  # relative, inside
+    (run.path / "front.csv").symlink_to(run.path / "pareto.csv")  # absolute, inside
+    code, err = invoke(capsys, "select", run.path, "--no-render")
+    assert code == 0, err

@@ -5,13 +5,17 @@ the library, and the one edge where bad input becomes a message.
 ``mjxskill.errors.UserError`` (a bad scenario, goal, flag or run directory) is printed as one
 ``prog: error: message`` line on stderr with exit code 2, without a traceback, and a
 ``mjxskill.errors.Notice`` warning (rows set aside on resume, a cache that is off) as one
-``prog: warning: message`` line. A Ctrl-C ends the command with exit code 130
+``prog: warning: message`` line. A fault of the machine mid-run, an ``OSError`` (a full disk,
+a file system gone read-only), is one ``prog: error:`` line with exit code 1: what was finished
+is on disk (every file is appended or replaced whole, ``mjxskill.runs.atomic_write``) and the
+line says to run the command again. A Ctrl-C ends the command with exit code 130
 (``mjxskill.cli.interrupt``). Nothing below this package prints errors or exits.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 import warnings
 from typing import Callable, Sequence
@@ -22,6 +26,18 @@ from mjxskill.cli.interrupt import EXIT_INTERRUPTED
 from mjxskill.errors import Notice, UserError
 
 EXIT_BAD_INPUT = 2
+EXIT_FAULT = 1
+# faults that freeing space or a fixed disk cures: the command is then run again
+SPACE = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+
+
+def fault_message(err: OSError) -> str:
+    """One line for an OSError that ended a command mid-run."""
+    where = f" ({err.filename})" if err.filename else ""
+    what = err.strerror or str(err) or type(err).__name__
+    cure = "free some space" if err.errno in SPACE else "fix that"
+    return (f"{what}{where}; nothing finished is lost (what was written is whole): {cure}, then run the command "
+            "again (train and experiment: with --resume)")
 
 
 def run(main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentParser, argv: Sequence[str] | None = None) -> int:
@@ -45,10 +61,13 @@ def run(main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentPars
             message = " ".join((str(err) or type(err).__name__).split())  # one line, whatever it holds
             print(f"{parser.prog}: error: {message}", file=sys.stderr)
             return EXIT_BAD_INPUT
+        except OSError as err:
+            print(f"{parser.prog}: error: {' '.join(fault_message(err).split())}", file=sys.stderr)
+            return EXIT_FAULT
         except KeyboardInterrupt:
             interrupt.acknowledge()
             print(f"\n{parser.prog}: {interrupt.message()}", file=sys.stderr)
             return EXIT_INTERRUPTED
 
 
-__all__ = ["EXIT_BAD_INPUT", "EXIT_INTERRUPTED", "interrupt", "run"]
+__all__ = ["EXIT_BAD_INPUT", "EXIT_FAULT", "EXIT_INTERRUPTED", "interrupt", "run"]

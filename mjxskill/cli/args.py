@@ -8,6 +8,7 @@ import math
 from typing import Callable
 
 from mjxskill.errors import CommandError
+from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_VALIDATION_CANDIDATES
 
 
 def add_task_argument(parser: argparse.ArgumentParser) -> None:
@@ -15,6 +16,7 @@ def add_task_argument(parser: argparse.ArgumentParser) -> None:
 
 
 MAX_WORKERS = 256  # more processes than any one machine has cores would only cost memory
+MAX_FRAME_SIDE = 8192  # pixels of a rendered frame's side (8K); a frame is held whole in memory
 
 
 def add_workers_argument(parser: argparse.ArgumentParser) -> None:
@@ -53,11 +55,11 @@ def describe_cluster(info) -> str:
 def add_validation_arguments(parser: argparse.ArgumentParser, when: str, default: str) -> None:
     """The pick's validation flags (``mjxskill.evaluation.validation``) of experiment and evaluate;
     ``when``: to which picks they apply, ``default``: what applies without the flag (for the help)."""
-    parser.add_argument("--validation-per-config", type=int_at_least(0), metavar="N",
+    parser.add_argument("--validation-per-config", type=int_in(0, MAX_PER_CONFIG), metavar="N",
                         help=f"{when}: the best solutions within the force bound are rolled out again in N fresh worlds "
                              f"from each known start configuration and the best there is picked ({default}; 0: the "
                              "training success alone decides)")
-    parser.add_argument("--validation-candidates", type=positive_int, metavar="K",
+    parser.add_argument("--validation-candidates", type=int_in(1, MAX_VALIDATION_CANDIDATES), metavar="K",
                         help="how many solutions the validation rolls out (default 3: the best by training success)")
 
 

@@ -32,20 +32,23 @@ from mjxskill.evaluation.evaluate_run import FOLDER, differences_from_earlier, e
 from mjxskill.evaluation.pooled import force_bound, group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
 from mjxskill.evaluation.validation import in_contention, validate, validation_settings
 from mjxskill.experiment.directory import Experiment, is_done, repetition_settings, runs_of
+from mjxskill.runs.atomic_write import refuse_links_out, write_text
 from mjxskill.runs.layout import directory_kind, experiment_holding
 from mjxskill.runs.run_dir import Run
 from mjxskill.runs.run_task import load_run_task
 from mjxskill.runs.settings import BY_NAME
+from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_RANDOM_SETS
+from mjxskill.scenario.schema import MAX_BATCH
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="mjxskill.evaluate", description="Success rates of the Pareto solutions against baselines, per start configuration.")
     parser.add_argument("run", type=Path, help="run, repeated run or experiment directory")
-    parser.add_argument("--per-config", type=cli_args.positive_int, help="worlds per start configuration (default 5)")
-    parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets (default 10)")
+    parser.add_argument("--per-config", type=cli_args.int_in(1, MAX_PER_CONFIG), help="worlds per start configuration (default 5)")
+    parser.add_argument("--random", type=cli_args.int_in(0, MAX_RANDOM_SETS), help="random parameter sets (default 10)")
     parser.add_argument("--seed", type=cli_args.seed_type(), help="seed of the worlds (the evaluation's and a repeated run's "
                         "validation's) and the random sets (default 0; a repeated run's sub-run i: seed + i)")
-    parser.add_argument("--batch-size", type=cli_args.positive_int, help="candidates per compiled call (default: the run's batch size)")
+    parser.add_argument("--batch-size", type=cli_args.int_in(1, MAX_BATCH), help="candidates per compiled call (default: the run's batch size)")
     parser.add_argument("--episode-seconds", type=cli_args.setting_type(BY_NAME["episode_seconds"]),
                         help="episode length in s (default: the run's)")
     cli_args.add_workers_argument(parser)
@@ -88,6 +91,7 @@ def _progress(done: int, total: int) -> None:
 
 
 def _main(args: argparse.Namespace) -> int:
+    refuse_links_out(args.run)  # before anything in it is read
     kind = directory_kind(args.run)
     if kind == "experiment":
         return _experiment(args)
@@ -186,7 +190,7 @@ def _pool(run, config, results, bound) -> str:
                       for (_, c, _), p, v in zip(results, picks, validations)],
            "groups": group_means(samples), "samples": {g: {"known": len(v[0]), "unseen": len(v[1])} for g, v in samples.items()},
            "mann_whitney": tests}
-    (out / "pooled.json").write_text(json.dumps(doc, indent=1) + "\n")
+    write_text(out / "pooled.json", json.dumps(doc, indent=1) + "\n")
     lines = [f"seed {c.seed}: picked Pareto row {p.row}" for (_, c, _), p in zip(results, picks)]
     lines.append("bound on the commanded force: " + ("none" if bound[0] is None else f"{bound[0]:g} N") + f", {bound[1]}")
     return "\n".join([*lines, "", pooled_table(samples, tests), f"wrote {out / 'success.png'} and {out / 'pooled.json'}"])
@@ -201,6 +205,7 @@ def _experiment(args: argparse.Namespace) -> int:
 
     exp = Experiment(args.run)
     config, protocol = exp.config(), exp.protocol()
+    exp.state()  # the wall times the report shows: a damaged file is said before anything is written
     given = {"--per-config": (args.per_config, protocol.per_config), "--random": (args.random, protocol.random_sets),
              "--max-force": (args.max_force, protocol.max_force), "--episode-seconds": (args.episode_seconds, config.episode_seconds),
              "--engine": (args.engine and resolve_engine(args.engine)[0], config.engine)}

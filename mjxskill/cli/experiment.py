@@ -22,14 +22,17 @@ from typing import Sequence
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.cli.progress import Progress
-from mjxskill.cli.run_settings import add_setting_arguments, new_config, resumed_config
+from mjxskill.cli.run_settings import (accept_scenario, add_accept_scenario_change, add_setting_arguments, new_config,
+                                        resumed_config)
 from mjxskill.engine.build import build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 from mjxskill.experiment.directory import Experiment, Protocol, random_search_config
 from mjxskill.experiment.driver import run_experiment
 from mjxskill.experiment.report import write_report
 from mjxskill.evaluation.pooled import GIVEN, force_bound
-from mjxskill.runs.run_task import load_run_task, scenario_and_task
+from mjxskill.runs.atomic_write import refuse_links_out
+from mjxskill.runs.run_task import load_run_task, scenario_and_task, scenario_difference
+from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_RANDOM_SETS
 from mjxskill.task import describe, planning_texts
 
 # The evaluation's flags: name -> (default, what the protocol field is called)
@@ -48,15 +51,20 @@ def build_parser() -> argparse.ArgumentParser:
     cli_args.add_cluster_argument(parser)
     # train's --optimizer, refused by name (argparse would otherwise read it as --optimizer-option)
     parser.add_argument("--optimizer", type=_runs_both, help=argparse.SUPPRESS)
-    parser.add_argument("--per-config", type=cli_args.positive_int, help="evaluation worlds per start configuration (default 5)")
-    parser.add_argument("--random", type=cli_args.int_at_least(0), help="random parameter sets per evaluation (default 10)")
+    parser.add_argument("--per-config", type=cli_args.int_in(1, MAX_PER_CONFIG), help="evaluation worlds per start configuration (default 5)")
+    parser.add_argument("--random", type=cli_args.int_in(0, MAX_RANDOM_SETS), help="random parameter sets per evaluation (default 10)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N",
                         help="bound on the picked solution's commanded force, N (default: the scenario's pick.max_force)")
     cli_args.add_validation_arguments(parser, "before each pick", "default 5; on --resume the experiment's own, which "
                                               "this flag changes: the picks are made again, nothing is retrained")
     parser.add_argument("--out", type=Path, help="experiment directory (default runs/<task>-experiment-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="EXP_DIR", help="continue the experiment in EXP_DIR")
+    add_accept_scenario_change(parser)
     return parser
+
+
+def _said(difference) -> str | None:
+    return None if difference is None else difference.text()
 
 
 def _runs_both(text: str) -> str:
@@ -114,6 +122,7 @@ def _validation_words(protocol) -> str:
 def _main(args: argparse.Namespace) -> int:
     started = time.monotonic()
     if args.resume is not None:
+        refuse_links_out(args.resume)  # before anything in it is read
         exp = Experiment(args.resume)
         protocol = exp.protocol()
         config = resumed_config(args, exp.optimizer.path)
@@ -123,9 +132,15 @@ def _main(args: argparse.Namespace) -> int:
             raise CommandError(f"--resume continues {args.resume} with its own protocol; drop {', '.join(conflicts)}")
         with exp.lock():
             exp.config()  # both runs' configurations agree
+            exp.state()  # the wall times the report shows: a damaged file is said before anything is written
             exp.optimizer.check(config)
             exp.random_search.check(random_search_config(config))
             scn, task = load_run_task(exp.optimizer, config, scenario=args.task)
+            if _said(scenario_difference(exp.random_search, scn)) != _said(scenario_difference(exp.optimizer, scn)):
+                raise CommandError(f"{exp.random_search.path} and {exp.optimizer.path} hold different copies of the "
+                                   "scenario; the two would not be comparable")
+            if accept_scenario(args, exp.optimizer, scn):
+                config = exp.config()
             change_validation(args, exp, protocol)  # after every check: a refused resume changes nothing
             settle_bound(exp, scn)
             return _run(args, exp, config, scn, task, started)

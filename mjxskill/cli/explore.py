@@ -17,6 +17,8 @@ from typing import Sequence
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.errors import CommandError
+from mjxskill.runs.atomic_write import refuse_links_out
+from mjxskill.runs.bounds import MAX_PER_CONFIG
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
@@ -28,7 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                  "or an experiment directory of mjxskill.experiment")
     parser.add_argument("--port", type=cli_args.port, default=8765, help="TCP port (default 8765; 0: any free port)")
     parser.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
-    parser.add_argument("--per-config", type=cli_args.positive_int, default=5,
+    parser.add_argument("--per-config", type=cli_args.int_in(1, MAX_PER_CONFIG), default=5,
                         help="worlds per start configuration when a solution is rolled out on demand (default 5, as evaluate)")
     parser.add_argument("--seed", type=cli_args.int_at_least(0), default=0, help="seed of those worlds and of the rendered one")
     return parser
@@ -43,6 +45,7 @@ def _main(args: argparse.Namespace) -> int:
     from mjxskill.explore.server import Explorer, make_explore_server
     from mjxskill.explore.solutions import Solutions
 
+    refuse_links_out(args.run)  # before anything in it is read
     explorer = Explorer(args.run, Solutions(args.run, per_config=args.per_config, seed=args.seed))
     try:
         server = make_explore_server(explorer, args.host, args.port)

@@ -11,7 +11,8 @@ from pathlib import Path
 
 from mjxskill.cli import args as cli_args
 from mjxskill.errors import CommandError, ResumeConflict, SettingError
-from mjxskill.runs.run_dir import RunConfig
+from mjxskill.runs.run_dir import Run, RunConfig
+from mjxskill.runs.run_task import record_scenario_change, scenario_difference
 from mjxskill.runs.settings import BY_NAME, SETTINGS, optimizer_option_value
 from mjxskill.training.configure import new_run_config, resumed_run_config
 from mjxskill.training.priors import describe_prior
@@ -85,3 +86,26 @@ def resumed_config(args: argparse.Namespace, run_path: Path | None = None) -> Ru
     if args.out is not None and Path(args.out).resolve() != Path(args.resume).resolve():
         raise CommandError("--out and --resume name different directories; --resume writes into its own")
     return config
+
+
+def add_accept_scenario_change(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--accept-scenario-change", action="store_true", dest="accept_scenario_change",
+                        help="with --resume: continue although the scenario file differs from the run's copy "
+                             "(scenario.yaml); the change is recorded in config.yaml and the old copy kept")
+
+
+def accept_scenario(args: argparse.Namespace, run: Run, scn) -> bool:
+    """Refuses a resume whose scenario differs from the run's copy, naming the first difference,
+    unless --accept-scenario-change; with it, records the change under ``args.resume``. Returns
+    whether the run's files changed (its configuration must be read again)."""
+    difference = scenario_difference(run, scn)
+    if difference is None:
+        return False
+    if not args.accept_scenario_change:
+        raise CommandError(f"{args.task} is not the scenario {args.resume} was trained with (its copy "
+                           f"{difference.copy}): {difference.text()}; resume with the run's own scenario, or give "
+                           "--accept-scenario-change to continue with this one (recorded in config.yaml)")
+    record_scenario_change(args.resume, args.task, scn, difference)
+    print(f"{args.resume} continues with the scenario {args.task} ({difference.text()}); recorded in config.yaml, "
+          f"the previous copy kept", flush=True)
+    return True

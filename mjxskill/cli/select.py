@@ -28,6 +28,7 @@ from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.engine.build import build_rollout
 from mjxskill.errors import CommandError
+from mjxskill.runs.atomic_write import refuse_links_out
 from mjxskill.evaluation.render import RenderUnavailable, default_gl, render_episode, render_world
 from mjxskill.evaluation.selection import (
     best_unvalidated,
@@ -51,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--format", choices=("png", "mp4"), default="png", help="PNG frames (default) or an MP4 (needs ffmpeg)")
     parser.add_argument("--config-index", type=cli_args.int_at_least(0), default=0, help="known start configuration to render from (default 0)")
     parser.add_argument("--seed", type=cli_args.seed_type(), default=0, help="seed of the rendered world's randomization")
-    parser.add_argument("--size", type=cli_args.positive_int, nargs=2, default=(640, 480), metavar=("W", "H"), help="frame size in pixels")
+    parser.add_argument("--size", type=cli_args.int_in(1, cli_args.MAX_FRAME_SIDE), nargs=2, default=(640, 480), metavar=("W", "H"), help="frame size in pixels")
     return parser
 
 
@@ -100,6 +101,7 @@ def _main(args: argparse.Namespace) -> int:
     from mjxskill.runs.run_dir import concat_all
     from mjxskill.training.report import front_table
 
+    refuse_links_out(args.run)  # before anything in it is read
     fronts, several = _fronts(args.run)
     if args.min_success is not None and args.min_success > 1:
         raise CommandError(f"--min-success is a rate between 0 and 1, got {args.min_success}")

@@ -27,12 +27,14 @@ from typing import Sequence
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.cli.progress import Progress
-from mjxskill.cli.run_settings import add_setting_arguments, new_config, resumed_config
+from mjxskill.cli.run_settings import (accept_scenario, add_accept_scenario_change, add_setting_arguments, new_config,
+                                        resumed_config)
 from mjxskill.engine.build import build_rollout, resolve_engine
 from mjxskill.task import describe, planning_texts
 from mjxskill.training import report
 from mjxskill.training.loop import rollout_evaluator, train
 from mjxskill.training.priors import describe_prior
+from mjxskill.runs.atomic_write import refuse_links_out
 from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.run_task import load_run_task, scenario_and_task
 
@@ -58,10 +60,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--prior-from", type=Path, metavar="RUN_DIR", dest="prior_from",
                         help="guide the search by a prior built from the Pareto solutions of the earlier run in RUN_DIR "
                              "(same learnable parameters; overrides the scenario's parameter_priors; stored with the run)")
+    add_accept_scenario_change(parser)
     return parser
 
 
 def _main(args: argparse.Namespace) -> int:
+    for folder in (args.resume, args.prior_from):
+        if folder is not None:
+            refuse_links_out(folder)  # before anything in it is read
     if args.resume is not None:
         config = resumed_config(args)
         args.cluster = cli_args.connect_cluster(args, config.engine)
@@ -70,6 +76,8 @@ def _main(args: argparse.Namespace) -> int:
         with lock:
             run.check(config)
             scn, task = load_run_task(run, config, scenario=args.task)
+            if accept_scenario(args, run, scn):
+                config = run.config()
             return _train(args, run, config, scn, task)
     scn, task = scenario_and_task(args.task, args.goal)
     config = new_config(args, scn, task)

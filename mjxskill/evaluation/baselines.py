@@ -24,6 +24,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from mjxskill.training.report import pyplot
+from mjxskill.runs.atomic_write import replace_whole, save_figure
 
 
 GROUPS = ("pareto", "planner", "random", "manual")
@@ -217,7 +218,7 @@ def box_plot(samples: dict, reference: str, path: Path, title: str) -> dict:
     axes[0][0].set_ylabel("success rate (fraction of worlds)")
     fig.suptitle(f"{title}  (Mann-Whitney U vs {reference})", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path)
     plt.close(fig)
     return tests
 
@@ -243,21 +244,25 @@ def write_csv(ev: Evaluation, parameter_names: Sequence[str], path: Path) -> Non
     measured) the commanded force (peak_commanded_force_N) and the time to success."""
     present = [(head, getattr(ev, field), unit) for head, field, unit in CSV_METRICS if getattr(ev, field) is not None]
     force, seconds = ev.peak_commanded_force, ev.success_seconds
-    with open(path, "w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(["candidate", "group", *parameter_names, "success_known", "success_unseen",
-                         *(f"success_{c}" for c in ev.config_names)]
-                        + [f"{head}_{side}_{unit}" for head, _, unit in present for side in ("known", "unseen")]
-                        + ([] if force is None else ["peak_commanded_force_N"])
-                        + ([] if seconds is None else ["success_time_s"]))
-        known, unseen = ev.mean(True), ev.mean(False)
-        for i, name in enumerate(ev.candidates.names):
-            extra = [repr(float(values[i, cols].mean())) if cols.any() else "nan"
-                     for _, values, _ in present for cols in (ev.known, ~ev.known)]
-            extra += [] if force is None else [repr(float(force[i]))]
-            extra += [] if seconds is None else [repr(mean_success_seconds(ev, [i]))]
-            writer.writerow([name, ev.candidates.groups[i], *map(repr, map(float, ev.candidates.params[i])),
-                             repr(float(known[i])), repr(float(unseen[i])), *map(repr, map(float, ev.success[i]))] + extra)
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as fh:
+            writer = csv.writer(fh)
+            writer.writerow(["candidate", "group", *parameter_names, "success_known", "success_unseen",
+                             *(f"success_{c}" for c in ev.config_names)]
+                            + [f"{head}_{side}_{unit}" for head, _, unit in present for side in ("known", "unseen")]
+                            + ([] if force is None else ["peak_commanded_force_N"])
+                            + ([] if seconds is None else ["success_time_s"]))
+            known, unseen = ev.mean(True), ev.mean(False)
+            for i, name in enumerate(ev.candidates.names):
+                extra = [repr(float(values[i, cols].mean())) if cols.any() else "nan"
+                         for _, values, _ in present for cols in (ev.known, ~ev.known)]
+                extra += [] if force is None else [repr(float(force[i]))]
+                extra += [] if seconds is None else [repr(mean_success_seconds(ev, [i]))]
+                writer.writerow([name, ev.candidates.groups[i], *map(repr, map(float, ev.candidates.params[i])),
+                                 repr(float(known[i])), repr(float(unseen[i])), *map(repr, map(float, ev.success[i]))] + extra)
+
+    replace_whole(Path(path), write)
 
 
 def mean_success_seconds(ev: Evaluation, rows, cols=None) -> float:

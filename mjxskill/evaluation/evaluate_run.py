@@ -28,14 +28,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
-from mjxskill.runs.atomic_write import write_json
+from mjxskill.runs.atomic_write import append_text, write_json
 from mjxskill.evaluation.baselines import (
     CHUNK_FIELDS,
     Candidates,
@@ -120,10 +119,7 @@ def evaluate_run(run: Run, config: RunConfig, rollout, task, settings: dict, pro
         line = {"format": FORMAT, "settings": settings, "start": start,
                 "params": candidates.params[start : start + len(result["success"])].tolist(),
                 **{k: _plain(v) for k, v in result.items()}}
-        with open(chunk_path, "a") as fh:
-            fh.write(json.dumps(line) + "\n")
-            fh.flush()
-            os.fsync(fh.fileno())
+        append_text(chunk_path, json.dumps(line) + "\n")
         if progress is not None:
             progress(min(start + len(result["success"]), len(candidates.names)), len(candidates.names))
 

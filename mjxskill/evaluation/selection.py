@@ -21,6 +21,7 @@ content again is harmless.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from pathlib import Path
@@ -29,7 +30,7 @@ import numpy as np
 import yaml
 
 from mjxskill.errors import RunError
-from mjxskill.runs.atomic_write import write_text
+from mjxskill.runs.atomic_write import DISK_FAULTS, write_text
 
 
 def choose(front, max_force: float | None = None, min_success: float | None = None, validated=None) -> int:
@@ -140,12 +141,24 @@ def write_export(doc: dict, folder: Path) -> list[Path]:
     conflict = conflicting_export(doc, folder)
     if conflict is not None:
         raise RunError(f"{conflict} {what_is_there(conflict)}; it is kept: move it away, or export elsewhere")
+    made = not os.path.lexists(folder)
+    new = []  # the files this export adds: removed again when it cannot finish
     try:
         folder.mkdir(parents=True, exist_ok=True)
         paths = []
         for name, text in export_texts(doc).items():
+            if not os.path.lexists(folder / name):
+                new.append(folder / name)
             write_text(folder / name, text)
             paths.append(folder / name)
     except OSError as err:
+        for path in new:
+            with contextlib.suppress(OSError):
+                os.unlink(path)
+        if made:
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        if err.errno in DISK_FAULTS:  # the machine's, not the input's: the command says so (exit 1)
+            raise
         raise RunError(f"cannot write the export to {str(folder)!r}: {err.strerror}") from None
     return paths

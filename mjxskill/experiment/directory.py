@@ -13,6 +13,7 @@ only where nothing is, and written by one process at a time.
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from dataclasses import dataclass, replace
@@ -29,6 +30,7 @@ from mjxskill.runs.run_lock import RunLock, lock_run
 from mjxskill.evaluation.pooled import GIVEN, force_bound
 from mjxskill.evaluation.validation import validation_settings
 from mjxskill.runs.layout import EXPERIMENT, OPTIMIZER_RUNS, RANDOM_RUNS
+from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_RANDOM_SETS, MAX_VALIDATION_CANDIDATES
 
 FORMAT = "mjxskill.experiment/1"
 STATE = "state.json"
@@ -73,10 +75,11 @@ class Protocol:
             source = f["max_force_source"].string()
         else:  # written before the source was kept: a number was --max-force's; null is unsettled
             source = None if max_force is None else GIVEN
-        return cls(per_config=f["per_config"].integer(minimum=1), random_sets=f["random_sets"].integer(minimum=0),
+        return cls(per_config=f["per_config"].integer(minimum=1, maximum=MAX_PER_CONFIG),
+                   random_sets=f["random_sets"].integer(minimum=0, maximum=MAX_RANDOM_SETS),
                    max_force=max_force, max_force_source=source,
-                   validation_per_config=f["validation_per_config"].integer(minimum=0) if "validation_per_config" in f else 0,
-                   validation_candidates=f["validation_candidates"].integer(minimum=1) if "validation_candidates" in f else 3)
+                   validation_per_config=f["validation_per_config"].integer(minimum=0, maximum=MAX_PER_CONFIG) if "validation_per_config" in f else 0,
+                   validation_candidates=f["validation_candidates"].integer(minimum=1, maximum=MAX_VALIDATION_CANDIDATES) if "validation_candidates" in f else 3)
 
 
 def random_search_config(config: RunConfig) -> RunConfig:
@@ -163,8 +166,7 @@ class Experiment:
             return {"sessions": [], "times": {}}
         try:
             state = json.loads(read_text(path, RunError, "experiment state"))
-            if not isinstance(state.get("sessions"), list) or not isinstance(state.get("times"), dict):
-                raise ValueError("sessions and times expected")
+            _check_state(state)
         except (ValueError, AttributeError) as err:
             raise RunError(f"{path} is not an experiment state ({err}); delete it (only wall times are lost)") from None
         return state
@@ -186,6 +188,34 @@ class Experiment:
 
     def _write_state(self, state: dict) -> None:
         write_json(self.path / STATE, state)
+
+
+def _number(value) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value) and value >= 0
+
+
+SESSION_KEYS = {"started": lambda v: isinstance(v, str), "startup_seconds": _number, "engine": lambda v: isinstance(v, str),
+                "cpus": lambda v: v is None or (_number(v) and isinstance(v, int))}
+
+
+def _check_state(state) -> None:
+    """ValueError naming the first entry of state.json that is not what ``add_time`` and
+    ``add_session`` write (the report formats every one: a text where a number belongs was a
+    TypeError after report.json had been rewritten with it)."""
+    if not isinstance(state, dict) or not isinstance(state.get("sessions"), list) or not isinstance(state.get("times"), dict):
+        raise ValueError("sessions (a list) and times (a mapping) expected")
+    for i, session in enumerate(state["sessions"]):
+        if not isinstance(session, dict):
+            raise ValueError(f"sessions[{i}] is not a mapping")
+        for key, ok in SESSION_KEYS.items():
+            if key not in session or not ok(session[key]):
+                raise ValueError(f"sessions[{i}].{key} is {session.get(key, 'missing')!r}")
+    for key, entry in state["times"].items():
+        if not isinstance(entry, dict):
+            raise ValueError(f"times.{key} is not a mapping")
+        for field, value in entry.items():
+            if not _number(value):
+                raise ValueError(f"times.{key}.{field} is {value!r}, not a number of seconds or evaluations")
 
 
 def repetition_settings(config: RunConfig, protocol: Protocol, seed: int) -> dict:

@@ -9,6 +9,7 @@ import numpy as np
 
 from mjxskill.training.front import pareto_mask_of
 from mjxskill.training.report import objective_label, pyplot
+from mjxskill.runs.atomic_write import save_figure
 
 FRONTS = "fronts.png"
 HYPERVOLUME = "hypervolume.png"
@@ -36,7 +37,7 @@ def plot_fronts(reps, objective_names, task: str, path: Path) -> None:
     axes[0].set_ylabel(objective_label(objective_names[j]))
     fig.suptitle(f"{task}: one colour per repetition", fontsize=11)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path)
     plt.close(fig)
 
 
@@ -60,7 +61,7 @@ def plot_hypervolume(hv: dict, n_init: int, task: str, path: Path) -> None:
                  f"min/max, reference {ref})", fontsize=9)
     ax.legend(loc="lower right", fontsize="small")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path)
     plt.close(fig)
 
 

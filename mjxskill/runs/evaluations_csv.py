@@ -14,14 +14,13 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from mjxskill.errors import RunError
-from mjxskill.runs.atomic_write import open_nofollow, write_text
+from mjxskill.runs.atomic_write import append_text, write_text
 
 
 # The force columns after success_rate, N, each the mean over the worlds of a per-world value:
@@ -95,12 +94,10 @@ def write_csv(path: Path, columns: list[str], ev: Evaluations) -> None:
 
 
 def append_rows(path: Path, ev: Evaluations) -> None:
-    """Appends ``ev`` to a CSV in one write and forces it to disk before returning (RunError
-    when the CSV is a symbolic link: never appended to through one)."""
-    with os.fdopen(open_nofollow(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT), "a") as fh:
-        fh.write(format_rows(ev))
-        fh.flush()
-        os.fsync(fh.fileno())
+    """Appends ``ev`` to a CSV and forces it to disk before returning (RunError when the CSV is a
+    symbolic link: never appended to through one); when that fails (a full disk) the file is cut
+    back to what it was, so no part of a batch stays."""
+    append_text(path, format_rows(ev))
 
 
 class Rejected(NamedTuple):

@@ -69,6 +69,10 @@ class RunConfig:
     # address is not kept: it names a machine, not the run); None: on this machine. The results
     # do not depend on it, so a resume may run elsewhere.
     cluster: str | None = None
+    # A resume with a scenario whose content differed from the run's copy, accepted by the user
+    # (mjxskill.runs.run_task.record_scenario_change): ({"scenario": what it was resumed with,
+    # "evaluations": rows before it, "difference": the first one, "previous_copy": file}, ...).
+    scenario_changes: tuple = ()
 
     def to_yaml(self) -> str:
         data = {"format": FORMAT, **asdict(self)}
@@ -78,6 +82,9 @@ class RunConfig:
         data["objective_names"] = list(self.objective_names)
         data["optimizer_options"] = dict(self.optimizer_options)
         data["prior"] = None if self.prior is None else {key: self.prior[key] for key in PRIOR_KEYS}
+        data["scenario_changes"] = [dict(change) for change in self.scenario_changes]
+        if not self.scenario_changes:  # config.yaml of a run never resumed so stays as it was
+            del data["scenario_changes"]
         return yaml.safe_dump(data, sort_keys=False)
 
     @classmethod
@@ -90,7 +97,7 @@ class RunConfig:
         f = root.mapping(
             required=("format", *IDENTITY, *(s.name for s in SETTINGS if s.default is NO_DEFAULT)),
             optional=(*(s.name for s in SETTINGS if s.default is not NO_DEFAULT), "optimizer_options", "prior",
-                      "optimizer_defaults", "cluster"),
+                      "optimizer_defaults", "cluster", "scenario_changes"),
         )
         names = _names(f["parameter_names"], "parameter")
         units = _texts(f["parameter_units"])
@@ -135,10 +142,11 @@ class RunConfig:
             cluster = f["cluster"].scalar()
             if cluster not in CLUSTERS:
                 f["cluster"].fail(f"expected one of {', '.join(CLUSTERS)} or null, got {cluster!r}")
+        changes = _scenario_changes(f["scenario_changes"]) if "scenario_changes" in f else ()
         config = cls(task=f["task"].string(), scenario=f["scenario"].string(), parameter_names=names,
                      parameter_units=units, bounds=(tuple(bounds[0]), tuple(bounds[1])),
                      objective_names=_names(f["objective_names"], "objective"), optimizer_options=options, prior=prior,
-                     optimizer_defaults=generation, cluster=cluster, **values)
+                     optimizer_defaults=generation, cluster=cluster, scenario_changes=changes, **values)
         problem = optimizer_problem(config)
         if problem:
             f.get("optimizer_options", root).fail(problem)
@@ -154,6 +162,21 @@ class RunConfig:
 
 
 PRIOR_KEYS = ("source", "mean", "std", "weights")
+CHANGE_KEYS = ("scenario", "evaluations", "difference", "previous_copy")
+
+
+def _scenario_changes(field: Field) -> tuple:
+    """config.yaml's ``scenario_changes``: a list of mappings of CHANGE_KEYS."""
+    changes = []
+    for item in field.seq():
+        f = item.mapping(required=("scenario", "difference"), optional=("evaluations", "previous_copy"))
+        change = {"scenario": f["scenario"].string(), "difference": f["difference"].string()}
+        if "evaluations" in f:
+            change["evaluations"] = f["evaluations"].integer(minimum=0)
+        if "previous_copy" in f:
+            change["previous_copy"] = f["previous_copy"].string()
+        changes.append(change)
+    return tuple(changes)
 
 
 def _prior(field: Field, names, bounds) -> dict:

@@ -12,6 +12,7 @@ Layout of a run directory::
     .lock                the writer's lock and who holds it (run_lock)
     evaluations.csv.orig-<n>, evaluations-set-aside.csv
                          after a resume that could not use every line (resume)
+    scenario.yaml.orig-<n> the copy before a resume accepted another scenario (run_task)
 
 ``evaluations.csv`` is the source of truth: a run is resumed by replaying its rows into a fresh
 optimizer state, so a run killed at any moment loses at most the batch it was evaluating, and
@@ -42,7 +43,7 @@ import numpy as np
 
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
-from mjxskill.runs.atomic_write import write_text
+from mjxskill.runs.atomic_write import DISK_FAULTS, write_text
 from mjxskill.runs.evaluations_csv import (  # noqa: F401  (re-exported: the run's CSV format)
     Batches,
     Evaluations,
@@ -236,6 +237,8 @@ def created_whole(path: Path, what: str, on_failure=lambda: None):
         os.replace(staging, path)
     except OSError as err:
         shutil.rmtree(staging, ignore_errors=True)
+        if err.errno in DISK_FAULTS:  # the machine's, not the input's: the command says so (exit 1)
+            raise
         on_failure()
         raise RunError(f"cannot write the {what} {str(path)!r}: {err.strerror}") from None
     except BaseException:  # Ctrl-C half-way or a RunError inside: leave nothing behind

@@ -1,10 +1,17 @@
-"""One writer per run directory: an exclusive ``fcntl`` lock on ``RUN_DIR/.lock``.
+"""One writer per run directory: an exclusive ``fcntl`` lock on the directory itself and on
+``RUN_DIR/.lock``.
 
 Two ``train --resume`` of one run at once both replayed the file and both appended (6 rows for
 a budget of 4). The lock is taken before the evaluations are read and held until the command
 ends; a second writer fails at once with a ``RunError`` naming the holder (process id, host,
 start time, command line), which the holder wrote into the lock file. The kernel releases the
 lock when the holder exits, however it exits (a kill included), so a stale file never blocks.
+
+The lock that counts is the one on the directory (``flock`` of a descriptor opened on
+``RUN_DIR``): every finished run leaves its ``.lock``, which looks stale, and a user who deleted
+it while a resume ran let a second resume in (both appended every later batch). Deleting the
+directory deletes the run with it, so that lock cannot be sidestepped; ``.lock`` only says who
+holds it (a holder of an older version locked only the file, which is still taken too).
 """
 
 from __future__ import annotations
@@ -27,13 +34,16 @@ LOCK_FILE = ".lock"
 class RunLock:
     """A held lock; ``release()`` (or leaving the ``with`` block) lets the next writer in."""
 
-    def __init__(self, path: Path, fd: int):
-        self.path, self._fd = path, fd
+    def __init__(self, path: Path, fd: int, dir_fd: int):
+        self.path, self._fd, self._dir_fd = path, fd, dir_fd
 
     def release(self) -> None:
         if self._fd is not None:
             os.close(self._fd)  # closing the descriptor drops the flock
             self._fd = None
+        if self._dir_fd is not None:
+            os.close(self._dir_fd)
+            self._dir_fd = None
 
     def __enter__(self) -> "RunLock":
         return self
@@ -43,26 +53,59 @@ class RunLock:
 
 
 def lock_run(folder: Path) -> RunLock:
-    """Takes the writer's lock of the run in ``folder``; RunError if another process holds it."""
+    """Takes the writer's lock of the run in ``folder``; RunError if another process holds it
+    (also when it deleted the ``.lock`` file: the directory itself is locked)."""
     path = Path(folder) / LOCK_FILE
     try:
-        fd = open_nofollow(path, os.O_RDWR | os.O_CREAT)  # a link's target would be truncated below
+        dir_fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
     except OSError as err:
         raise RunError(f"cannot lock the run directory {str(folder)!r}: {err.strerror}") from None
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        fcntl.flock(dir_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as err:
+        os.close(dir_fd)
+        if err.errno in (errno.EWOULDBLOCK, errno.EACCES):
+            raise RunError(f"{folder} is being written by another process ({_holder_of(path)}); wait for it to "
+                           f"end or stop it, then run again") from None
+        raise RunError(f"cannot lock the run directory {str(folder)!r}: {err.strerror}") from None
+    try:
+        fd = open_nofollow(path, os.O_RDWR | os.O_CREAT)  # a link's target would be truncated below
+    except RunError:
+        os.close(dir_fd)
+        raise
+    except OSError as err:
+        os.close(dir_fd)
+        raise RunError(f"cannot lock the run directory {str(folder)!r}: {err.strerror}") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as err:  # a writer of before the directory was locked: it holds only the file
         holder = _holder(fd)
         os.close(fd)
+        os.close(dir_fd)
         if err.errno in (errno.EWOULDBLOCK, errno.EACCES):
             raise RunError(f"{folder} is being written by another process ({holder}); wait for it to end "
                            f"or stop it, then run again") from None
         raise RunError(f"cannot lock the run directory {str(folder)!r}: {err.strerror}") from None
     info = {"pid": os.getpid(), "host": socket.gethostname(), "since": time.strftime("%Y-%m-%d %H:%M:%S"),
             "command": " ".join([os.path.basename(sys.executable), *sys.argv])}
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
-    return RunLock(path, fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
+    except OSError:  # who holds the lock is a courtesy; a full disk must not stop the holder here
+        pass
+    return RunLock(path, fd, dir_fd)
+
+
+def _holder_of(path: Path) -> str:
+    """What the holder wrote about itself into ``path`` (read without following a link)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    except OSError:
+        return f"its {LOCK_FILE} file was removed, so it cannot say who it is"
+    try:
+        return _holder(fd)
+    finally:
+        os.close(fd)
 
 
 def _holder(fd: int) -> str:

@@ -19,7 +19,9 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from mjxskill.scenario.schema import MAX_EPISODE_SECONDS, MAX_SEED, MIN_N_INIT
+from mjxskill.scenario.schema import (MAX_BATCH, MAX_BATCH_EPISODES, MAX_BUDGET, MAX_EPISODE_SECONDS, MAX_REPEATS,
+                                     MAX_SEED, MAX_WORLDS, MIN_N_INIT)
+
 
 NO_DEFAULT = object()
 # Optuna's multi-objective samplers, an optional extra (mjxskill.training.optuna_search)
@@ -91,19 +93,20 @@ def _float(value) -> float:
 
 SETTINGS: tuple[Setting, ...] = (
     Setting("goal", "--goal", "text", "PDDL goal to plan instead of the scenario's", scenario=lambda scn: scn.goal),
-    Setting("budget", "--budget", "int", "evaluations (parameter sets) per run", minimum=1,
+    Setting("budget", "--budget", "int", "evaluations (parameter sets) per run", minimum=1, maximum=MAX_BUDGET,
             scenario=lambda scn: scn.optimizer.budget),
-    Setting("batch_size", "--batch-size", "int", "parameter sets per batch", minimum=1,
+    Setting("batch_size", "--batch-size", "int", "parameter sets per batch", minimum=1, maximum=MAX_BATCH,
             scenario=lambda scn: scn.optimizer.batch_size),
     Setting("n_init", "--init", "int", "random warm-up evaluations", minimum=MIN_N_INIT,
             scenario=lambda scn: scn.optimizer.n_init),
-    Setting("worlds", "--worlds", "int", "randomized worlds per parameter set", minimum=1,
+    Setting("worlds", "--worlds", "int", "randomized worlds per parameter set", minimum=1, maximum=MAX_WORLDS,
             scenario=lambda scn: scn.randomization.n_worlds),
     Setting("seed", "--seed", "int", "seed of the optimizer and the worlds", minimum=0, maximum=MAX_SEED,
             scenario=lambda scn: scn.optimizer.seed),
     Setting("episode_seconds", "--episode-seconds", "float", "episode length in s", maximum=MAX_EPISODE_SECONDS,
             unit="s", scenario=lambda scn: scn.episode_seconds),
-    Setting("repeats", "--repeats", "int", "independent runs with seeds seed..seed+N-1", minimum=1, default=1),
+    Setting("repeats", "--repeats", "int", "independent runs with seeds seed..seed+N-1", minimum=1, maximum=MAX_REPEATS,
+            default=1),
     # A new run stores the engine "auto" resolves to (mjxskill.engine.build); runs from before the
     # setting ran on MJX.
     Setting("engine", "--engine", "text", "physics engine: mjx (compiled MJX), native (native MuJoCo, one process "
@@ -128,6 +131,9 @@ def cross_problems(values: dict) -> list[tuple[str, str]]:
     problems = []
     if values["n_init"] > values["budget"]:
         problems.append(("n_init", f"exceeds the budget of {values['budget']} evaluations"))
+    if values["batch_size"] * values["worlds"] > MAX_BATCH_EPISODES:
+        problems.append(("worlds", f"with batches of {values['batch_size']} make {values['batch_size'] * values['worlds']} "
+                                   f"episodes per call, more than {MAX_BATCH_EPISODES}"))
     if values["seed"] + values.get("repeats", 1) - 1 > MAX_SEED:
         problems.append(("repeats", f"make seeds beyond {MAX_SEED} (seed {values['seed']})"))
     return problems

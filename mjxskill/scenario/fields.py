@@ -8,7 +8,10 @@ What is read is bounded before anything is built from it: files over ``MAX_BYTES
 (a 20 MB scenario took 144 s and 1.8 GB to compose), the text must be UTF-8, only the plain
 YAML tags are accepted (``!kg`` or ``!!python/...`` name no value we know), and aliases may not
 expand the document beyond ``MAX_NODES`` nodes (a 1 KB "billion laughs" document is harmless
-as a node graph but explodes wherever it is walked or printed). The error class is the
+as a node graph but explodes wherever it is walked or printed), and lists and mappings may nest
+at most ``MAX_DEPTH`` deep (composing is recursive: a 47 KB scenario nested 20,000 deep was a
+RecursionError in every command; the check counts while composing, so it is refused at the
+first node too deep, with its line). The error class is the
 caller's: ``ScenarioError`` for scenarios, ``RunError`` for a run's ``config.yaml``.
 """
 
@@ -25,6 +28,7 @@ _constructor = yaml.constructor.SafeConstructor()
 
 MAX_BYTES = 1 << 20  # the shipped scenarios are about 10 KB
 MAX_NODES = 100_000  # nodes after alias expansion; the shipped scenarios have about 2,000
+MAX_DEPTH = 64  # lists and mappings inside one another; the shipped scenarios nest 7 deep
 _STANDARD = "tag:yaml.org,2002:"
 # What the safe loader resolves plain values to, plus the two collections.
 ALLOWED_TAGS = frozenset(_STANDARD + t for t in ("null", "bool", "int", "float", "str", "timestamp", "seq", "map"))
@@ -53,11 +57,37 @@ def compose_file(path: Path, error: type[UserError] = ScenarioError, what: str =
     return compose_text(read_text(path, error, what), str(path), error)
 
 
+class _TooDeep(Exception):
+    def __init__(self, mark):
+        super().__init__()
+        self.mark = mark
+
+
+class _BoundedLoader(yaml.SafeLoader):
+    """The safe loader's composer, refusing collections nested deeper than MAX_DEPTH."""
+
+    _depth = 0
+
+    def compose_node(self, parent, index):
+        if not self.check_event(yaml.SequenceStartEvent, yaml.MappingStartEvent):
+            return super().compose_node(parent, index)  # a value or an alias: no deeper
+        self._depth += 1
+        try:
+            if self._depth > MAX_DEPTH:
+                raise _TooDeep(self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+
 def compose_text(text: str, source: str, error: type[UserError] = ScenarioError) -> "Field":
-    """The YAML document ``text`` (read from ``source``) as a root Field, checked for tags and
-    alias expansion; raises ``error`` naming ``source`` and the line."""
+    """The YAML document ``text`` (read from ``source``) as a root Field, checked for tags,
+    nesting and alias expansion; raises ``error`` naming ``source`` and the line."""
     try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        node = yaml.compose(text, Loader=_BoundedLoader)
+    except _TooDeep as err:
+        raise error(f"{source} (line {err.mark.line + 1}, column {err.mark.column + 1}): lists and mappings nest more "
+                    f"than {MAX_DEPTH} deep; refusing the document") from None
     except yaml.YAMLError as err:
         raise error(f"{source}{_mark(err, text)}: not valid YAML: {_problem(err)}") from None
     if node is None:

@@ -36,6 +36,15 @@ from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS
 MAX_EPISODE_SECONDS = 3600.0  # an hour of simulated time; the shipped episodes last 12 and 18 s
 MAX_SEED = 2**32 - 1  # seeds become uint32 PRNG keys and numpy seed words
 MIN_N_INIT = 2  # the optimizer's warm-up needs two points to fit a model
+# Upper bounds on what sizes the work, each far beyond any run we know of, so that a typo (an
+# extra zero or three) is refused before a run directory is written instead of exhausting the
+# machine after it (--repeats 100000 wrote 20,908 seed folders in a minute; --worlds 100000 and
+# --batch-size 10**9 died allocating after the directory existed; --budget 10**12 grew memory).
+MAX_BUDGET = 100_000  # evaluations per run; the paper's runs have 400, the GP is cubic in them
+MAX_BATCH = 4096  # parameter sets per batch
+MAX_WORLDS = 4096  # randomized worlds per parameter set; the paper uses 7
+MAX_BATCH_EPISODES = 262_144  # batch x worlds: the episodes of one call (64 x 4096), all held in memory at once
+MAX_REPEATS = 1000  # repetitions of a run or an experiment (one folder each); the paper has 10
 
 
 def frozen_array(values, dtype=np.float64) -> np.ndarray:

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 from mjxskill.scenario.fields import Field
 from mjxskill.scenario.schema import (
+    MAX_BATCH,
+    MAX_BUDGET,
+    MAX_REPEATS,
     MAX_SEED,
+    MAX_WORLDS,
     MIN_N_INIT,
     Optimizer,
     PickBound,
@@ -105,17 +109,17 @@ def randomization(field: Field, object_names) -> Randomization:
         if not 0 <= low <= high:
             f["friction_range"].fail(f"expected 0 <= low <= high, got [{low}, {high}]")
         friction = (low, high)
-    return Randomization(frozen_mapping(sigma), clip, friction, f["n_worlds"].integer(minimum=1))
+    return Randomization(frozen_mapping(sigma), clip, friction, f["n_worlds"].integer(minimum=1, maximum=MAX_WORLDS))
 
 
 def optimizer(field: Field) -> Optimizer:
     f = field.mapping(required=("budget", "batch_size", "n_init", "seed", "repetitions"))
     opt = Optimizer(
-        budget=f["budget"].integer(minimum=1),
-        batch_size=f["batch_size"].integer(minimum=1),
+        budget=f["budget"].integer(minimum=1, maximum=MAX_BUDGET),
+        batch_size=f["batch_size"].integer(minimum=1, maximum=MAX_BATCH),
         n_init=f["n_init"].integer(minimum=MIN_N_INIT),
         seed=f["seed"].integer(minimum=0, maximum=MAX_SEED),
-        repetitions=f["repetitions"].integer(minimum=1),
+        repetitions=f["repetitions"].integer(minimum=1, maximum=MAX_REPEATS),
     )
     if opt.n_init > opt.budget:
         f["n_init"].fail(f"n_init {opt.n_init} exceeds the budget {opt.budget}")

@@ -14,6 +14,7 @@ import yaml
 
 from mjxskill.runs.run_dir import Evaluations, Run, RunConfig
 from mjxskill.training.front import hypervolume_history, pareto_mask_of, reference_from
+from mjxskill.runs.atomic_write import save_figure, write_text
 
 OBJECTIVE_UNIT = "reward, larger is better"
 
@@ -51,7 +52,7 @@ def plot_pareto(ev: Evaluations, mask: np.ndarray, config: RunConfig, path: Path
     ax.set_title(f"{config.task}: {len(ev)} evaluations, seed {config.seed}")
     ax.legend(loc="best")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path)
     plt.close(fig)
 
 
@@ -65,7 +66,7 @@ def plot_hypervolume(evaluations: np.ndarray, hv: np.ndarray, config: RunConfig,
     ax.set_title(f"{config.task}: hypervolume of the front, seed {config.seed}\n(negated objectives, reference fixed after warm-up)", fontsize=10)
     ax.legend(loc="lower right")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path)
     plt.close(fig)
 
 
@@ -126,9 +127,7 @@ def write_repeats(run: Run, config: RunConfig, runs: list[Run]) -> str:
     ax.set_title(f"{config.task}: Pareto fronts of {len(runs)} runs (mean size {mean:.1f})")
     ax.legend(loc="best", fontsize="small")
     fig.tight_layout()
-    fig.savefig(run.path / "pareto_runs.png", dpi=120)
+    save_figure(fig, run.path / "pareto_runs.png")
     plt.close(fig)
-    (run.path / "repeats.yaml").write_text(
-        yaml.safe_dump({"pareto_sizes": sizes, "mean_pareto_size": mean}, sort_keys=False)
-    )
+    write_text(run.path / "repeats.yaml", yaml.safe_dump({"pareto_sizes": sizes, "mean_pareto_size": mean}, sort_keys=False))
     return f"{len(runs)} runs, mean Pareto front size {mean:.1f} (per seed: {sizes}); plot {run.path / 'pareto_runs.png'}"
