@@ -3,6 +3,7 @@ place of the physics: which runs it holds, which repetitions are finished, the p
 groups and tests, the normalized hypervolume and front sizes, report.json and report.md."""
 
 import json
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -423,15 +424,18 @@ def test_an_experiment_whose_bound_was_the_operators_gets_the_scenarios(experime
     assert (given.max_force, given.max_force_source) == (3.0, "given (--max-force)")
 
 
-@pytest.mark.parametrize("name, text, message", DAMAGED)
-def test_a_damaged_experiment_file_is_one_error_line_naming_file_key_and_line(experiment, tmp_path, capsys, name, text, message):
-    import shutil
-
+def damaged_copy(experiment, tmp_path, name, text):
+    """A copy of the finished experiment with ``name`` replaced by ``text``, and its snapshot."""
     exp, _ = experiment
     copy = tmp_path / "exp"
     shutil.copytree(exp.path, copy)
     (copy / name).write_text(text)
-    before = snapshot(copy)
+    return copy, snapshot(copy)
+
+
+@pytest.mark.parametrize("name, text, message", DAMAGED)
+def test_a_damaged_experiment_file_is_one_error_line_naming_file_key_and_line(experiment, tmp_path, capsys, name, text, message):
+    copy, before = damaged_copy(experiment, tmp_path, name, text)
     code, stderr = invoke(capsys, "experiment", "push", "--resume", copy)
     error_line(code, stderr, "experiment", str(copy / name), message)
     assert snapshot(copy) == before
@@ -439,13 +443,7 @@ def test_a_damaged_experiment_file_is_one_error_line_naming_file_key_and_line(ex
 
 @pytest.mark.parametrize("name, text, message", [case for case in DAMAGED if case[0] == "state.json"])
 def test_evaluate_refuses_a_damaged_state_before_the_report_is_rewritten(experiment, tmp_path, capsys, name, text, message):
-    import shutil
-
-    exp, _ = experiment
-    copy = tmp_path / "exp"
-    shutil.copytree(exp.path, copy)
-    (copy / name).write_text(text)
-    before = snapshot(copy)
+    copy, before = damaged_copy(experiment, tmp_path, name, text)
     code, stderr = invoke(capsys, "evaluate", copy)
     error_line(code, stderr, "evaluate", str(copy / name), message)
     assert snapshot(copy) == before  # report.json and report.md included
