@@ -35,6 +35,15 @@ def _host_inner(a, b):
     return np.dot(a, b) if a.ndim == b.ndim == 1 else np.sum(a * b, axis=-1)
 
 
+def _host_moveaxis(a, source, destination):
+    """``np.moveaxis``, with the last axis to the front as a plain transpose: the native engine
+    unpacks every quaternion that way, and numpy's axis normalization cost more than the view."""
+    a = np.asarray(a)
+    if source == -1 and destination == 0:
+        return a.transpose((a.ndim - 1, *range(a.ndim - 1)))
+    return np.moveaxis(a, source, destination)
+
+
 class _Namespace:
     """An array module with a few of its functions replaced (the attributes set on it)."""
 
@@ -54,6 +63,7 @@ HOST = _Namespace(
     np,
     float_dtype=np.float64,
     inner=_host_inner,
+    moveaxis=_host_moveaxis,
     exp=_per_value(math.exp, np.exp),
     arccos=_per_value(math.acos, np.arccos),
     arctan2=_per_value(math.atan2, np.arctan2),
