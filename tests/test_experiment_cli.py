@@ -195,7 +195,7 @@ def test_select_lists_without_a_damaged_or_stale_validation(experiment, tmp_path
     doc["params"][0] = [v + 1.0 for v in doc["params"][0]]
     seed1.write_text(json.dumps(doc))
     run = Run(copy / "optimizer" / "seed-1")
-    rates, worlds = validated_success(run, run.front(run.config()))
+    rates, worlds, _ = validated_success(run, run.front(run.config()))
     assert np.isnan(rates[doc["rows"][0]]) and worlds == doc["worlds"]
     assert all(not np.isnan(rates[r]) for r in doc["rows"][1:])
     seed0.write_text("{not json")

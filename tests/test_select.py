@@ -66,6 +66,19 @@ def test_a_validated_solution_goes_first_by_its_validation_success(max_force, mi
         assert choose(FRONT, validated=np.full(4, np.nan)) == choose(FRONT) == 3  # none validated: as before
 
 
+def test_between_equal_validations_the_faster_goes_first_as_in_the_experiments_pick():
+    validated = np.array([np.nan, 0.8, 0.8, 0.8])
+    # rows 1-3 equally validated; row 3 the best in training, row 2 the fastest in validation
+    assert choose(FRONT, validated=validated) == 3  # no times: training success decides
+    assert choose(FRONT, validated=validated, validated_seconds=np.array([np.nan, 9.0, 6.5, 8.0])) == 2
+    assert choose(FRONT, 10.0, None, validated, np.array([np.nan, 6.0, 7.0, 1.0])) == 1  # row 3 above 10 N
+    # a time unknown counts as slower than any known one
+    assert choose(FRONT, validated=validated, validated_seconds=np.array([np.nan, np.nan, 9.0, np.nan])) == 2
+    # a higher validation success still beats a faster one
+    assert choose(FRONT, validated=np.array([np.nan, 0.9, 0.8, 0.8]),
+                  validated_seconds=np.array([np.nan, 11.0, 2.0, 2.0])) == 1
+
+
 def test_select_names_the_best_unvalidated_row_beside_a_validated_pick():
     from mjxskill.evaluation.selection import best_unvalidated
 

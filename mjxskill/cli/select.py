@@ -107,9 +107,11 @@ def _main(args: argparse.Namespace) -> int:
         raise CommandError(f"--min-success is a rate between 0 and 1, got {args.min_success}")
     _, run, config, _ = fronts[0]
     union = concat_all([f for *_, f in fronts], len(config.parameter_names), len(config.objective_names))
+    seconds = []  # the validation's mean times to success, for the tie-break between equal validations
     validated, worlds = validated_union(((run, front) for _, run, _, front in fronts),
                                         damaged=lambda message: print(f"{build_parser().prog}: warning: {message}; "
-                                                                      "listed without its validation", file=sys.stderr))
+                                                                      "listed without its validation", file=sys.stderr),
+                                        seconds=seconds)
     owner = [(ref, sub, c, k) for ref, sub, c, f in fronts for k in range(len(f))]  # union row -> its run and row
     if several:
         print(f"Pareto fronts of the {len(fronts)} trained runs in {args.run} ({len(union)} solutions; # numbers them all, "
@@ -132,7 +134,7 @@ def _main(args: argparse.Namespace) -> int:
             raise CommandError(f"--pick {args.pick}: the front{'s have' if several else ' has'} rows 0-{len(union) - 1}")
         i = args.pick
     else:
-        i = choose(union, args.max_force, args.min_success, validated)
+        i = choose(union, args.max_force, args.min_success, validated, seconds or None)
         if validated is not None:
             _say_what_decided(union, i, validated, best_unvalidated(union, args.max_force, args.min_success, validated), owner)
     ref, run, config, k = owner[i]

@@ -33,12 +33,15 @@ from mjxskill.errors import RunError
 from mjxskill.runs.atomic_write import DISK_FAULTS, write_text
 
 
-def choose(front, max_force: float | None = None, min_success: float | None = None, validated=None) -> int:
+def choose(front, max_force: float | None = None, min_success: float | None = None, validated=None,
+           validated_seconds=None) -> int:
     """Row of ``front`` (Evaluations) meeting the limits with the best success rate, ties by
     the first objective. ``validated``: (len(front),) validation success rates, NaN where a row
-    has none; a validated row meeting the limits goes first, by that rate (then the training
-    success, the first objective), and is held to ``min_success`` by it. Raises RunError when
-    no row meets them."""
+    has none; a validated row meeting the limits goes first, by that rate (then the faster by
+    ``validated_seconds``, its mean time to success in the validation with a failure counted as
+    the whole episode, NaN where unknown; then the training success, the first objective), and
+    is held to ``min_success`` by it: the experiment's pick (``pooled.pick``). Raises RunError
+    when no row meets them."""
     validated = np.full(len(front), np.nan) if validated is None else np.asarray(validated, np.float64)
     has_validation = ~np.isnan(validated)
     success = np.where(has_validation, validated, front.success_rate)
@@ -61,7 +64,10 @@ def choose(front, max_force: float | None = None, min_success: float | None = No
                            + (" (the validation's where a row has one)" if has_validation.any() else ""))
     validated_ok = ok & has_validation
     rows = np.flatnonzero(validated_ok if validated_ok.any() else ok)
-    order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows], -np.nan_to_num(validated[rows], nan=0.0)))
+    seconds = np.full(len(front), np.inf) if validated_seconds is None else np.nan_to_num(
+        np.asarray(validated_seconds, np.float64), nan=np.inf)
+    order = np.lexsort((-front.objectives[rows, 0], -front.success_rate[rows], seconds[rows],
+                        -np.nan_to_num(validated[rows], nan=0.0)))
     return int(rows[order[0]])
 
 

@@ -158,28 +158,34 @@ def _seconds(values, n: int, run: Run) -> np.ndarray:
     return seconds
 
 
-def validated_success(run: Run, front: Evaluations) -> tuple[np.ndarray, int] | None:
+def validated_success(run: Run, front: Evaluations) -> tuple[np.ndarray, int, np.ndarray] | None:
     """What ``run``'s validation.json says of its current ``front``, whatever its settings (what
     ``select`` shows): (len(front),) success rates, NaN for a row it did not validate or whose
-    parameters changed since, and its world count; None when the run has no validation. RunError
-    when the file is damaged."""
+    parameters changed since, its world count, and (len(front),) mean times to success (a
+    failure counted as the whole episode; NaN where not validated or not recorded); None when
+    the run has no validation. RunError when the file is damaged."""
     stored = _read(run)
     if stored is None:
         return None
-    _, stored_rows, worlds, params, success = stored
-    out = np.full(len(front), np.nan)
+    doc, stored_rows, worlds, params, success = stored
+    times = doc.get("seconds")
+    times = None if times is None else _seconds(times, len(stored_rows), run)
+    out, seconds = np.full(len(front), np.nan), np.full(len(front), np.nan)
     for i, r in enumerate(stored_rows):
         if r < len(front) and np.array_equal(params[i], front.params[r]):
             out[r] = success[i]
-    return out, worlds
+            if times is not None:
+                seconds[r] = times[i]
+    return out, worlds, seconds
 
 
-def validated_union(runs_and_fronts, damaged=None) -> tuple[np.ndarray | None, np.ndarray | None]:
+def validated_union(runs_and_fronts, damaged=None, seconds: list | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:
     """:func:`validated_success` over several (run, front) pairs, the fronts concatenated in
     order (as ``select`` lists them): (their rates, NaN where none; each row's validation world
     count, 0 where none), or (None, None) when no run has a validation. A damaged
     validation.json counts as none and its RunError's message goes to ``damaged`` (None:
-    ignored): a listing is still of use without it."""
+    ignored): a listing is still of use without it. ``seconds``, a list if given, gets the rows'
+    mean validation times to success appended (NaN where none), for the pick's tie-break."""
     pairs = list(runs_and_fronts)
 
     def read(run, front):
@@ -193,6 +199,9 @@ def validated_union(runs_and_fronts, damaged=None) -> tuple[np.ndarray | None, n
     found = [read(run, front) for run, front in pairs]
     if all(v is None for v in found):
         return None, None
+    if seconds is not None:
+        seconds.extend(np.concatenate([np.full(len(front), np.nan) if v is None else v[2]
+                                       for v, (_, front) in zip(found, pairs)]).tolist())
     rates = np.concatenate([np.full(len(front), np.nan) if v is None else v[0] for v, (_, front) in zip(found, pairs)])
     worlds = np.concatenate([np.zeros(len(front), int) if v is None else np.full(len(front), v[1])
                              for v, (_, front) in zip(found, pairs)])
