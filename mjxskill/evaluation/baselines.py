@@ -23,7 +23,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from mjxskill.training.report import plotting, pyplot
+from mjxskill.training.report import pyplot
 
 
 GROUPS = ("pareto", "planner", "random", "manual")
@@ -193,7 +193,6 @@ def group_samples(ev: Evaluation, group: str, known: bool) -> np.ndarray:
     return ev.success[np.ix_(rows, cols)].ravel()
 
 
-@plotting
 def box_plot(samples: dict, reference: str, path: Path, title: str) -> dict:
     """Box plots of ``samples`` (label -> (known samples, unseen samples)), known and unseen
     panels side by side, each group tested against ``reference`` (a label) with its stars above;

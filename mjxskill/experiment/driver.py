@@ -15,8 +15,12 @@ Given several rollouts (``run_experiment(exp, [rollout, ...])``: the experiment 
 cluster, each rollout on its own share of the cluster's actors), as many repetitions run at the
 same time, one thread per rollout taking the next repetition when its own is finished. Each
 repetition is still one thread's, which writes its two runs as above (one writer per run
-directory, its lock held); this thread writes the report after each finished repetition, in
-the order they finish, and nothing else. The results do not depend on it: every episode is
+directory, its lock held); the calling thread writes the report after each finished repetition,
+in the order they finish. What runs at the same time is the episodes, on the cluster: in this
+process the threads take turns (``_Turns``: one lock, released only while a thread waits for its
+episodes), because two JAX programs run at once from two threads deadlocked XLA's CPU thread
+pool on a 2-core driver (the optimizer's proposals, seen with py-spy), and pyplot, drawing the
+figures, keeps global state. The results do not depend on any of it: every episode is
 deterministic and every run is seeded by its own seed. Ctrl-C (or a repetition's error) closes
 every rollout, which stops their Ray work at once (the batches being run are lost, the finished
 ones are on disk, as a sequential run's), and is raised here once the threads have stopped.
@@ -169,8 +173,34 @@ def run_experiment(exp: Experiment, rollout, task, *, progress_for, log: Callabl
             log(write_repeats(repeated, repeated.config(), [p for p in repeated.sub_runs(repeated.config())]))
 
 
+class _Turns:
+    """A rollout whose episodes run without ``lock`` (held by its repetition's thread otherwise):
+    the episodes of several repetitions run at the same time on the cluster, and all else in
+    this process one thread at a time (the module docstring). The calls the training loop and
+    the evaluations make: ``__call__``, ``run_worlds``; the rest is the rollout's own."""
+
+    def __init__(self, rollout, lock: threading.Lock):
+        self._rollout, self._lock = rollout, lock
+
+    def __getattr__(self, name):
+        return getattr(self._rollout, name)
+
+    def __call__(self, params, key):
+        params = self._rollout.check_params(params)  # as the rollout's own __call__, its worlds drawn in turn
+        return self.run_worlds(params, self._rollout.sample_worlds(key, len(params)))
+
+    def run_worlds(self, params, worlds, **how):
+        self._lock.release()
+        try:
+            return self._rollout.run_worlds(params, worlds, **how)
+        finally:
+            self._lock.acquire()
+
+
 def _concurrently(exp: Experiment, rollouts: Sequence, count: int, task, steps: dict) -> None:
-    """Repetitions 0..count-1 on one thread per rollout; the report after each (here)."""
+    """Repetitions 0..count-1 on one thread per rollout, taking turns but for their episodes;
+    the report after each (here, in turn too)."""
+    turn = threading.Lock()
     todo: queue.SimpleQueue = queue.SimpleQueue()
     for i in range(count):
         todo.put(i)
@@ -184,7 +214,8 @@ def _concurrently(exp: Experiment, rollouts: Sequence, count: int, task, steps: 
             except queue.Empty:
                 return
             try:
-                run_repetition(exp, i, rollout, task, **steps)
+                with turn:
+                    run_repetition(exp, i, _Turns(rollout, turn), task, **steps)
             except BaseException as err:  # noqa: BLE001  (handed to the main thread, raised there)
                 finished.put((i, err))
                 return
@@ -205,7 +236,9 @@ def _concurrently(exp: Experiment, rollouts: Sequence, count: int, task, steps: 
                         raise RuntimeError("the experiment's repetition threads ended with repetitions left") from None
             if err is not None:
                 raise err
-            steps["log"](write_report(exp))
+            with turn:
+                said = write_report(exp)
+            steps["log"](said)
     except BaseException:
         stop.set()
         for rollout in rollouts:

@@ -8,14 +8,13 @@ from pathlib import Path
 import numpy as np
 
 from mjxskill.training.front import pareto_mask_of
-from mjxskill.training.report import objective_label, plotting, pyplot
+from mjxskill.training.report import objective_label, pyplot
 
 FRONTS = "fronts.png"
 HYPERVOLUME = "hypervolume.png"
 SUCCESS = "success.png"
 
 
-@plotting
 def plot_fronts(reps, objective_names, task: str, path: Path) -> None:
     """One panel per kind (optimizer, random search), one colour per repetition (paper Fig. 3, 5)."""
     plt = pyplot()
@@ -41,7 +40,6 @@ def plot_fronts(reps, objective_names, task: str, path: Path) -> None:
     plt.close(fig)
 
 
-@plotting
 def plot_hypervolume(hv: dict, n_init: int, task: str, path: Path) -> None:
     """Median and quartiles over the repetitions of the normalized hypervolume per kind."""
     plt = pyplot()

@@ -7,8 +7,6 @@ reference point (see ``mjxskill.training.front``).
 
 from __future__ import annotations
 
-import functools
-import threading
 from pathlib import Path
 
 import numpy as np
@@ -20,26 +18,8 @@ from mjxskill.training.front import hypervolume_history, pareto_mask_of, referen
 OBJECTIVE_UNIT = "reward, larger is better"
 
 
-# pyplot keeps global state (the figures it manages): an experiment on a Ray cluster draws from
-# several threads (one per repetition running at the same time), so every function that draws
-# holds this lock (``plotting``)
-PLOT_LOCK = threading.RLock()
-
-
-def plotting(draw):
-    """``draw`` (a function that draws with pyplot) holding ``PLOT_LOCK``."""
-
-    @functools.wraps(draw)
-    def locked(*args, **kwargs):
-        with PLOT_LOCK:
-            return draw(*args, **kwargs)
-
-    return locked
-
-
 def pyplot():
-    """matplotlib.pyplot on the Agg backend (files only, no display needed); draw inside a
-    function decorated with ``plotting``."""
+    """matplotlib.pyplot on the Agg backend (files only, no display needed)."""
     # lazy: pyplot costs ~0.4 s; train, select and evaluate import this module for --help and
     # bad-input errors too
     import matplotlib
@@ -54,7 +34,6 @@ def objective_label(name: str) -> str:
     return f"objective {name} ({OBJECTIVE_UNIT})"
 
 
-@plotting
 def plot_pareto(ev: Evaluations, mask: np.ndarray, config: RunConfig, path: Path, i: int = 0, j: int = 1) -> None:
     """All evaluations (coloured by success rate) and the Pareto front in objectives i, j."""
     plt = pyplot()
@@ -76,7 +55,6 @@ def plot_pareto(ev: Evaluations, mask: np.ndarray, config: RunConfig, path: Path
     plt.close(fig)
 
 
-@plotting
 def plot_hypervolume(evaluations: np.ndarray, hv: np.ndarray, config: RunConfig, path: Path, n_init: int) -> None:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
@@ -127,7 +105,6 @@ def summary(run: Run, config: RunConfig, ev: Evaluations) -> str:
             f"hypervolume {hv:.4g}, Pareto front of {len(front)}:\n" + front_table(config, front))
 
 
-@plotting
 def write_repeats(run: Run, config: RunConfig, runs: list[Run]) -> str:
     """Aggregated Pareto plot (one colour per seed) and repeats.yaml; returns a summary line."""
     plt = pyplot()
