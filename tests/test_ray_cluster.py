@@ -144,7 +144,8 @@ def test_an_experiment_on_the_cluster_runs_its_repetitions_at_once_with_the_figu
     assert c["ended"] <= d["started"]  # one after the other
 
     reports = [json.loads((tmp_path / name / "report.json").read_text()) for name in ("ray", "local")]
-    for report in reports:  # the wall times and sessions differ, and only they
+    assert (reports[0]["protocol"].pop("cluster"), reports[1]["protocol"].pop("cluster")) == ("ray", None)
+    for report in reports:  # the wall times and sessions differ, and only they (and where it ran)
         del report["wall_time"], report["sessions"]
     assert reports[0]["status"] == {"repetitions_done": 2, "repetitions": 2}
     assert reports[0] == reports[1]
