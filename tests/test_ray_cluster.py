@@ -5,6 +5,9 @@ one node, 1 CPU each, no dashboard, a small object store).
   and a call during which one of its actors is killed finishes with those same results;
 - must-hold 1: ``train ... --engine native --ray-address ADDRESS`` writes the evaluations.csv of
   the same run without Ray, and its header says ``ray: 2 nodes``;
+- must-hold 3: ``experiment push --repeats 2 ... --ray-address ADDRESS`` runs its two repetitions
+  at the same time (one actor each; their wall-clock intervals in state.json overlap) and its
+  report's figures are those of the same experiment without Ray;
 - an address where no cluster answers is one ``error:`` line naming it, exit 2, nothing written.
 
 Skipped where Ray is not installed (``pip install -e '.[ray]'``).
@@ -12,6 +15,7 @@ Skipped where Ray is not installed (``pip install -e '.[ray]'``).
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -117,6 +121,39 @@ def test_train_on_the_cluster_writes_the_evaluations_of_a_local_run(cluster, tmp
     assert "cluster: ray" in (tmp_path / "ray" / "config.yaml").read_text()
     assert cluster.address not in (tmp_path / "ray" / "config.yaml").read_text()
     assert "cluster: null" in (tmp_path / "local" / "config.yaml").read_text()
+
+
+QUICK_GP = ["n_raw=64", "n_restarts=2", "n_opt_steps=10", "fit_starts=1", "fit_steps=10"]  # test_train_cli's
+EXPERIMENT = ["--repeats", "2", "--worlds", "1", "--budget", "4", "--batch-size", "2", "--init", "2", "--per-config", "1", "--random", "1",
+              "--validation-per-config", "1", *(a for option in QUICK_GP for a in ("--optimizer-option", option))]
+RUN_FILES = ("evaluations.csv", "evaluation/evaluation.json", "evaluation/validation.json")
+
+
+def test_an_experiment_on_the_cluster_runs_its_repetitions_at_once_with_the_figures_of_a_local_one(cluster, tmp_path):
+    on_ray = _train(tmp_path, "ray", *EXPERIMENT, "--ray-address", cluster.address, command="mjxskill.experiment")
+    assert on_ray.returncode == 0, on_ray.stderr[-3000:]
+    assert "ray: 2 nodes, 2 CPUs" in on_ray.stdout and "2 repetitions at a time, each on 1 actor" in on_ray.stdout
+    local = _train(tmp_path, "local", *EXPERIMENT, command="mjxskill.experiment")
+    assert local.returncode == 0, local.stderr[-3000:]
+
+    state = json.loads((tmp_path / "ray" / "state.json").read_text())
+    (a,), (b,) = state["repetitions"]["seed-0"], state["repetitions"]["seed-1"]
+    assert max(a["started"], b["started"]) < min(a["ended"], b["ended"]), state["repetitions"]  # at the same time
+    assert state["sessions"][-1]["ray"] == {"nodes": 2, "cpus": 2, "repetitions_at_a_time": 2}
+    (c,), (d,) = json.loads((tmp_path / "local" / "state.json").read_text())["repetitions"].values()
+    assert c["ended"] <= d["started"]  # one after the other
+
+    reports = [json.loads((tmp_path / name / "report.json").read_text()) for name in ("ray", "local")]
+    assert (reports[0]["protocol"].pop("cluster"), reports[1]["protocol"].pop("cluster")) == ("ray", None)
+    for report in reports:  # the wall times and sessions differ, and only they (and where it ran)
+        del report["wall_time"], report["sessions"]
+    assert reports[0]["status"] == {"repetitions_done": 2, "repetitions": 2}
+    assert reports[0] == reports[1]
+    for kind in ("optimizer", "random_search"):
+        for seed in (0, 1):
+            for name in RUN_FILES if kind == "optimizer" else RUN_FILES[:1]:
+                path = Path(kind, f"seed-{seed}", name)
+                assert (tmp_path / "ray" / path).read_bytes() == (tmp_path / "local" / path).read_bytes(), path
 
 
 def test_an_unreachable_cluster_is_one_error_line_and_nothing_written(tmp_path):

@@ -46,8 +46,12 @@ def connect_cluster(args: argparse.Namespace, engine: str):
     return connect(args.ray_address)
 
 
-def describe_cluster(info) -> str:
-    """The header line of a run on a cluster: ``ray: N nodes, C CPUs`` and what runs there."""
+def describe_cluster(info, at_a_time: int = 1, actors: int | None = None) -> str:
+    """The header line of a run on a cluster: ``ray: N nodes, C CPUs`` and what runs there
+    (an experiment: ``at_a_time`` repetitions at the same time on ``actors`` actors each)."""
+    if at_a_time > 1:
+        return (f"{info.describe()} at {info.address}: {at_a_time} repetitions at a time, each on {actors} actor"
+                f"{'s' * (actors != 1)} of the native engine (one per CPU in all), the optimizers and the files here")
     return (f"{info.describe()} at {info.address}: the native engine's episodes on {info.cpus} actor"
             f"{'s' * (info.cpus != 1)} (one per CPU), the optimizer and the run's files here")
 

@@ -27,7 +27,7 @@ from mjxskill.cli.run_settings import (accept_scenario, add_accept_scenario_chan
 from mjxskill.engine.build import build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 from mjxskill.experiment.directory import Experiment, Protocol, random_search_config
-from mjxskill.experiment.driver import run_experiment
+from mjxskill.experiment.driver import pending_repetitions, run_experiment, share_cluster
 from mjxskill.experiment.report import write_report
 from mjxskill.evaluation.pooled import GIVEN, force_bound
 from mjxskill.runs.atomic_write import refuse_links_out
@@ -174,15 +174,25 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
     print(f"experiment directory: {exp.path}", flush=True)
     why = "the experiment's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
     print(f"engine: {config.engine} ({why})", flush=True)
-    if args.cluster is not None:
-        print(cli_args.describe_cluster(args.cluster), flush=True)
+    at_a_time, actors = 1, None
+    if args.cluster is not None:  # the repetitions left share the cluster's CPUs (one rollout each)
+        at_a_time, actors = share_cluster(args.cluster.cpus, pending_repetitions(exp))
+        print(cli_args.describe_cluster(args.cluster, at_a_time, actors), flush=True)
     cli.interrupt.set_message(f"interrupted: every finished batch and evaluated chunk is in {exp.path}; continue with "
                               f"python -m mjxskill.experiment {args.task} --resume {exp.path}")
     # A Ctrl-C while it is built: nothing new is trained yet, and mjxskill.cli.run says where the experiment is
-    rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds,
-                            workers=args.workers, cluster=args.ray_address)
+    rollouts = []  # one per repetition running at the same time
     try:
-        exp.add_session(time.monotonic() - started, config.engine)
+        for _ in range(at_a_time):
+            rollouts.append(build_rollout(scn, task, config.engine, worlds=config.worlds,
+                                          episode_seconds=config.episode_seconds, workers=args.workers,
+                                          cluster=args.ray_address, actors=actors))
+    except BaseException:
+        for rollout in rollouts:
+            rollout.close()
+        raise
+    try:
+        exp.add_session(time.monotonic() - started, config.engine, args.cluster, at_a_time)
 
         def progress_for(run_config):
             kind = "random search" if run_config.optimizer == "random" else "optimizer"
@@ -191,12 +201,13 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
         def evaluation_progress(done: int, total: int) -> None:
             print(f"  evaluated {done}/{total} parameter sets ({time.monotonic() - started:.0f} s)", flush=True)
 
-        run_experiment(exp, rollout, task, progress_for=progress_for, log=lambda text: print(text, flush=True),
-                       evaluation_progress=evaluation_progress)
+        run_experiment(exp, rollouts if at_a_time > 1 else rollouts[0], task, progress_for=progress_for,
+                       log=lambda text: print(text, flush=True), evaluation_progress=evaluation_progress)
     except KeyboardInterrupt:  # the report of what is finished; every batch and chunk is on disk already
         return cli.interrupt.stopped("mjxskill.experiment", lambda: write_report(exp))
     finally:
-        rollout.close()  # the native engine's worker processes; nothing on MJX
+        for rollout in rollouts:
+            rollout.close()  # the native engine's worker processes or Ray actors; nothing on MJX
     print(f"done in {time.monotonic() - started:.0f} s; report in {exp.path / 'report.md'}")
     return 0
 

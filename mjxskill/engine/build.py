@@ -36,10 +36,11 @@ def resolve_engine(name: str, backend: str | None = None) -> tuple[str, str]:
 
 
 def build_rollout(scn, task, engine: str, *, worlds: int | None = None, episode_seconds: float | None = None,
-                  start_configs=None, mj_model=None, workers: int | None = None, cluster: str | None = None):
+                  start_configs=None, mj_model=None, workers: int | None = None, cluster: str | None = None,
+                  actors: int | None = None):
     """The rollout of ``task`` in ``scn`` on ``engine`` ("mjx" or "native"; resolve "auto" first).
     ``cluster``: a Ray cluster's address ("auto" or HOST:PORT) the native engine's episodes run
-    on (``mjxskill.engine.native.ray_pool``); MJX on many hosts is ``jax.distributed``'s
+    on (``mjxskill.engine.native.ray_pool``), on ``actors`` actors (default one per CPU); MJX on many hosts is ``jax.distributed``'s
     (README, "Scaling"), so the MJX engine refuses it."""
     if engine == "mjx" and cluster is not None:
         raise ClusterError("a Ray cluster runs the native engine's episodes; MJX across hosts is jax.distributed's "
@@ -54,5 +55,6 @@ def build_rollout(scn, task, engine: str, *, worlds: int | None = None, episode_
         from mjxskill.engine.native.rollout import NativeRollout  # lazy: a run imports only the engine it runs
 
         return NativeRollout(scn, task, worlds=worlds, episode_seconds=episode_seconds,
-                             start_configs=start_configs, mj_model=mj_model, workers=workers, cluster=cluster)
+                             start_configs=start_configs, mj_model=mj_model, workers=workers, cluster=cluster,
+                             actors=actors)
     raise ValueError(f"unknown engine {engine!r}; expected one of {', '.join(ENGINES)}")

@@ -6,7 +6,11 @@ the pick's force bound and its validation; the validation alone may be changed w
 experiment is resumed, ``Experiment.set_validation``). The training settings are the runs' own: ``optimizer/config.yaml``
 and ``random_search/config.yaml`` are one configuration that differs only in ``optimizer``.
 ``state.json`` accumulates the wall time spent on each run and evaluation, over every session
-(a resumed experiment adds to it). Like a run, an experiment is created whole or not at all,
+(a resumed experiment adds to it), and per repetition the wall-clock intervals it worked in
+(``repetitions``: ``seed-<s>`` -> a list of ``started``/``ended``, seconds since the epoch, one
+per session that trained, evaluated or validated something of it; ``interrupted`` where the
+session stopped inside it): on a Ray cluster the repetitions run at the same time and their
+intervals overlap. The state is written under a lock: the repetitions' threads share it. Like a run, an experiment is created whole or not at all,
 only where nothing is, and written by one process at a time.
 """
 
@@ -15,6 +19,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import threading
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -99,6 +104,7 @@ class Experiment:
         self.path = Path(path)
         self.optimizer = Run(self.path / OPTIMIZER_RUNS)
         self.random_search = Run(self.path / RANDOM_RUNS)
+        self._state_lock = threading.RLock()  # one read-modify-write of state.json at a time
 
     def create(self, config: RunConfig, protocol: Protocol, scenario_source: str, texts: dict[str, str]) -> None:
         """Writes experiment.yaml and the two repeated runs of ``config`` (optimizer "mobo");
@@ -173,18 +179,36 @@ class Experiment:
 
     def add_time(self, key: str, field: str, seconds: float, evaluations: int = 0) -> None:
         """Adds ``seconds`` (and ``evaluations`` computed in them) to ``times[key][field]``."""
-        state = self.state()
-        entry = state["times"].setdefault(key, {})
-        entry[field] = entry.get(field, 0.0) + float(seconds)
-        if evaluations:
-            entry[field + "_evaluations"] = entry.get(field + "_evaluations", 0) + int(evaluations)
-        self._write_state(state)
+        with self._state_lock:
+            state = self.state()
+            entry = state["times"].setdefault(key, {})
+            entry[field] = entry.get(field, 0.0) + float(seconds)
+            if evaluations:
+                entry[field + "_evaluations"] = entry.get(field + "_evaluations", 0) + int(evaluations)
+            self._write_state(state)
 
-    def add_session(self, startup_seconds: float, engine: str) -> None:
-        state = self.state()
-        state["sessions"].append({"started": time.strftime("%Y-%m-%d %H:%M:%S"), "startup_seconds": float(startup_seconds),
-                                  "engine": engine, "cpus": os.cpu_count()})
-        self._write_state(state)
+    def add_interval(self, seed: int, started: float, ended: float, interrupted: bool = False) -> None:
+        """Records that the repetition of seed ``seed`` worked from ``started`` to ``ended``
+        (``time.time()`` seconds) in this session."""
+        with self._state_lock:
+            state = self.state()
+            interval = {"started": float(started), "ended": float(ended)}
+            if interrupted:
+                interval["interrupted"] = True
+            state.setdefault("repetitions", {}).setdefault(f"seed-{seed}", []).append(interval)
+            self._write_state(state)
+
+    def add_session(self, startup_seconds: float, engine: str, cluster=None, at_a_time: int = 1) -> None:
+        """A session's start; ``cluster``: the ``ClusterInfo`` of the Ray cluster it runs on
+        (None: this machine) and ``at_a_time`` the repetitions it runs at the same time there."""
+        with self._state_lock:
+            state = self.state()
+            session = {"started": time.strftime("%Y-%m-%d %H:%M:%S"), "startup_seconds": float(startup_seconds),
+                       "engine": engine, "cpus": os.cpu_count()}
+            if cluster is not None:
+                session["ray"] = {"nodes": cluster.nodes, "cpus": cluster.cpus, "repetitions_at_a_time": at_a_time}
+            state["sessions"].append(session)
+            self._write_state(state)
 
     def _write_state(self, state: dict) -> None:
         write_json(self.path / STATE, state)

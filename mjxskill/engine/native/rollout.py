@@ -87,12 +87,14 @@ class NativeRollout(RolloutBase):
     (default: one per core; 1 runs them in this process); threads: the threads that step the
     batch of a call run in this process (workers == 1). cluster: the address of a Ray cluster
     ("auto" or HOST:PORT) whose CPUs run the calls' episodes instead of local workers (one actor
-    per CPU; ``pip install 'mjxskill[ray]'``); connected at once, ClusterError if it cannot be.
-    Results depend on none of these."""
+    per CPU, or ``actors``: an experiment's repetitions that run at the same time share the
+    cluster's CPUs; ``pip install 'mjxskill[ray]'``); connected at once, ClusterError if it
+    cannot be. Results depend on none of these."""
 
     def __init__(self, scn, task=None, *, worlds: int | None = None, episode_seconds: float | None = None,
                  start_configs: np.ndarray | None = None, mj_model: mujoco.MjModel | None = None,
-                 workers: int | None = None, threads: int = 1, cluster: str | None = None):
+                 workers: int | None = None, threads: int = 1, cluster: str | None = None,
+                 actors: int | None = None):
         if task is None:
             task = plan_task(scn)
         if mj_model is None:
@@ -103,6 +105,7 @@ class NativeRollout(RolloutBase):
         self.workers = default_workers() if workers is None else max(1, int(workers))
         self.threads = max(1, int(threads))
         self._pool = None
+        self.actors = None if actors is None else max(1, int(actors))  # Ray actors (None: one per CPU of the cluster)
         self.cluster = None  # the ClusterInfo of the Ray cluster the calls run on
         if cluster is not None:
             from mjxskill.engine.native.ray_pool import connect  # lazy: Ray is an optional extra
@@ -205,7 +208,7 @@ class NativeRollout(RolloutBase):
         if self._pool is None and self.cluster is not None:
             from mjxskill.engine.native.ray_pool import RayPool  # lazy: Ray is an optional extra
 
-            self._pool = RayPool(self, self.cluster.address, build=engine_from_recipe)
+            self._pool = RayPool(self, self.cluster.address, build=engine_from_recipe, actors=self.actors)
         elif self._pool is None and self.workers > 1:
             self._pool = WorkerPool(self, self.workers)
         return self._pool
