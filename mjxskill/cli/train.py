@@ -49,7 +49,8 @@ AFTER_WARM_UP = {"random": ", uniform random search after the warm-up",
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mjxskill.train",
-        description="Learn the free skill parameters of a task (multi-objective Bayesian optimization over simulated episodes, on native MuJoCo or MJX).",
+        description="Learn the free skill parameters of a task (multi-objective Bayesian optimization over "
+                    "simulated episodes, on native MuJoCo or MJX).",
     )
     cli_args.add_task_argument(parser)
     add_setting_arguments(parser)
