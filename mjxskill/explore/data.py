@@ -166,7 +166,8 @@ def choose_document(entries: list[RunEntry], max_force: float | None, min_succes
         union = union.concat(f)
     if len(union) == 0:
         raise RunError("the Pareto front is empty (no evaluations yet)")
-    rates, _ = validated_union((e.run, f) for e, f in zip(entries, fronts))  # as select reads them
-    j = choose(union, max_force, min_success, rates)
+    seconds = []
+    rates, _ = validated_union(((e.run, f) for e, f in zip(entries, fronts)), seconds=seconds)  # as select reads them
+    j = choose(union, max_force, min_success, rates, seconds or None)
     run = int(owners[j])
     return {"run": run, "k": int(j - np.flatnonzero(owners == run)[0])}
