@@ -151,7 +151,6 @@ def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1) -
     share of the time spent in MuJoCo's step (``physics_share``)."""
     import numpy as np
 
-    from mjxskill.engine.native import batched
     from mjxskill.engine.native.rollout import NativeRollout
 
     engine = NativeRollout(scn, task, worlds=worlds.config_index.shape[1], episode_seconds=seconds, workers=workers,
@@ -164,16 +163,11 @@ def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1) -
     engine.run_worlds(params[:1], type(worlds)(*(x[:1] for x in worlds)))
     start_s = time.perf_counter() - t0
     timing = {}
-    run = batched.run_batched
     if workers == 1 and threads == 1:  # time MuJoCo's step inside the call
-        batched_run = lambda *a, **k: run(*a, **k, timing=timing)  # noqa: E731
-        engine_module = sys.modules["mjxskill.engine.native.rollout"]
-        engine_module.run_batched, restore = batched_run, run
+        engine.timing = timing
     t0 = time.perf_counter()
     out = engine.run_worlds(params, worlds)
     run_s = time.perf_counter() - t0
-    if workers == 1 and threads == 1:
-        engine_module.run_batched = restore
     engine.close()
     return dict(engine="native", workers=workers, threads=threads, episodes=b * w, start_s=start_s, run_s=run_s,
                 physics_share=timing["physics_s"] / run_s if timing else None,

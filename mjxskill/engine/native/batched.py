@@ -106,8 +106,7 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
         else NativeEpisode(engine, params[i], _world(worlds, i), None, data=BatchRow(fields, i))
         for i in range(len(params))
     ]
-    stepper = _Stepper(engine, batch, fields)
-    stepper.timed = timing is not None
+    stepper = _Stepper(engine, batch, fields, timed=timing is not None)
     for t in range(engine.setup.ticks):
         alive = [i for i, e in enumerate(episodes) if not e.diverged]
         if not alive:
@@ -133,7 +132,7 @@ def _world(worlds, i: int):
 class _Stepper:
     """The control steps of one tick for the live rows of a batch."""
 
-    def __init__(self, engine, batch: Batch, fields: dict):
+    def __init__(self, engine, batch: Batch, fields: dict, timed: bool = False):
         cfg, model = engine.setup.ctrl, engine.mj_model
         self.batch, self.fields, self.cfg, self.steps = batch, fields, cfg, engine.setup.steps_per_tick
         self.site, self.root = cfg.site_id, int(model.body_rootid[cfg.site_body_id])
@@ -144,7 +143,7 @@ class _Stepper:
         self.sensors = np.asarray(engine.setup.bindings.force_sensors, dtype=np.int64)
         self.timestep = float(model.opt.timestep)
         self.clock = 0.0  # the time of a row that has never been reset, summed as mj_step sums it
-        self.timed, self.physics_s = False, 0.0
+        self.timed, self.physics_s = timed, 0.0
 
     def tick(self, episodes: list[NativeEpisode], rows: np.ndarray) -> None:
         f, m, steps = self.fields, len(rows), self.steps

@@ -104,6 +104,9 @@ class NativeRollout(RolloutBase):
         self.start_configs = None if start_configs is None else np.asarray(start_configs)
         self.workers = default_workers() if workers is None else max(1, int(workers))
         self.threads = max(1, int(threads))
+        # a dict that a call in this process (workers == 1) adds its seconds in Batch.step to
+        # under "physics_s" (benchmarks/throughput.py); None: not measured
+        self.timing: dict | None = None
         self._pool = None
         self.actors = None if actors is None else max(1, int(actors))  # Ray actors (None: one per CPU of the cluster)
         self.cluster = None  # the ClusterInfo of the Ray cluster the calls run on
@@ -199,7 +202,7 @@ class NativeRollout(RolloutBase):
 
     def _run_batched(self, params: np.ndarray, worlds: Worlds) -> list[EpisodeResult]:
         if self.cluster is None and min(self.workers, len(params)) <= 1:
-            return run_batched(self, params, worlds, threads=self.threads)
+            return run_batched(self, params, worlds, threads=self.threads, timing=self.timing)
         return self.start_workers().run(params, worlds)
 
     def start_workers(self):
