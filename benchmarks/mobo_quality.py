@@ -282,27 +282,25 @@ def _sweep_3d(y: np.ndarray, ref=None):
 
 
 @functools.lru_cache(maxsize=1)
-def vehicle_safety_front(n: int = 1_000_000, rounds: int = 4, sub: int = 24) -> np.ndarray:
-    """(k, 3) VehicleSafety's Pareto front, densely sampled (~1 min, computed once): the
-    non-dominated points of n uniform random inputs in [0, 1]^5, then ``rounds`` times those of
-    ``sub`` random perturbations of each point (a third as wide each round, from 0.02).
-    About BoTorch's reference point their hypervolume is 246.822, against BoTorch's
-    ``_max_hv`` 246.816 (from Tanabe and Ishibuchi's approximate front); a sample is a lower
-    bound on the front's hypervolume about any reference."""
+def vehicle_safety_front(n: int = 300_000, rounds: int = 5, per_round: int = 5000, sub: int = 20) -> np.ndarray:
+    """(k, 3) VehicleSafety's Pareto front, densely sampled (computed once, ~15 s): the
+    non-dominated points of n inputs uniform in [-0.25, 1.25]^5 clipped to the unit cube (much
+    of the front lies on the cube's faces), then ``rounds`` times those of ``sub`` uniform
+    perturbations of ``per_round`` of the points (half as wide each round, from 0.05)."""
     rng = np.random.default_rng(0)
-    x = rng.random((n, 5))
+    x = np.clip(rng.uniform(-0.25, 1.25, (n, 5)), 0.0, 1.0)
     y = vehicle_safety(x)
     keep, _ = _sweep_3d(y)
     x, y = x[keep], y[keep]
-    h = 0.02
+    h = 0.05
     for _ in range(rounds):
-        around = np.clip((x[:, None, :] + rng.uniform(-h, h, (len(x), sub, 5))).reshape(-1, 5), 0.0, 1.0)
+        base = x[rng.permutation(len(x))[:per_round]]
+        around = np.clip((base[:, None, :] + rng.uniform(-h, h, (len(base), sub, 5))).reshape(-1, 5), 0.0, 1.0)
         x, y = np.r_[x, around], np.r_[y, vehicle_safety(around)]
         keep, _ = _sweep_3d(y)
         x, y = x[keep], y[keep]
-        h /= 3
+        h /= 2
     return y
-
 
 PROBLEMS = {
     # front_hv(ref): the hypervolume of the problem's whole Pareto front about ref, the most a
@@ -317,6 +315,11 @@ PROBLEMS = {
     # DTLZ5 and DTLZ7: max_hv is the front's hypervolume about ref from front_hv
     "DTLZ5 (d=6, m=3)": dict(f=dtlz5, d=6, ref=[10.0, 10.0, 10.0], max_hv=989.2261, front_hv=dtlz5_front_hypervolume),
     "DTLZ7 (d=6, m=3)": dict(f=dtlz7, d=6, ref=[15.0, 15.0, 15.0], max_hv=2757.9232, front_hv=dtlz7_front_hypervolume),
+    # BoTorch's reference (1.1 times the nadir of Tanabe and Ishibuchi's approximate front);
+    # BoTorch's _max_hv 246.816 (from that front) is below what the sampled front reaches,
+    # 247.338 (the sample's; denser samples give 247.372, so the regret reads up to ~0.02 % low)
+    "VehicleSafety": dict(f=vehicle_safety, d=5, ref=[1864.72022, 11.81993945, 0.2903999384], max_hv=247.3385,
+                          front_hv=lambda ref: _sweep_3d(vehicle_safety_front(), ref)[1]),
 }
 
 
