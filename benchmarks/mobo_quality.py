@@ -1,4 +1,11 @@
-"""Multi-objective BO quality: final hypervolume on BraninCurrin, ZDT1 (d = 6), DTLZ2 (d = 6, m = 3).
+"""Multi-objective BO quality: final hypervolume on BraninCurrin, ZDT1 (d = 6), DTLZ2, DTLZ5, DTLZ7 (d = 6, m = 3), VehicleSafety (d = 5, m = 3).
+
+The problems are BoTorch's test functions (``botorch.test_functions.multi_objective``), written
+in numpy, with BoTorch's reference points; every input box is mapped to the unit cube
+(VehicleSafety's [1, 3]^5). Two objectives: BraninCurrin, ZDT1. Three (issue 35): DTLZ2 (front:
+the unit sphere's octant), DTLZ5 (front: a curve), DTLZ7 (front: four disconnected pieces),
+VehicleSafety (Tanabe and Ishibuchi's RE3-5-4 crash design, objectives of very different
+scales). ``tests/test_benchmark_fronts.py`` checks them against BoTorch where it is installed.
 
 Budget 6 + 20 x 4 = 86 evaluations (the BoTorch multi-objective tutorial's), >= 10 seeds;
 median and quartiles of the final hypervolume for mjxskill.gp, uniform random search with
@@ -16,7 +23,10 @@ front that the run was not asked for (ZDT1's warm-up reference usually cuts its 
 f1 = 0.65-1.0, while [11, 11] credits the extreme (1, 0) with 110 of its 120.67).
 
     python benchmarks/mobo_quality.py --seeds 10 [--columns mjxskill.gp,random] [--option n_raw=512]
-        [--save runs.jsonl] [--write benchmarks/RESULTS.md]
+        [--problems "DTLZ7 (d=6, m=3)" VehicleSafety] [--given-ref] [--save runs.jsonl] [--write benchmarks/RESULTS.md]
+
+BoTorch is a benchmark-only dependency (``pip install -e '.[bench]'``: botorch, torch CPU;
+measured with botorch 0.18.1 and torch 2.13.0); without it the BoTorch columns are skipped.
 """
 
 from __future__ import annotations
@@ -191,16 +201,16 @@ def dtlz5_front_hypervolume(ref, n: int = 200_000) -> float:
     [0, pi / 2]; u >= 0 is dominated by it exactly when 2 min(u_0, u_1)^2 + u_2^2 >= 1 (a t with
     cos t <= sqrt 2 min(u_0, u_1) and sin t <= u_2). So the box [0, ref] less the region below
     that surface: for u_2 < 1, the part of [0, r_0] x [0, r_1] where min(u_0, u_1) < w =
-    sqrt((1 - u_2^2) / 2), r_0 r_1 - (r_0 - w)+ (r_1 - w)+, integrated over u_2 by the
-    midpoint rule on n nodes (error ~1e-10)."""
+    sqrt((1 - u_2^2) / 2), r_0 r_1 - (r_0 - w)+ (r_1 - w)+, integrated over u_2 = sin s (so
+    w = cos s / sqrt 2, smooth) by the midpoint rule on n nodes in s (error ~1e-10)."""
     ref = np.asarray(ref, np.float64)
     if np.any(ref <= 0):
         return 0.0
-    top = min(ref[2], 1.0)
-    u2 = (np.arange(n) + 0.5) / n * top
-    w = np.sqrt((1.0 - u2**2) / 2.0)
+    top = np.arcsin(min(ref[2], 1.0))
+    s = (np.arange(n) + 0.5) / n * top
+    w = np.cos(s) / np.sqrt(2.0)
     below = ref[0] * ref[1] - np.maximum(0.0, ref[0] - w) * np.maximum(0.0, ref[1] - w)
-    return float(np.prod(ref) - below.mean() * top)
+    return float(np.prod(ref) - np.mean(below * np.cos(s)) * top)
 
 
 def _dtlz7_phi(t):
@@ -436,7 +446,7 @@ def main(argv=None):
     notes = []
     if any(c.startswith("qLog") for c in wanted) and not botorch_available():
         wanted = [c for c in wanted if not c.startswith("qLog")]
-        notes.append("BoTorch is not installed: its columns are skipped (pip install torch==2.13.0 (CPU), then botorch).")
+        notes.append("BoTorch is not installed: its columns are skipped (pip install -e '.[bench]': botorch and torch, CPU).")
     elif any(c.startswith("qLog") for c in wanted):
         import torch
 
