@@ -14,6 +14,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
 import mobo_quality as mq  # noqa: E402
 
 from mjxskill.gp import hypervolume  # noqa: E402
+from mjxskill.gp.pareto import pareto_mask  # noqa: E402
 
 refs_2d = st.tuples(st.floats(0.05, 3.0), st.floats(0.05, 3.0))
 
@@ -73,3 +74,129 @@ def test_branin_currin_front_reaches_and_bounds_the_known_maximum():
 def test_front_hypervolume_about_the_problem_reference_is_max_hv(name):
     problem = mq.PROBLEMS[name]
     assert problem["front_hv"](problem["ref"]) == pytest.approx(problem["max_hv"], abs=1e-4)
+
+
+# --- 3-objective problems (issue 35): DTLZ5, DTLZ7, VehicleSafety ---------------------------
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 60))
+def test_sweep_3d_is_the_exact_hypervolume_and_front(seed, n):
+    rng = np.random.default_rng(seed)
+    y, ref = rng.random((n, 3)), rng.uniform(0.2, 1.2, 3)
+    keep, hv = mq._sweep_3d(y, ref)
+    assert hv == pytest.approx(hypervolume(y, ref), rel=1e-12, abs=1e-12)
+    below = np.all(y < ref, axis=1)
+    assert np.array_equal(keep[below], pareto_mask(y[below])) and not keep[~below].any()
+    keep, _ = mq._sweep_3d(y)
+    assert np.array_equal(keep, pareto_mask(y))
+
+
+def test_dtlz5_known_values():
+    # last inputs 0.5: g = 0, theta_1 = 1/2, so the point (cos t / sqrt 2, cos t / sqrt 2, sin t)
+    x0 = np.array([0.0, 0.3, 1.0])
+    x = np.c_[x0, np.array([0.1, 0.7, 0.9]), np.full((3, 4), 0.5)]
+    t = 0.5 * np.pi * x0
+    np.testing.assert_allclose(mq.dtlz5(x), np.c_[np.cos(t) / np.sqrt(2), np.cos(t) / np.sqrt(2), np.sin(t)], atol=1e-15)
+    # all last inputs 0: g = 4 / 4 = 1, theta_1 = (1 + 2 x_1) / 4; x = (0, 1, 0, ...) -> 2 (cos 3pi/8, sin 3pi/8, 0)
+    np.testing.assert_allclose(mq.dtlz5(np.array([[0.0, 1.0, 0, 0, 0, 0]])),
+                               [[2 * np.cos(3 * np.pi / 8), 2 * np.sin(3 * np.pi / 8), 0.0]], atol=1e-15)
+
+
+def test_dtlz7_known_values():
+    # last inputs 0: g = 1, f_2 = 6 - phi(f_0) - phi(f_1), phi(t) = t (1 + sin 3 pi t)
+    x = np.array([[0.0, 0.0, 0, 0, 0, 0], [1 / 6, 1 / 6, 0, 0, 0, 0], [0.5, 1.0, 0, 0, 0, 0]])
+    np.testing.assert_allclose(mq.dtlz7(x), [[0, 0, 6], [1 / 6, 1 / 6, 6 - 2 / 3], [0.5, 1.0, 6 - 0 - 1]], atol=1e-14)
+    # all last inputs 1: g = 10, f_2 = 11 (3 - ...) ; at f = 0: 33
+    np.testing.assert_allclose(mq.dtlz7(np.array([[0.0, 0.0, 1, 1, 1, 1]])), [[0, 0, 33]], atol=1e-12)
+
+
+def test_vehicle_safety_known_values():
+    # inputs 1 (x = 0) and 3 (x = 1): the polynomials of Tanabe and Ishibuchi's RE3-5-4 by hand
+    ones = [1640.2823 + 2.3573285 + 2.3220035 + 4.5688768 + 7.7213633 + 4.4559504,
+            6.5856 + 1.15 - 1.0427 + 0.9738 + 0.8364 - 0.3695 + 0.0861 + 0.3628 - 0.1106 - 0.3437 + 0.1764,
+            -0.0551 + 0.0181 + 0.1024 + 0.0421 - 0.0073 + 0.024 - 0.0118 - 0.0204 - 0.008 - 0.0241 + 0.0109]
+    threes = [1640.2823 + 3 * (2.3573285 + 2.3220035 + 4.5688768 + 7.7213633 + 4.4559504),
+              6.5856 + 3 * (1.15 - 1.0427 + 0.9738 + 0.8364) + 9 * (-0.3695 + 0.0861 + 0.3628 - 0.1106 - 0.3437 + 0.1764),
+              -0.0551 + 3 * (0.0181 + 0.1024 + 0.0421) + 9 * (-0.0073 + 0.024 - 0.0118 - 0.0204 - 0.008 - 0.0241 + 0.0109)]
+    np.testing.assert_allclose(mq.vehicle_safety(np.array([[0.0] * 5, [1.0] * 5])), [ones, threes], rtol=1e-14)
+
+
+def test_dtlz5_front_beyond_the_curve_is_closed_form():
+    # ref >= (1, 1, 1): the box less the integral over u_2 in [0, 1] of (r_0 + r_1) w - w^2,
+    # w = sqrt((1 - u_2^2) / 2): prod(ref) - (r_0 + r_1) pi / (4 sqrt 2) + 1 / 3
+    for ref in ([10.0, 10.0, 10.0], [1.0, 2.0, 1.5]):
+        exact = np.prod(ref) - (ref[0] + ref[1]) * np.pi / (4 * np.sqrt(2)) + 1 / 3
+        assert mq.dtlz5_front_hypervolume(ref) == pytest.approx(exact, abs=1e-8)
+    assert mq.PROBLEMS["DTLZ5 (d=6, m=3)"]["max_hv"] == pytest.approx(1000 - 20 * np.pi / (4 * np.sqrt(2)) + 1 / 3, abs=1e-4)
+
+
+@pytest.mark.parametrize("ref", [[0.8, 0.9, 1.2], [0.6, 1.5, 0.9], [2.0, 2.0, 2.0]])
+def test_dtlz5_front_against_monte_carlo_and_samples(ref):
+    ref = np.asarray(ref)
+    u = np.random.default_rng(0).random((400_000, 3)) * ref
+    dominated = 2 * np.minimum(u[:, 0], u[:, 1]) ** 2 + u[:, 2] ** 2 >= 1.0
+    mc, se = np.prod(ref) * dominated.mean(), np.prod(ref) * dominated.std() / np.sqrt(len(u))
+    exact = mq.dtlz5_front_hypervolume(ref)
+    assert abs(exact - mc) < 4 * se + 1e-6
+    # no input reaches beyond the curve; points of the curve dominate a little less than it
+    y = mq.dtlz5(np.random.default_rng(1).random((20_000, 6)))
+    assert np.all(2 * np.minimum(y[:, 0], y[:, 1]) ** 2 + y[:, 2] ** 2 >= 1.0 - 1e-12)
+    assert mq._sweep_3d(y, ref)[1] <= exact + 1e-9
+    x0 = np.linspace(0, 1, 5001)
+    curve = mq.dtlz5(np.c_[x0, np.zeros_like(x0), np.full((len(x0), 4), 0.5)])
+    assert 0 <= exact - mq._sweep_3d(curve, ref)[1] < 1e-3 * np.prod(ref)
+
+
+@pytest.mark.parametrize("ref", [[0.8, 0.9, 5.5], [0.5, 1.2, 6.0], [15.0, 15.0, 15.0]])
+def test_dtlz7_front_against_monte_carlo_and_samples(ref):
+    ref = np.asarray(ref, np.float64)
+    rng = np.random.default_rng(0)
+    fine = np.linspace(0.0, 1.0, 200_001)
+    run_max = np.maximum.accumulate(mq._dtlz7_phi(fine))
+    phi = lambda t: run_max[np.round(np.minimum(t, 1.0) * 200_000).astype(int)]  # noqa: E731
+    u = rng.random((400_000, 3)) * ref
+    dominated = u[:, 2] >= 6.0 - phi(u[:, 0]) - phi(u[:, 1])
+    mc, se = np.prod(ref) * dominated.mean(), np.prod(ref) * dominated.std() / np.sqrt(len(u))
+    exact = mq.dtlz7_front_hypervolume(ref)
+    assert abs(exact - mc) < 4 * se + 1e-3
+    # random inputs and a dense sample of the front (last inputs 0) dominate no more than it
+    assert mq._sweep_3d(mq.dtlz7(rng.random((20_000, 6))), ref)[1] <= exact + 1e-9
+    x = np.c_[rng.random((20_000, 2)), np.zeros((20_000, 4))]
+    sampled = mq._sweep_3d(mq.dtlz7(x), ref)[1]
+    assert sampled <= exact + 1e-9 and exact - sampled < 0.03 * exact  # 20 000 points: staircase gaps
+
+
+def test_vehicle_safety_front_reaches_and_bounds_the_known_maximum():
+    front = mq.vehicle_safety_front()
+    problem = mq.PROBLEMS["VehicleSafety"]
+    ref = np.asarray(problem["ref"])
+    full = problem["front_hv"](ref)
+    # BoTorch's VehicleSafety._max_hv (246.816, from Tanabe and Ishibuchi's approximate front)
+    # is below what the sampled front reaches; denser samples give 247.372
+    assert 246.816 < full < 247.38
+    # random inputs add next to nothing to the front (they are dominated by it or nearly so)
+    y = mq.vehicle_safety(np.random.default_rng(3).random((20_000, 5)))
+    for r in (ref, ref + np.array([50.0, 2.0, 0.1]), np.array([1670.0, 9.0, 0.2])):
+        alone = problem["front_hv"](r)
+        assert mq._sweep_3d(y, r)[1] < alone
+        assert mq._sweep_3d(np.r_[front, y], r)[1] - alone < 2e-4 * max(alone, 1e-9)
+
+
+def test_new_problems_equal_botorch():
+    torch = pytest.importorskip("torch")
+    mo = pytest.importorskip("botorch.test_functions.multi_objective")
+    x = np.random.default_rng(0).random((500, 6))
+    for ours, theirs, inputs in [
+        (mq.dtlz2, mo.DTLZ2(dim=6, num_objectives=3), x),
+        (mq.dtlz5, mo.DTLZ5(dim=6, num_objectives=3), x),
+        (mq.dtlz7, mo.DTLZ7(dim=6, num_objectives=3), x),
+        (mq.vehicle_safety, mo.VehicleSafety(), x[:, :5]),
+        (mq.branin_currin, mo.BraninCurrin(), x[:, :2]),
+    ]:
+        lo, hi = theirs.bounds.numpy()
+        expected = theirs(torch.from_numpy(lo + (hi - lo) * inputs)).numpy()
+        np.testing.assert_allclose(ours(inputs), expected, rtol=1e-12, atol=1e-12)
+    for name, cls in [("DTLZ5 (d=6, m=3)", mo.DTLZ5), ("DTLZ7 (d=6, m=3)", mo.DTLZ7)]:
+        assert mq.PROBLEMS[name]["ref"] == cls(dim=6, num_objectives=3).ref_point.tolist()
+    assert mq.PROBLEMS["VehicleSafety"]["ref"] == pytest.approx(mo.VehicleSafety().ref_point.tolist(), rel=1e-12)
