@@ -217,7 +217,7 @@ class NativeEpisode:
             self.records.append(TickRecord(self.data.qpos.copy(), self.data.mocap_pos.copy(), self.data.mocap_quat.copy(),
                                            tool_pos, obs.ref_pos, int(root),
                                            np.array(self.active), np.array(raw)))
-        self.peak_commanded_force = max(self.peak_commanded_force, float(np.linalg.norm(self.cstate.wrench[:3])))
+        self.peak_commanded_force = max(self.peak_commanded_force, float(HOST.linalg.norm(self.cstate.wrench[:3])))
         return True
 
     # -- the end ----------------------------------------------------------------------------

@@ -248,7 +248,7 @@ def _ee_pose_distance(i: int, leaf, ctx: _Context):
     threshold = float(leaf.args["threshold"])
 
     def reached(bb, tool_pos, live):
-        close = np.linalg.norm(tool_pos - bb.motion.goal_pos) < threshold
+        close = HOST.linalg.norm(tool_pos - bb.motion.goal_pos) < threshold
         return Status.SUCCESS if live and close else Status.RUNNING
 
     return reached, _keep

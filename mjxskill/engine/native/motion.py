@@ -51,7 +51,7 @@ def trapezoid_position(t: float, distance: float, duration: float, speed: float,
 def trapezoid_positions(t: np.ndarray, distance: float, duration: float, speed: float, lim: AxisLimits) -> np.ndarray:
     """``trapezoid_position`` at every time of ``t`` (n,) at once."""
     t_acc, t_dec = speed / lim.acc, speed / lim.dec
-    t = np.clip(t, 0.0, duration)
+    t = HOST.clip(t, 0.0, duration)
     cruise = 0.5 * lim.acc * t_acc**2 + speed * (t - t_acc)
     braking = distance - 0.5 * lim.dec * (duration - t) ** 2
     return np.where(t < t_acc, 0.5 * lim.acc * t**2, np.where(t < duration - t_dec, cruise, braking))
