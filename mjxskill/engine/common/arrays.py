@@ -68,15 +68,16 @@ def _host_stack(arrays, axis=0):
     place (what ``np.stack`` does through ``concatenate``, with a third of its cost; the host's
     quaternion functions stack their components so), anything else by ``np.stack``."""
     arrays = list(arrays)
-    if axis == -1 and arrays and all(type(a) is np.float64 or (type(a) is np.ndarray and a.dtype == np.float64)
-                                     for a in arrays):
-        shape = np.shape(arrays[0])
-        if all(np.shape(a) == shape for a in arrays):
-            out = np.empty(shape + (len(arrays),))
-            for j, a in enumerate(arrays):
-                out[..., j] = a
-            return out
-    return np.stack(arrays, axis=axis)
+    if axis != -1 or not arrays:
+        return np.stack(arrays, axis=axis)
+    shape = np.shape(arrays[0])
+    for a in arrays:
+        if not (type(a) is np.float64 or (type(a) is np.ndarray and a.dtype == np.float64)) or np.shape(a) != shape:
+            return np.stack(arrays, axis=axis)
+    out = np.empty(shape + (len(arrays),))
+    for j, a in enumerate(arrays):
+        out[..., j] = a
+    return out
 
 
 def _host_moveaxis(a, source, destination):
