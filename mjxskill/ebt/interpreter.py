@@ -44,6 +44,8 @@ class Interpreter:
         self.children: list[list[int]] = [[] for _ in self.nodes]
         self._number(tree, 0)
         self.memory: dict[int, int | frozenset[int]] = {}
+        # after a tick: the nodes ticked that, with all their ancestors, are still RUNNING
+        self.live: set[int] = set()
 
     def _number(self, node: Node, node_id: int) -> int:
         next_id = node_id + 1
@@ -63,6 +65,7 @@ class Interpreter:
         # are still RUNNING. A node not ticked was preempted; a node under a finished one
         # (ParallelFs returning, Timeout firing, Repeat restarting its child) starts afresh.
         live = self._still_running(ticked)
+        self.live = live  # the nodes that carry on at the next tick (a caller may read them)
         for node_id in list(self.memory):
             if node_id not in live:
                 del self.memory[node_id]

@@ -26,10 +26,10 @@ from mujoco.batch import Batch, SimulationError
 
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import FREE, MOCAP
-from mjxskill.engine.common.types import EpisodeResult
+from mjxskill.engine.common.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult
 from mjxskill.engine.common.worlds import world_pair_friction
 from mjxskill.engine.native.controller import NativeControllerState
-from mjxskill.engine.native.episode import NativeEpisode
+from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode
 from mjxskill.engine.native.kernels import add_forces, impedance_rows
 from mjxskill.sim.controller_config import N_ARM
 
@@ -107,19 +107,26 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
         for i in range(len(params))
     ]
     stepper = _Stepper(engine, batch, fields, timed=timing is not None)
+    z_adr = [s.qpos_adr + 2 for s in engine.setup.bindings.slots if s.how == FREE]
+    healthy = np.ones(len(episodes), bool)
     for t in range(engine.setup.ticks):
         alive = [i for i, e in enumerate(episodes) if not e.diverged]
         if not alive:
             break
+        # The batch rows' state at the tick's start, for all rows at once (an episode that
+        # diverges during the tick is frozen at its row of it).
+        frame = {name: fields[name].copy() for name in SNAPSHOT_FIELDS}
         for i in alive:
-            episodes[i].begin_tick()
+            episodes[i].begin_tick(None if bad[i] else _RowSnapshot(frame, i))
         rows = [i for i in alive if not bad[i]]
         if rows:
-            stepper.tick([episodes[i] for i in rows], np.array(rows, dtype=np.int64))
+            rows = np.array(rows, dtype=np.int64)
+            reset = stepper.tick([episodes[i] for i in rows], rows)
+            healthy[rows] = _healthy_rows(fields, rows, reset, z_adr)
         for i in alive:
             if bad[i]:
                 episodes[i].plain_steps()
-            episodes[i].end_tick(t)
+            episodes[i].end_tick(t, None if bad[i] else bool(healthy[i]))
     if timing is not None:
         timing["physics_s"] = timing.get("physics_s", 0.0) + stepper.physics_s
     return [e.result() for e in episodes]
@@ -127,6 +134,32 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
 
 def _world(worlds, i: int):
     return type(worlds)(*(np.asarray(x)[i] for x in worlds))
+
+
+class _RowSnapshot:
+    """Row ``i`` of ``frame``, a copy of the batch's ``SNAPSHOT_FIELDS`` at a tick's start:
+    what ``NativeEpisode`` restores a diverged episode to (as its own snapshot of the row)."""
+
+    __slots__ = ("frame", "i")
+
+    def __init__(self, frame: dict, i: int):
+        self.frame, self.i = frame, i
+
+    def restore(self, row: BatchRow) -> BatchRow:
+        return row.frozen({name: np.array(array[self.i]) for name, array in self.frame.items()})
+
+
+def _healthy_rows(fields: dict, rows: np.ndarray, reset: np.ndarray, z_adr: list[int]) -> np.ndarray:
+    """``NativeEpisode.healthy`` for the batch rows ``rows`` (m,) at once, (m,) bool: not reset
+    (``reset``, (m,)), state finite, every speed below ``MAX_QVEL``, every free object above
+    ``MIN_OBJECT_Z`` (its qpos z at ``z_adr``); the same comparisons on the same values."""
+    qpos, qvel = fields["qpos"][rows], fields["qvel"][rows]
+    with np.errstate(invalid="ignore"):
+        ok = ~reset & np.isfinite(qpos).all(axis=1) & np.isfinite(qvel).all(axis=1)
+        ok &= ~(np.abs(qvel) >= MAX_QVEL).any(axis=1)
+        for adr in z_adr:
+            ok &= qpos[:, adr] > MIN_OBJECT_Z
+    return ok
 
 
 class _Stepper:
@@ -145,7 +178,9 @@ class _Stepper:
         self.clock = 0.0  # the time of a row that has never been reset, summed as mj_step sums it
         self.timed, self.physics_s = timed, 0.0
 
-    def tick(self, episodes: list[NativeEpisode], rows: np.ndarray) -> None:
+    def tick(self, episodes: list[NativeEpisode], rows: np.ndarray) -> np.ndarray:
+        """The control steps of one tick for ``rows`` (m,), the batch rows of ``episodes``.
+        Returns which rows (m,) MuJoCo reset or stopped: their episodes diverged."""
         f, m, steps = self.fields, len(rows), self.steps
         refs = [e.bb.references(steps, self.cfg.dt) for e in episodes]
         ref_pos = np.stack([r[0] for r in refs], axis=1)  # (steps, m, 3)
@@ -167,8 +202,8 @@ class _Stepper:
                            cmd_stiffness, nullspace_target, torque, stiffness, wrench, self.torque_limit, self.rates,
                            f["ctrl"])
             start = time.perf_counter() if self.timed else 0.0
-            try:
-                self.batch.step(live)
+            try:  # every row: no ids to check (the same steps)
+                self.batch.step(None if len(live) == self.batch.nsim else live)
             except SimulationError as error:  # those rows kept their state; they end here
                 failed |= np.isin(rows, error.ids)
                 live = rows[~failed]
@@ -181,3 +216,4 @@ class _Stepper:
             e.data.was_reset = bool(reset[r])
             e.cstate = NativeControllerState(torque[r], stiffness[r], wrench[r])
             e.tick_force = (float(force_sum[r]), float(force_peak[r]))
+        return reset

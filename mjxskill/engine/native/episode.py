@@ -15,7 +15,7 @@ import math
 import mujoco
 import numpy as np
 
-from mjxskill.ebt.interpreter import Interpreter, TickResult
+from mjxskill.ebt.interpreter import Interpreter
 from mjxskill.ebt.nodes import Status
 from mjxskill.engine.native.controller import NativeControllerState, native_impedance_control
 from mjxskill.engine.native.leaves import NativeBlackboard
@@ -29,17 +29,6 @@ from mjxskill.sim.controller_config import N_ARM
 
 
 _RESET_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
-
-
-def _live_nodes(interp: Interpreter, result: TickResult) -> set[int]:
-    """Nodes that carry on at the next tick: ticked, and they and all ancestors RUNNING."""
-    live, stack = set(), [0]
-    while stack:
-        nid = stack.pop()
-        if result.node_status.get(nid) == Status.RUNNING:
-            live.add(nid)
-            stack.extend(interp.children[nid])
-    return live
 
 
 def initial_data(engine, model: mujoco.MjModel, world) -> mujoco.MjData:
@@ -68,11 +57,15 @@ def data_was_reset(data) -> bool:
     return data.was_reset
 
 
-class _Snapshot:
-    """What is read of an episode's data after it has ended: its state and the kinematics
-    ``mj_step`` left (copying the whole MjData each tick cost more than a tick's physics)."""
+# What is read of an episode's data after it has ended: its state and the kinematics ``mj_step`` left.
+SNAPSHOT_FIELDS = ("qpos", "qvel", "xpos", "xquat", "site_xpos", "site_xmat")
 
-    FIELDS = ("qpos", "qvel", "xpos", "xquat", "site_xpos", "site_xmat")
+
+class _Snapshot:
+    """An episode's ``SNAPSHOT_FIELDS`` at the start of a tick (copying the whole MjData each
+    tick cost more than a tick's physics)."""
+
+    FIELDS = SNAPSHOT_FIELDS
 
     def __init__(self, data: mujoco.MjData):
         self.arrays = [getattr(data, name).copy() for name in self.FIELDS]
@@ -118,6 +111,7 @@ class NativeEpisode:
         self.records: list[TickRecord] = []
         self.root, self.active = Status.RUNNING, [False] * self.n_leaves
         self._before = None
+        self._tool = None  # the tool pose ``end_tick`` read, for the next ``begin_tick``
 
     # -- observation ------------------------------------------------------------------------
     def tool_pose(self) -> tuple[np.ndarray, np.ndarray]:
@@ -149,23 +143,28 @@ class NativeEpisode:
         return all(data.qpos[s.qpos_adr + 2] > MIN_OBJECT_Z for s in self.engine.setup.bindings.slots if s.how == FREE)
 
     # -- one tick ---------------------------------------------------------------------------
-    def begin_tick(self) -> None:
+    def begin_tick(self, snapshot=None) -> None:
         """The BT tick and the active leaves' effects (the blackboard then holds this tick's
-        commanded stiffness, wrench, motion and spiral)."""
+        commanded stiffness, wrench, motion and spiral). ``snapshot``: the data's state now, taken
+        by the caller (a batch snapshots all its rows at once), or None to take it here."""
         engine, bb = self.engine, self.bb
-        tool_pos, _ = self.tool_pose()
+        # the tool pose the last ``end_tick`` read (nothing has stepped since), or read now
+        tool_pos = self.tool_pose()[0] if self._tool is None else self._tool[0]
+        self._tool = None
         if self.done:  # the tree is no longer ticked: every leaf is idle
             root, active, started = self.status, [False] * self.n_leaves, [False] * self.n_leaves
         else:
-            leaf_status = [prog[0](bb, tool_pos, nid in self.live) for prog, nid in zip(engine.programs, engine.leaf_ids)]
-            result = self.interp.tick(lambda nid, node: leaf_status[engine.leaf_position[nid]])
+            # A leaf's status is read from the state before the tick, which nothing writes during
+            # it: asked for the leaves the tick reaches only, when it reaches them.
+            programs, position, live = engine.programs, engine.leaf_position, self.live
+            result = self.interp.tick(lambda nid, node: programs[position[nid]][0](bb, tool_pos, nid in live))
             root = result.status
             ticked = set(result.active_leaves)
             active = [nid in ticked for nid in engine.leaf_ids]
-            started = [a and nid not in self.live for a, nid in zip(active, engine.leaf_ids)]
-            self.live = _live_nodes(self.interp, result)
+            started = [a and nid not in live for a, nid in zip(active, engine.leaf_ids)]
+            self.live = self.interp.live  # ticked, and they and all ancestors RUNNING
         # Held effects fall back to their defaults unless an active leaf sets them again.
-        self._before = (_Snapshot(self.data), self.cstate, bb.copy())
+        self._before = (_Snapshot(self.data) if snapshot is None else snapshot, self.cstate, bb.copy())
         bb.stiffness, bb.wrench, bb.spiral_on = self.default_stiffness, np.zeros(6), False
         for k, (_, effect) in enumerate(engine.programs):
             if active[k]:
@@ -191,10 +190,12 @@ class NativeEpisode:
         self.cstate = cstate
         self.tick_force = (force_sum, force_peak)
 
-    def end_tick(self, t: int) -> bool:
+    def end_tick(self, t: int, healthy: bool | None = None) -> bool:
         """Divergence check and the tick's rewards; False when the episode has ended (diverged:
-        frozen at the last good state, charged the worst rewards in ``result``)."""
-        if not self.healthy():
+        frozen at the last good state, charged the worst rewards in ``result``). ``healthy``:
+        what ``healthy()`` says now, found by the caller (a batch checks all its rows at once),
+        or None to check here."""
+        if not (self.healthy() if healthy is None else healthy):
             # The compiled rollout keeps ticking a frozen world, which changes nothing.
             snapshot, self.cstate, self.bb = self._before
             self.data = snapshot.restore(self.data)
@@ -204,7 +205,7 @@ class NativeEpisode:
         if root != Status.RUNNING and not self.done:
             self.done, self.done_tick = True, t
         self.status = root
-        tool_pos, tool_quat = self.tool_pose()
+        tool_pos, tool_quat = self._tool = self.tool_pose()
         slot_pos, slot_quat = self.slot_poses()
         force_sum, force_peak = self.tick_force
         self.force_sum, self.force_peak = self.force_sum + force_sum, max(self.force_peak, force_peak)
@@ -216,7 +217,7 @@ class NativeEpisode:
             self.records.append(TickRecord(self.data.qpos.copy(), self.data.mocap_pos.copy(), self.data.mocap_quat.copy(),
                                            tool_pos, obs.ref_pos, int(root),
                                            np.array(self.active), np.array(raw)))
-        self.peak_commanded_force = max(self.peak_commanded_force, float(np.linalg.norm(self.cstate.wrench[:3])))
+        self.peak_commanded_force = max(self.peak_commanded_force, float(HOST.linalg.norm(self.cstate.wrench[:3])))
         return True
 
     # -- the end ----------------------------------------------------------------------------

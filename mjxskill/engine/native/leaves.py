@@ -5,7 +5,6 @@ before the tick, then the effects of the leaves the tick activated, in tick orde
 
 from __future__ import annotations
 
-import copy
 import math
 from typing import Callable, NamedTuple
 
@@ -43,10 +42,15 @@ class NativeBlackboard:
         self.spiral_params = (0.0, 0.0, 0.0)
         self.spiral_axes = plane_basis(SPIRAL_NORMAL)
         self.leaf_ticks = [0] * n_leaves
+        # leaf number -> (inputs, goal quaternion) of a ``set_goal_from_object`` leaf's last goal
+        # (a cache of a pure function: a snapshot may share it)
+        self.goal_memo: dict = {}
 
     def copy(self) -> "NativeBlackboard":
-        # Fields are rebound, never mutated in place, so a shallow copy is a snapshot.
-        new = copy.copy(self)
+        # Fields are rebound, never mutated in place, so a shallow copy is a snapshot (made as
+        # ``copy.copy`` makes it, without its protocol's cost: this runs every tick and episode).
+        new = object.__new__(NativeBlackboard)
+        new.__dict__.update(self.__dict__)
         new.leaf_ticks = list(self.leaf_ticks)
         return new
 
@@ -171,9 +175,18 @@ def _set_goal_from_object(i: int, leaf, ctx: _Context):
     def set_goal(bb, fresh, params):
         bb.goal_pos = base + np.array([dx(params), dy(params), 0.0])
         current = bb.reference()[1]
-        target = (object_yaw if aligned else tool_yaw(current)) + math.radians(yaw(params))
-        tilt = (math.radians(roll(params)), math.radians(pitch(params))) if tilted else None
+        # The goal is a function of the reference orientation and the parameters alone, and the
+        # leaf runs every tick its sequence is ticked, mostly from a finished motion's end
+        # orientation: computed again only when they change (the same values either way).
+        key = (current.tobytes(), yaw(params), roll(params) if tilted else None, pitch(params) if tilted else None)
+        memo = bb.goal_memo.get(i)
+        if memo is not None and memo[0] == key:
+            bb.goal_quat = memo[1]
+            return
+        target = (object_yaw if aligned else tool_yaw(current)) + math.radians(key[1])
+        tilt = (math.radians(key[2]), math.radians(key[3])) if tilted else None
         bb.goal_quat = tool_down_aligned(current, target, tilt)
+        bb.goal_memo[i] = (key, bb.goal_quat)
 
     return (lambda bb, tool_pos, live: Status.SUCCESS), set_goal
 
@@ -235,7 +248,7 @@ def _ee_pose_distance(i: int, leaf, ctx: _Context):
     threshold = float(leaf.args["threshold"])
 
     def reached(bb, tool_pos, live):
-        close = np.linalg.norm(tool_pos - bb.motion.goal_pos) < threshold
+        close = HOST.linalg.norm(tool_pos - bb.motion.goal_pos) < threshold
         return Status.SUCCESS if live and close else Status.RUNNING
 
     return reached, _keep

@@ -51,7 +51,7 @@ def trapezoid_position(t: float, distance: float, duration: float, speed: float,
 def trapezoid_positions(t: np.ndarray, distance: float, duration: float, speed: float, lim: AxisLimits) -> np.ndarray:
     """``trapezoid_position`` at every time of ``t`` (n,) at once."""
     t_acc, t_dec = speed / lim.acc, speed / lim.dec
-    t = np.clip(t, 0.0, duration)
+    t = HOST.clip(t, 0.0, duration)
     cruise = 0.5 * lim.acc * t_acc**2 + speed * (t - t_acc)
     braking = distance - 0.5 * lim.dec * (duration - t) ** 2
     return np.where(t < t_acc, 0.5 * lim.acc * t**2, np.where(t < duration - t_dec, cruise, braking))
@@ -77,6 +77,9 @@ class LinearMotion:
         # the reference at and after ``duration``, by ``at``'s scalar and ``at_times``'s array
         # arithmetic (which may differ in the last bit), once asked for
         self._end_scalar = self._end = None
+        # ``at``'s last time inside the motion and its reference: a tick's end (the rewards) and
+        # the next tick's start (a goal set from the reference) ask for the same time
+        self._last = (None, None)
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference position (3,) and quaternion (4,) at time t (s) since the start."""
@@ -84,7 +87,11 @@ class LinearMotion:
             if self._end_scalar is None:
                 self._end_scalar = self._at(self.duration)
             return self._end_scalar[0].copy(), self._end_scalar[1].copy()
-        return self._at(t)
+        last_t, last = self._last
+        if t != last_t:
+            last = self._at(t)
+            self._last = (t, last)
+        return last[0].copy(), last[1].copy()
 
     def _at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         lim = self.limits
