@@ -75,7 +75,14 @@ def zdt1(x: np.ndarray) -> np.ndarray:
 def dtlz2(x: np.ndarray, m: int = 3) -> np.ndarray:
     """(q, d) in [0, 1]^d -> (q, m), BoTorch's DTLZ2 (front: the unit sphere's positive part)."""
     g = np.sum((x[:, m - 1 :] - 0.5) ** 2, axis=1)
-    c, s = np.cos(0.5 * np.pi * x[:, : m - 1]), np.sin(0.5 * np.pi * x[:, : m - 1])
+    return _on_sphere(g, x[:, : m - 1], m)
+
+
+def _on_sphere(g: np.ndarray, theta: np.ndarray, m: int) -> np.ndarray:
+    """DTLZ2's and DTLZ5's objectives from their distance term g (q,) and angles theta (q, m - 1)
+    in [0, 1]: f_i = (1 + g) prod_{j < m-1-i} cos(theta_j pi / 2), times sin(theta_{m-1-i} pi / 2)
+    for i > 0."""
+    c, s = np.cos(0.5 * np.pi * theta), np.sin(0.5 * np.pi * theta)
     out = []
     for i in range(m):
         k = m - 1 - i
@@ -94,13 +101,7 @@ def dtlz5(x: np.ndarray, m: int = 3) -> np.ndarray:
     g = np.sum((x[:, -k:] - 0.5) ** 2, axis=1)
     theta = (1.0 + 2.0 * g[:, None] * x[:, : m - 1]) / (2.0 * (1.0 + g[:, None]))
     theta[:, 0] = x[:, 0]
-    c, s = np.cos(0.5 * np.pi * theta), np.sin(0.5 * np.pi * theta)
-    out = []
-    for i in range(m):
-        j = m - 1 - i
-        fi = (1.0 + g) * np.prod(c[:, :j], axis=1)
-        out.append(fi * s[:, j] if i > 0 else fi)
-    return np.stack(out, axis=1)
+    return _on_sphere(g, theta, m)
 
 
 def dtlz7(x: np.ndarray, m: int = 3) -> np.ndarray:
