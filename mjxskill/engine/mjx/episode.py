@@ -27,7 +27,8 @@ from mjxskill.engine.common.bindings import FREE, MOCAP, nominal_poses
 from mjxskill.engine.common.rewards import Observation, RewardTerm, raw_rewards
 from mjxskill.engine.common.success import success
 from mjxskill.engine.mjx.leaves import Blackboard, LeafPrograms, LeafWorld, advance, init_blackboard, reference_pose
-from mjxskill.engine.common.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, EpisodeSetup, TickRecord
+from mjxskill.engine.common.health import free_object_z_addresses, healthy_state
+from mjxskill.engine.common.types import EpisodeResult, EpisodeSetup, TickRecord
 from mjxskill.engine.common.worlds import Worlds, world_pair_friction
 from mjxskill.engine.mjx.controller import (
     N_ARM,
@@ -99,12 +100,7 @@ def slot_poses(spec: EpisodeSpec, data: mjx.Data, world: Worlds):
 
 
 def _healthy(spec: EpisodeSpec, data: mjx.Data) -> jax.Array:
-    ok = jnp.all(jnp.isfinite(data.qpos)) & jnp.all(jnp.isfinite(data.qvel))
-    ok &= jnp.all(jnp.abs(data.qvel) < MAX_QVEL)
-    for slot in spec.setup.bindings.slots:
-        if slot.how == FREE:
-            ok &= data.qpos[slot.qpos_adr + 2] > MIN_OBJECT_Z
-    return ok
+    return healthy_state(JAX, data.qpos, data.qvel, free_object_z_addresses(spec.setup.bindings))
 
 
 def _where(cond, new, old):

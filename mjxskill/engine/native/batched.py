@@ -26,7 +26,8 @@ from mujoco.batch import Batch, SimulationError
 
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import FREE, MOCAP
-from mjxskill.engine.common.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult
+from mjxskill.engine.common.health import free_object_z_addresses, healthy_state
+from mjxskill.engine.common.types import EpisodeResult
 from mjxskill.engine.common.worlds import world_pair_friction
 from mjxskill.engine.native.controller import NativeControllerState
 from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode
@@ -107,7 +108,7 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
         for i in range(len(params))
     ]
     stepper = _Stepper(engine, batch, fields, timed=timing is not None)
-    z_adr = [s.qpos_adr + 2 for s in engine.setup.bindings.slots if s.how == FREE]
+    z_adr = free_object_z_addresses(engine.setup.bindings)
     healthy = np.ones(len(episodes), bool)
     for t in range(engine.setup.ticks):
         alive = [i for i, e in enumerate(episodes) if not e.diverged]
@@ -122,7 +123,8 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
         if rows:
             rows = np.array(rows, dtype=np.int64)
             reset = stepper.tick([episodes[i] for i in rows], rows)
-            healthy[rows] = _healthy_rows(fields, rows, reset, z_adr)
+            # NativeEpisode.healthy for these rows at once: MuJoCo did not reset them, and the test.
+            healthy[rows] = ~reset & healthy_state(HOST, fields["qpos"][rows], fields["qvel"][rows], z_adr)
         for i in alive:
             if bad[i]:
                 episodes[i].plain_steps()
@@ -147,19 +149,6 @@ class _RowSnapshot:
 
     def restore(self, row: BatchRow) -> BatchRow:
         return row.frozen({name: np.array(array[self.i]) for name, array in self.frame.items()})
-
-
-def _healthy_rows(fields: dict, rows: np.ndarray, reset: np.ndarray, z_adr: list[int]) -> np.ndarray:
-    """``NativeEpisode.healthy`` for the batch rows ``rows`` (m,) at once, (m,) bool: not reset
-    (``reset``, (m,)), state finite, every speed below ``MAX_QVEL``, every free object above
-    ``MIN_OBJECT_Z`` (its qpos z at ``z_adr``); the same comparisons on the same values."""
-    qpos, qvel = fields["qpos"][rows], fields["qvel"][rows]
-    with np.errstate(invalid="ignore"):
-        ok = ~reset & np.isfinite(qpos).all(axis=1) & np.isfinite(qvel).all(axis=1)
-        ok &= ~(np.abs(qvel) >= MAX_QVEL).any(axis=1)
-        for adr in z_adr:
-            ok &= qpos[:, adr] > MIN_OBJECT_Z
-    return ok
 
 
 class _Stepper:

@@ -24,7 +24,8 @@ from mjxskill.engine.common.bindings import FREE, MOCAP
 from mjxskill.engine.common.rewards import Observation
 from mjxskill.engine.common.success import success
 from mjxskill.engine.common.worlds import world_pair_friction
-from mjxskill.engine.common.types import MAX_QVEL, MIN_OBJECT_Z, EpisodeResult, TickRecord
+from mjxskill.engine.common.health import free_object_z_addresses, healthy_state
+from mjxskill.engine.common.types import EpisodeResult, TickRecord
 from mjxskill.sim.controller_config import N_ARM
 
 
@@ -136,11 +137,7 @@ class NativeEpisode:
         # agreement test on a world with a NaN start posture).
         if data_was_reset(data):
             return False
-        if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
-            return False
-        if np.any(np.abs(data.qvel) >= MAX_QVEL):
-            return False
-        return all(data.qpos[s.qpos_adr + 2] > MIN_OBJECT_Z for s in self.engine.setup.bindings.slots if s.how == FREE)
+        return bool(healthy_state(HOST, data.qpos, data.qvel, free_object_z_addresses(self.engine.setup.bindings)))
 
     # -- one tick ---------------------------------------------------------------------------
     def begin_tick(self, snapshot=None) -> None:
