@@ -27,7 +27,10 @@ worlds from key 0), and prints as a table with the load average of each row:
 The default is the real workload: the scenario's full episode length at the training batch
 (6 parameter sets x 7 worlds). ``--json`` writes ``mjx_steps_per_s``, ``native_steps_per_s``,
 ``loop_steps_per_s``, ``best_engine``, ``best_steps_per_s``, ``best_x_loop``,
-``physics_limit_steps_per_s``, ``best_share_of_limit`` and the rows.
+``physics_limit_steps_per_s``, ``best_share_of_limit``, ``episode_physics_steps_per_s`` (MuJoCo's
+step on the episodes' own states: the one-process, one-thread call's rate over its physics share)
+with ``episode_physics_share_of_limit`` (cores x that over the limit: the engine's ceiling were
+its Python free) and the rows.
 """
 
 from __future__ import annotations
@@ -285,6 +288,15 @@ def main(argv=None) -> dict | None:
               f"{'-' if mem is None else f'{mem:.2f}':>11}{r['load_avg']:>6.2f}")
     print(f"limit: {cores} cores x bare mj_step {rows[-1]['steps_per_s']:.0f} = {limit:.0f} control steps/s; "
           f"physics: the share of a one-process, one-thread call spent in MuJoCo's step")
+    # MuJoCo's step on the episodes' own states (contacts: a peg in its hole collides with the
+    # hole's 21 geoms) costs more than the bare step at the start state: the engine's rate with
+    # no Python at all would be cores x this, its ceiling as a share of the limit.
+    timed = next((r for r in rows if r["engine"] == "native" and r.get("physics_share")), None)
+    episode_physics = timed["steps_per_s"] / timed["physics_share"] if timed else None
+    if episode_physics:
+        print(f"the episodes' own physics: {episode_physics:.0f} steps/s on one core in MuJoCo's step "
+              f"({episode_physics / rows[-1]['steps_per_s']:.2f} x bare mj_step); the ceiling with no Python: "
+              f"{cores * episode_physics / limit:.2f} of the limit")
 
     fast = [r for r in rows if r["engine"] in ("native", "mjx")]
     best = max(fast, key=lambda r: r["steps_per_s"])
@@ -298,6 +310,8 @@ def main(argv=None) -> dict | None:
         best_engine=best["engine"], best_steps_per_s=best["steps_per_s"], best_x_loop=best["steps_per_s"] / loop_rate,
         bare_mj_step_steps_per_s=rows[-1]["steps_per_s"],
         physics_limit_steps_per_s=limit, best_share_of_limit=best["steps_per_s"] / limit,
+        episode_physics_steps_per_s=episode_physics,
+        episode_physics_share_of_limit=cores * episode_physics / limit if episode_physics else None,
         load_avg=[r["load_avg"] for r in rows],
         rows=rows,
     )

@@ -90,3 +90,19 @@ def test_report_reads_the_file_and_a_bad_file_is_one_error_line(quick, tmp_path)
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert done.stderr.strip().splitlines() == [f"task_optimizers.py: error: --report {bad} line 2: not JSON "
                                                  "(Expecting property name enclosed in double quotes)"]
+
+
+def test_the_pick_is_the_validated_best_and_is_checked_again_in_fresh_worlds(quick):
+    _, rows = quick
+    for r in rows:
+        doc = json.loads((Path(r["run_dir"]) / "evaluation" / "validation.json").read_text())
+        success, seconds = np.array(doc["success"]), np.array(doc["seconds"])
+        i = doc["params"].index(r["pick_params"])
+        # the most successful contender, of equal ones the fastest (as an experiment picks)
+        assert success[i] == success.max() == r["pick_validation_success"]
+        assert seconds[i] == seconds[success == success.max()].min()
+        known = 4 if r["task"] == "push" else 5
+        assert r["pick_validation_worlds"] == known and r["pick_fresh_worlds"] == known
+        assert r["pick_fresh_success"] * known == pytest.approx(round(r["pick_fresh_success"] * known))
+        stored = json.loads((Path(r["run_dir"]) / bench.PICK).read_text())
+        assert stored["params"] == r["pick_params"] and stored["seed"] == bench.FRESH_SEED

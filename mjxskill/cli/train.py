@@ -43,7 +43,8 @@ from mjxskill.runs.run_task import load_run_task, scenario_and_task
 AFTER_WARM_UP = {"random": ", uniform random search after the warm-up",
                  "optuna-nsga2": ", Optuna's NSGAIISampler after the warm-up",
                  "optuna-tpe": ", Optuna's TPESampler (multivariate) after the warm-up",
-                 "optuna-gp": ", Optuna's GPSampler after the warm-up"}
+                 "optuna-gp": ", Optuna's GPSampler after the warm-up",
+                 "botorch-qlognehvi": ", BoTorch's qLogNEHVI after the warm-up"}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -32,13 +32,14 @@ from typing import NamedTuple
 
 from mjxskill.errors import RunError
 from mjxskill.runs.run_dir import CONFIG, Run
-from mjxskill.runs.settings import OPTUNA_OPTIMIZERS
+from mjxskill.runs.settings import BOTORCH_OPTIMIZERS, OPTUNA_OPTIMIZERS
 
 EXPERIMENT = "experiment.yaml"
 OPTIMIZER_RUNS = "optimizer"
 RANDOM_RUNS = "random_search"
 # config.yaml's optimizer -> kind; Optuna's samplers are optimizers like ours to the layouts
-KINDS = {"mobo": "optimizer", "random": "random_search", **{name: "optimizer" for name in OPTUNA_OPTIMIZERS}}
+KINDS = {"mobo": "optimizer", "random": "random_search",
+         **{name: "optimizer" for name in OPTUNA_OPTIMIZERS + BOTORCH_OPTIMIZERS}}
 
 
 class RunRef(NamedTuple):

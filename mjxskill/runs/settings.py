@@ -26,7 +26,9 @@ from mjxskill.scenario.schema import (MAX_BATCH, MAX_BATCH_EPISODES, MAX_BUDGET,
 NO_DEFAULT = object()
 # Optuna's multi-objective samplers, an optional extra (mjxskill.training.optuna_search)
 OPTUNA_OPTIMIZERS = ("optuna-nsga2", "optuna-tpe", "optuna-gp")
-OPTIMIZERS = ("mobo", "random", *OPTUNA_OPTIMIZERS)
+# BoTorch's qLogNEHVI, an optional extra (mjxskill.training.botorch_search)
+BOTORCH_OPTIMIZERS = ("botorch-qlognehvi",)
+OPTIMIZERS = ("mobo", "random", *OPTUNA_OPTIMIZERS, *BOTORCH_OPTIMIZERS)
 
 
 @dataclass(frozen=True)
@@ -112,13 +114,13 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("engine", "--engine", "text", "physics engine: mjx (compiled MJX), native (native MuJoCo, one process "
             "per core) or auto (MJX on a GPU/TPU, native on a CPU)", scenario=lambda scn: "auto", default="mjx",
             choices=("mjx", "native", "auto"), default_text="auto"),
-    # Random search and Optuna's samplers are runs like any other, to compare the optimizer with
+    # Random search, Optuna's samplers and BoTorch's qLogNEHVI are runs like any other, to compare the optimizer with
     # (mjxskill.experiment, benchmarks/task_optimizers.py): the same batches, the same warm-up,
     # then their proposals instead of the model's.
     Setting("optimizer", "--optimizer", "text", "what proposes the batches after the warm-up: mobo (the "
             "multi-objective Bayesian optimizer), random (uniform random search, a baseline) or one of Optuna's "
             "samplers to compare with: optuna-nsga2, optuna-tpe, optuna-gp (pip install 'mjxskill[optuna]'; "
-            "optuna-gp: 'mjxskill[optuna-gp]')",
+            "optuna-gp: 'mjxskill[optuna-gp]') or BoTorch's botorch-qlognehvi (pip install 'mjxskill[botorch]')",
             default="mobo", choices=OPTIMIZERS),
 )
 BY_NAME = {s.name: s for s in SETTINGS}
@@ -153,4 +155,4 @@ def optimizer_option_value(key: str, value):
     return setting_value(key, value)
 
 
-__all__ = ["BY_NAME", "NO_DEFAULT", "OPTIMIZERS", "OPTUNA_OPTIMIZERS", "SEED", "SETTINGS", "Setting", "cross_problems", "optimizer_option_value"]
+__all__ = ["BOTORCH_OPTIMIZERS", "BY_NAME", "NO_DEFAULT", "OPTIMIZERS", "OPTUNA_OPTIMIZERS", "SEED", "SETTINGS", "Setting", "cross_problems", "optimizer_option_value"]

@@ -19,8 +19,8 @@ from mjxskill.runs.evaluations_csv import FORCE_COLUMNS
 from mjxskill.runs.resume import resume_batches
 from mjxskill.runs.run_config import optimizer_config
 from mjxskill.runs.run_dir import OPTIMIZER_STATE, Evaluations, Run, RunConfig, batch_sizes, concat_all
-from mjxskill.runs.settings import OPTUNA_OPTIMIZERS
-from mjxskill.training import optuna_search
+from mjxskill.runs.settings import BOTORCH_OPTIMIZERS, OPTUNA_OPTIMIZERS
+from mjxskill.training import botorch_search, optuna_search
 
 
 class BatchResult(NamedTuple):
@@ -124,13 +124,16 @@ def propose(gp, state, config: RunConfig, size: int) -> np.ndarray:
     ``n_init`` rows and their curves part where the optimizers take over. After it, random search
     (``config.optimizer == "random"``) draws uniformly from the bounds with a generator seeded by
     (seed, rows so far), and Optuna's samplers (``optuna-*``) propose from a study rebuilt from the
-    rows so far (``mjxskill.training.optuna_search``): either way a resumed run proposes the same
+    rows so far (``mjxskill.training.optuna_search``), BoTorch's qLogNEHVI (``botorch-qlognehvi``)
+    from a model fitted on them (``mjxskill.training.botorch_search``): either way a resumed run proposes the same
     batches."""
     n = len(state.x)
     if config.optimizer == "mobo" or n < config.n_init:
         return gp.ask(state, num=size)
     if config.optimizer in OPTUNA_OPTIMIZERS:
         return optuna_search.ask(config, state.x, -state.y, size)
+    if config.optimizer in BOTORCH_OPTIMIZERS:
+        return botorch_search.ask(config, state.x, -state.y, size)
     lo, hi = np.asarray(config.bounds, np.float64)
     u = np.random.default_rng([config.seed, RANDOM_SEARCH_STREAM, n]).random((size, len(lo)))
     return lo + u * (hi - lo)

@@ -1,0 +1,99 @@
+"""BoTorch's qLogNEHVI as a run's optimizer (``optimizer: botorch-qlognehvi``), in the run's own
+loop and batches: what a user who knows BoTorch would run instead of ours, on their own cell.
+
+As for Optuna's samplers (``mjxskill.training.optuna_search``), the loop asks this module only
+after the warm-up, whose rows are the Bayesian optimizer's own uniform draws, so runs of one seed
+share them. Each batch is BoTorch's multi-objective tutorial, unchanged but for the reference:
+
+* the model: one ``SingleTaskGP`` per objective (BoTorch's default priors, outputs
+  standardized), fitted by marginal likelihood on the rows so far, the parameters scaled to the
+  unit cube by the run's bounds; rows with a non-finite objective (a diverged world) left out;
+* the acquisition: ``qLogNoisyExpectedHypervolumeImprovement`` with 128 quasi-Monte Carlo
+  samples about the run's reference point, the one ``train`` reports its hypervolume against and
+  ours optimizes about (the worst warm-up value plus 10 % of the warm-up's range), all the rows
+  as the noisy baseline;
+* the batch: ``optimize_acqf`` with ``sequential=True`` (q candidates one after the other, each
+  conditioned on the ones before), 10 restarts from 512 raw samples, L-BFGS-B 200 steps.
+
+Torch's generator is seeded from (seed, number of rows) before every batch, so a resumed run
+proposes what an uninterrupted one did (on the same machine: torch's CPU kernels are
+deterministic there). BoTorch and PyTorch are an optional extra (``pip install
+'mjxskill[botorch]'``); ``missing_extra`` says what to install when they are absent.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import warnings
+
+import numpy as np
+
+from mjxskill.runs.run_config import RunConfig
+
+OPTIMIZER = "botorch-qlognehvi"
+EXTRA = "botorch"
+SEED_STREAM = 0xB07C  # separates the batches' seeds from every other use of the run's seed
+MC_SAMPLES, RESTARTS, RAW_SAMPLES, MAX_ITER = 128, 10, 512, 200
+
+
+def missing_extra(optimizer: str) -> str | None:
+    """Why ``optimizer`` cannot run here (what is not installed and how to install it), or None
+    (it can, or it is not BoTorch's)."""
+    if optimizer != OPTIMIZER:
+        return None
+    absent = [name for module, name in (("botorch", "BoTorch"), ("torch", "PyTorch"))
+              if importlib.util.find_spec(module) is None]
+    if not absent:
+        return None
+    return (f"needs {' and '.join(absent)}, which {'is' if len(absent) == 1 else 'are'} not installed: "
+            f"pip install 'mjxskill[{EXTRA}]'")
+
+
+def batch_seed(seed: int, rows: int) -> int:
+    """Torch's seed for the batch after ``rows`` rows: (seed, rows) and nothing else."""
+    return int(np.random.SeedSequence([seed, SEED_STREAM, rows]).generate_state(1)[0])
+
+
+def reference_point(config: RunConfig, objectives: np.ndarray) -> np.ndarray:
+    """(O,) the run's reference in the objectives (larger is better): the warm-up's worst value
+    of each minus 10 % of its range (``mjxskill.training.front.hypervolume_reference``)."""
+    from mjxskill.training.front import hypervolume_reference
+
+    return -hypervolume_reference(objectives[: config.n_init])
+
+
+def ask(config: RunConfig, params: np.ndarray, objectives: np.ndarray, size: int) -> np.ndarray:
+    """The next ``size`` parameter sets (size, P) after the rows ``params`` (n, P) and
+    ``objectives`` (n, O, larger is better) so far."""
+    # lazy: an optional extra (torch takes seconds to import); configure refuses the run without it
+    import torch
+    from botorch.acquisition.multi_objective.logei import qLogNoisyExpectedHypervolumeImprovement
+    from botorch.fit import fit_gpytorch_mll
+    from botorch.models import ModelListGP, SingleTaskGP
+    from botorch.models.transforms import Standardize
+    from botorch.optim.optimize import optimize_acqf
+    from botorch.sampling import SobolQMCNormalSampler
+    from gpytorch.mlls import SumMarginalLogLikelihood
+
+    lo, hi = (np.asarray(b, np.float64) for b in config.bounds)
+    params, objectives = np.asarray(params, np.float64), np.asarray(objectives, np.float64)
+    ok = np.all(np.isfinite(objectives), axis=1)
+    x = torch.from_numpy((params[ok] - lo) / (hi - lo))
+    y = torch.from_numpy(objectives[ok])
+    torch.manual_seed(batch_seed(config.seed, len(params)))
+    with warnings.catch_warnings():  # jittered Cholesky factors and restarted L-BFGS-B: notes, not faults
+        warnings.filterwarnings("ignore", module=r"(botorch|linear_operator|gpytorch)(\.|$)")
+        model = ModelListGP(*[SingleTaskGP(x, y[:, i : i + 1], outcome_transform=Standardize(m=1))
+                              for i in range(y.shape[1])])
+        fit_gpytorch_mll(SumMarginalLogLikelihood(model.likelihood, model))
+        acq = qLogNoisyExpectedHypervolumeImprovement(
+            model=model, ref_point=reference_point(config, objectives).tolist(), X_baseline=x, prune_baseline=True,
+            sampler=SobolQMCNormalSampler(sample_shape=torch.Size([MC_SAMPLES])))
+        unit = torch.stack([torch.zeros(len(lo)), torch.ones(len(lo))]).double()
+        cand, _ = optimize_acqf(acq, bounds=unit, q=size, sequential=True, num_restarts=RESTARTS,
+                                raw_samples=RAW_SAMPLES, options={"batch_limit": 5, "maxiter": MAX_ITER})
+    u = np.clip(cand.detach().numpy().astype(np.float64), 0.0, 1.0)
+    return lo + u * (hi - lo)
+
+
+__all__ = ["OPTIMIZER", "ask", "batch_seed", "missing_extra", "reference_point"]
