@@ -349,28 +349,16 @@ def run_random(problem, seed):
     return problem["f"](x)
 
 
-def _botorch_model(x, y):
-    """The BoTorch tutorial's model: one SingleTaskGP per objective (outputs standardized),
-    inputs already in the unit cube; fitted by marginal likelihood."""
-    from botorch.fit import fit_gpytorch_mll
-    from botorch.models import ModelListGP, SingleTaskGP
-    from botorch.models.transforms import Standardize
-    from gpytorch.mlls import SumMarginalLogLikelihood
-
-    model = ModelListGP(*[SingleTaskGP(x, y[:, i : i + 1], outcome_transform=Standardize(m=1)) for i in range(y.shape[1])])
-    fit_gpytorch_mll(SumMarginalLogLikelihood(model.likelihood, model))
-    return model
-
-
 def run_botorch(problem, seed, method="qLogNEHVI"):
     """One BoTorch run as in its multi-objective tutorial (10 restarts, 512 raw samples,
     128 Sobol MC samples, sequential greedy q = 4): qLogNEHVI with the problem's reference
     point, or qLogNParEGO with a fresh simplex weight per batch element (optimize_acqf_list)."""
     import torch
-    from botorch.acquisition.multi_objective.logei import qLogNoisyExpectedHypervolumeImprovement
     from botorch.acquisition.multi_objective.parego import qLogNParEGO
-    from botorch.optim.optimize import optimize_acqf, optimize_acqf_list
+    from botorch.optim.optimize import optimize_acqf_list
     from botorch.sampling import SobolQMCNormalSampler
+
+    from mjxskill.training.botorch_search import MAX_ITER, MC_SAMPLES, RAW_SAMPLES, RESTARTS, qlognehvi_batch, tutorial_model
 
     # BoTorch warns on every jittered Cholesky and restarted L-BFGS-B; they change nothing here.
     warnings.filterwarnings("ignore", module=r"(botorch|linear_operator|gpytorch)(\.|$)")
@@ -380,15 +368,13 @@ def run_botorch(problem, seed, method="qLogNEHVI"):
     f = lambda x: -torch.from_numpy(problem["f"](x.numpy()))  # BoTorch maximizes
     x = torch.rand(N_INIT, d, dtype=torch.double)
     y = f(x)
-    opts = dict(bounds=bounds, num_restarts=10, raw_samples=512, options={"batch_limit": 5, "maxiter": 200})
+    opts = dict(bounds=bounds, num_restarts=RESTARTS, raw_samples=RAW_SAMPLES, options={"batch_limit": 5, "maxiter": MAX_ITER})
     for _ in range(N_BATCHES):
-        model = _botorch_model(x, y)
-        sampler = SobolQMCNormalSampler(sample_shape=torch.Size([128]))
-        if method == "qLogNEHVI":
-            acq = qLogNoisyExpectedHypervolumeImprovement(model=model, ref_point=(-torch.tensor(problem["ref"])).tolist(),
-                                                          X_baseline=x, prune_baseline=True, sampler=sampler)
-            cand, _ = optimize_acqf(acq, q=BATCH, sequential=True, **opts)
+        model = tutorial_model(x, y)
+        if method == "qLogNEHVI":  # the same model and acquisition as train --optimizer botorch-qlognehvi
+            cand = qlognehvi_batch(model, x, (-torch.tensor(problem["ref"])).tolist(), BATCH)
         else:
+            sampler = SobolQMCNormalSampler(sample_shape=torch.Size([MC_SAMPLES]))
             acqs = [qLogNParEGO(model=model, X_baseline=x, prune_baseline=True, sampler=sampler) for _ in range(BATCH)]
             cand, _ = optimize_acqf_list(acqs, **opts)
         x = torch.cat([x, cand])

@@ -23,6 +23,7 @@ deterministic there). BoTorch and PyTorch are an optional extra (``pip install
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import warnings
 
@@ -62,18 +63,52 @@ def reference_point(config: RunConfig, objectives: np.ndarray) -> np.ndarray:
     return -hypervolume_reference(objectives[: config.n_init])
 
 
+def tutorial_model(x, y):
+    """BoTorch's tutorial model on inputs ``x`` (n, d) in the unit cube and outputs ``y`` (n, O),
+    larger is better (torch tensors): one ``SingleTaskGP`` per objective, outputs standardized,
+    fitted by marginal likelihood."""
+    from botorch.fit import fit_gpytorch_mll
+    from botorch.models import ModelListGP, SingleTaskGP
+    from botorch.models.transforms import Standardize
+    from gpytorch.mlls import SumMarginalLogLikelihood
+
+    model = ModelListGP(*[SingleTaskGP(x, y[:, i : i + 1], outcome_transform=Standardize(m=1)) for i in range(y.shape[1])])
+    fit_gpytorch_mll(SumMarginalLogLikelihood(model.likelihood, model))
+    return model
+
+
+def qlognehvi_batch(model, x, ref_point, q: int):
+    """The tutorial's next ``q`` points (q, d) in the unit cube: qLogNEHVI about ``ref_point``
+    (O,), larger is better, all of ``x`` the noisy baseline, optimized sequentially."""
+    import torch
+    from botorch.acquisition.multi_objective.logei import qLogNoisyExpectedHypervolumeImprovement
+    from botorch.optim.optimize import optimize_acqf
+    from botorch.sampling import SobolQMCNormalSampler
+
+    acq = qLogNoisyExpectedHypervolumeImprovement(model=model, ref_point=list(ref_point), X_baseline=x,
+                                                  prune_baseline=True,
+                                                  sampler=SobolQMCNormalSampler(sample_shape=torch.Size([MC_SAMPLES])))
+    d = x.shape[1]
+    unit = torch.stack([torch.zeros(d), torch.ones(d)]).double()
+    cand, _ = optimize_acqf(acq, bounds=unit, q=q, sequential=True, num_restarts=RESTARTS, raw_samples=RAW_SAMPLES,
+                            options={"batch_limit": 5, "maxiter": MAX_ITER})
+    return cand
+
+
+@contextlib.contextmanager
+def quiet():
+    """BoTorch's notes on every jittered Cholesky factor and restarted L-BFGS-B held back: they
+    change nothing here."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", module=r"(botorch|linear_operator|gpytorch)(\.|$)")
+        yield
+
+
 def ask(config: RunConfig, params: np.ndarray, objectives: np.ndarray, size: int) -> np.ndarray:
     """The next ``size`` parameter sets (size, P) after the rows ``params`` (n, P) and
     ``objectives`` (n, O, larger is better) so far."""
     # lazy: an optional extra (torch takes seconds to import); configure refuses the run without it
     import torch
-    from botorch.acquisition.multi_objective.logei import qLogNoisyExpectedHypervolumeImprovement
-    from botorch.fit import fit_gpytorch_mll
-    from botorch.models import ModelListGP, SingleTaskGP
-    from botorch.models.transforms import Standardize
-    from botorch.optim.optimize import optimize_acqf
-    from botorch.sampling import SobolQMCNormalSampler
-    from gpytorch.mlls import SumMarginalLogLikelihood
 
     lo, hi = (np.asarray(b, np.float64) for b in config.bounds)
     params, objectives = np.asarray(params, np.float64), np.asarray(objectives, np.float64)
@@ -81,19 +116,10 @@ def ask(config: RunConfig, params: np.ndarray, objectives: np.ndarray, size: int
     x = torch.from_numpy((params[ok] - lo) / (hi - lo))
     y = torch.from_numpy(objectives[ok])
     torch.manual_seed(batch_seed(config.seed, len(params)))
-    with warnings.catch_warnings():  # jittered Cholesky factors and restarted L-BFGS-B: notes, not faults
-        warnings.filterwarnings("ignore", module=r"(botorch|linear_operator|gpytorch)(\.|$)")
-        model = ModelListGP(*[SingleTaskGP(x, y[:, i : i + 1], outcome_transform=Standardize(m=1))
-                              for i in range(y.shape[1])])
-        fit_gpytorch_mll(SumMarginalLogLikelihood(model.likelihood, model))
-        acq = qLogNoisyExpectedHypervolumeImprovement(
-            model=model, ref_point=reference_point(config, objectives).tolist(), X_baseline=x, prune_baseline=True,
-            sampler=SobolQMCNormalSampler(sample_shape=torch.Size([MC_SAMPLES])))
-        unit = torch.stack([torch.zeros(len(lo)), torch.ones(len(lo))]).double()
-        cand, _ = optimize_acqf(acq, bounds=unit, q=size, sequential=True, num_restarts=RESTARTS,
-                                raw_samples=RAW_SAMPLES, options={"batch_limit": 5, "maxiter": MAX_ITER})
+    with quiet():
+        cand = qlognehvi_batch(tutorial_model(x, y), x, reference_point(config, objectives).tolist(), size)
     u = np.clip(cand.detach().numpy().astype(np.float64), 0.0, 1.0)
     return lo + u * (hi - lo)
 
 
-__all__ = ["OPTIMIZER", "ask", "batch_seed", "missing_extra", "reference_point"]
+__all__ = ["OPTIMIZER", "ask", "batch_seed", "missing_extra", "qlognehvi_batch", "reference_point", "tutorial_model"]
