@@ -38,8 +38,19 @@ CPU_FUSION_FLAG = "--xla_cpu_use_fusion_emitters"
 CPU_FUSION_SETTING = f"{CPU_FUSION_FLAG}=false"
 YNN_FUSION_FLAG = "--xla_cpu_experimental_ynn_fusion_type"
 YNN_FUSION_SETTING = f"{YNN_FUSION_FLAG}="
+# XLA's CPU collectives (MJX calls over several host devices) end the process when one device
+# reaches a collective this long before the other (default 40 s; the warning: 20 s). A
+# device's share of a long call can finish minutes before the other's (vmapped collision
+# loops run as long as their slowest world), and the peg's 550-episode agreement call was
+# killed so after 41 minutes of work (benchmarks/NOTES.md, section 19): an hour, a warning
+# after five minutes.
+COLLECTIVE_TERMINATE_FLAG = "--xla_cpu_collective_call_terminate_timeout_seconds"
+COLLECTIVE_TERMINATE_SETTING = f"{COLLECTIVE_TERMINATE_FLAG}=3600"
+COLLECTIVE_WARN_FLAG = "--xla_cpu_collective_call_warn_stuck_timeout_seconds"
+COLLECTIVE_WARN_SETTING = f"{COLLECTIVE_WARN_FLAG}=300"
 # what configure_xla_flags adds, each unless the user set that flag
-CPU_SETTINGS = ((CPU_FUSION_FLAG, CPU_FUSION_SETTING), (YNN_FUSION_FLAG, YNN_FUSION_SETTING))
+CPU_SETTINGS = ((CPU_FUSION_FLAG, CPU_FUSION_SETTING), (YNN_FUSION_FLAG, YNN_FUSION_SETTING),
+                (COLLECTIVE_TERMINATE_FLAG, COLLECTIVE_TERMINATE_SETTING), (COLLECTIVE_WARN_FLAG, COLLECTIVE_WARN_SETTING))
 HOST_DEVICES_FLAG = "--xla_force_host_platform_device_count"
 
 
@@ -54,8 +65,9 @@ def with_host_devices(flags: str, devices: int, *, keep_users: bool = False) -> 
 
 
 def configure_xla_flags(environ: "os._Environ[str] | dict[str, str]" = os.environ) -> str:
-    """Adds ``--xla_cpu_use_fusion_emitters=false`` and ``--xla_cpu_experimental_ynn_fusion_type=``
-    to ``XLA_FLAGS`` (``CPU_SETTINGS``), each unless the user set that flag.
+    """Adds ``--xla_cpu_use_fusion_emitters=false``, ``--xla_cpu_experimental_ynn_fusion_type=``
+    and the CPU collectives' timeouts to ``XLA_FLAGS`` (``CPU_SETTINGS``), each unless the user
+    set that flag.
 
     A user's own setting of either flag (any value) wins; other flags are kept as they are.
     When ``environ`` is ``os.environ``, also sets ``OPENBLAS_NUM_THREADS=1`` unless it is set.

@@ -4,14 +4,16 @@ import os
 import subprocess
 import sys
 
-from mjxskill._runtime import CPU_FUSION_SETTING, CPU_SETTINGS, YNN_FUSION_SETTING, configure_xla_flags, with_host_devices
+from mjxskill._runtime import (COLLECTIVE_TERMINATE_SETTING, COLLECTIVE_WARN_SETTING, CPU_FUSION_SETTING, CPU_SETTINGS,
+                               YNN_FUSION_SETTING, configure_xla_flags, with_host_devices)
 
 DEFAULTS = " ".join(setting for _, setting in CPU_SETTINGS)
 
 
 def test_flag_added_to_empty_environment():
     env = {}
-    assert configure_xla_flags(env) == DEFAULTS == f"{CPU_FUSION_SETTING} {YNN_FUSION_SETTING}"
+    assert configure_xla_flags(env) == DEFAULTS == (f"{CPU_FUSION_SETTING} {YNN_FUSION_SETTING} "
+                                                    f"{COLLECTIVE_TERMINATE_SETTING} {COLLECTIVE_WARN_SETTING}")
     assert env["XLA_FLAGS"] == DEFAULTS
 
 
@@ -24,10 +26,15 @@ def test_user_flags_are_kept():
 def test_user_choice_of_the_same_flag_wins():
     env = {"XLA_FLAGS": "--xla_cpu_use_fusion_emitters=true"}
     configure_xla_flags(env)
-    assert env["XLA_FLAGS"] == f"--xla_cpu_use_fusion_emitters=true {YNN_FUSION_SETTING}"
+    rest = f"{COLLECTIVE_TERMINATE_SETTING} {COLLECTIVE_WARN_SETTING}"
+    assert env["XLA_FLAGS"] == f"--xla_cpu_use_fusion_emitters=true {YNN_FUSION_SETTING} {rest}"
     env = {"XLA_FLAGS": "--xla_cpu_experimental_ynn_fusion_type=reduce"}
     configure_xla_flags(env)
-    assert env["XLA_FLAGS"] == f"--xla_cpu_experimental_ynn_fusion_type=reduce {CPU_FUSION_SETTING}"
+    assert env["XLA_FLAGS"] == f"--xla_cpu_experimental_ynn_fusion_type=reduce {CPU_FUSION_SETTING} {rest}"
+    env = {"XLA_FLAGS": "--xla_cpu_collective_call_terminate_timeout_seconds=60"}
+    configure_xla_flags(env)
+    assert env["XLA_FLAGS"].split()[0] == "--xla_cpu_collective_call_terminate_timeout_seconds=60"
+    assert COLLECTIVE_TERMINATE_SETTING not in env["XLA_FLAGS"]
 
 
 def test_host_devices_replace_or_keep_the_users_count_and_leave_other_flags():
@@ -53,6 +60,7 @@ def test_flag_in_effect_in_a_fresh_process_and_importing_creates_nothing(tmp_pat
     )
     flags, cache_dir = out.split("\n")[:2]
     assert CPU_FUSION_SETTING in flags and YNN_FUSION_SETTING in flags.split()
+    assert COLLECTIVE_TERMINATE_SETTING in flags.split()  # and this jaxlib knows the flags (else: abort)
     assert cache_dir == "None"  # the import switched no cache on
     assert not cache.exists() and not (tmp_path / "xdg").exists()  # and created no directory
 
