@@ -41,8 +41,8 @@ YNN_FUSION_SETTING = f"{YNN_FUSION_FLAG}="
 # XLA's CPU collectives (MJX calls over several host devices) end the process when one device
 # reaches a collective this long before the other (default 40 s; the warning: 20 s). A
 # device's share of a long call can finish minutes before the other's (vmapped collision
-# loops run as long as their slowest world), and the peg's 550-episode agreement call was
-# killed so after 41 minutes of work (benchmarks/NOTES.md, section 19): an hour, a warning
+# loops run as long as their slowest world), and the peg's agreement (550 episodes in calls of
+# 120) was killed so after 41 minutes of work (benchmarks/NOTES.md, section 19): an hour, a warning
 # after five minutes.
 COLLECTIVE_TERMINATE_FLAG = "--xla_cpu_collective_call_terminate_timeout_seconds"
 COLLECTIVE_TERMINATE_SETTING = f"{COLLECTIVE_TERMINATE_FLAG}=3600"
