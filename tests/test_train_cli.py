@@ -140,7 +140,7 @@ BAD_INPUT = (
     (["train", "push", "--resume", "{run}", "--engine", "mjx"], "drop --engine mjx (the run has native)"),
     (["train", "push", "--engine", "warp"], "argument --engine: expected one of mjx, native, auto, got 'warp'"),
     (["train", "push", "--resume", "{run}", "--optimizer", "random"], "drop --optimizer random (the run has mobo)"),
-    (["train", "push", "--optimizer", "sobol"], "argument --optimizer: expected one of mobo, random, optuna-nsga2, optuna-tpe, optuna-gp, got 'sobol'"),
+    (["train", "push", "--optimizer", "sobol"], "argument --optimizer: expected one of mobo, random, optuna-nsga2, optuna-tpe, optuna-gp, botorch-qlognehvi, got 'sobol'"),
     (["train", "push", "--workers", "0"], "argument --workers: must be at least 1, got 0"),
     (["train", "push", "--workers", "100000"], "argument --workers: must be at most 256, got 100000"),
     (["experiment", "push", "--workers", "two"], "argument --workers: expected an integer, got 'two'"),

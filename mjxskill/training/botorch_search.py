@@ -30,6 +30,7 @@ import warnings
 import numpy as np
 
 from mjxskill.runs.run_config import RunConfig
+from mjxskill.training.front import hypervolume_reference
 
 OPTIMIZER = "botorch-qlognehvi"
 EXTRA = "botorch"
@@ -58,8 +59,6 @@ def batch_seed(seed: int, rows: int) -> int:
 def reference_point(config: RunConfig, objectives: np.ndarray) -> np.ndarray:
     """(O,) the run's reference in the objectives (larger is better): the warm-up's worst value
     of each minus 10 % of its range (``mjxskill.training.front.hypervolume_reference``)."""
-    from mjxskill.training.front import hypervolume_reference
-
     return -hypervolume_reference(objectives[: config.n_init])
 
 
@@ -67,6 +66,7 @@ def tutorial_model(x, y):
     """BoTorch's tutorial model on inputs ``x`` (n, d) in the unit cube and outputs ``y`` (n, O),
     larger is better (torch tensors): one ``SingleTaskGP`` per objective, outputs standardized,
     fitted by marginal likelihood."""
+    # lazy, here and below: an optional extra, imported only when this optimizer runs
     from botorch.fit import fit_gpytorch_mll
     from botorch.models import ModelListGP, SingleTaskGP
     from botorch.models.transforms import Standardize
@@ -80,6 +80,7 @@ def tutorial_model(x, y):
 def qlognehvi_batch(model, x, ref_point, q: int):
     """The tutorial's next ``q`` points (q, d) in the unit cube: qLogNEHVI about ``ref_point``
     (O,), larger is better, all of ``x`` the noisy baseline, optimized sequentially."""
+    # lazy: an optional extra
     import torch
     from botorch.acquisition.multi_objective.logei import qLogNoisyExpectedHypervolumeImprovement
     from botorch.optim.optimize import optimize_acqf
