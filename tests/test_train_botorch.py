@@ -13,6 +13,7 @@ from cli_helpers import error_line, invoke  # noqa: E402
 from mjxskill.gp import hypervolume
 from mjxskill.runs.run_dir import EVALUATIONS
 from mjxskill.training import botorch_search
+from mjxskill.training.extras import missing_extra
 from mjxskill.training.loop import train
 from test_train_loop import CONFIG, Recorder, new_run, toy_objective  # noqa: E402
 
@@ -22,11 +23,11 @@ TOY = replace(CONFIG, budget=14, optimizer="botorch-qlognehvi")
 
 def test_missing_extra_says_what_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "torch", None)  # an import of a module set to None fails
-    assert botorch_search.missing_extra("botorch-qlognehvi") == \
+    assert missing_extra("botorch-qlognehvi") == \
         "needs PyTorch, which is not installed: pip install 'mjxskill[botorch]'"
     monkeypatch.setitem(sys.modules, "botorch", None)
-    assert "needs BoTorch and PyTorch, which are not installed" in botorch_search.missing_extra("botorch-qlognehvi")
-    assert botorch_search.missing_extra("mobo") is None and botorch_search.missing_extra("optuna-tpe") is None
+    assert "needs BoTorch and PyTorch, which are not installed" in missing_extra("botorch-qlognehvi")
+    assert missing_extra("mobo") is None and missing_extra("optuna-tpe") is None
 
 
 def test_the_reference_is_the_warm_ups_worst_less_a_tenth_of_its_range():

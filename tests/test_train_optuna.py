@@ -16,6 +16,7 @@ optuna = pytest.importorskip("optuna")
 from cli_helpers import error_line, invoke, run_cli  # noqa: E402
 from mjxskill.runs.run_dir import EVALUATIONS, PARETO, Run  # noqa: E402
 from mjxskill.training import optuna_search  # noqa: E402
+from mjxskill.training.extras import missing_extra  # noqa: E402
 from mjxskill.training.loop import train  # noqa: E402
 from test_train_loop import CONFIG, Recorder, new_run, toy_objective  # noqa: E402
 
@@ -98,11 +99,11 @@ def test_nsga2_generations_are_the_ones_optuna_gives_a_study_asked_in_batches():
 
 def test_missing_extra_says_what_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "torch", None)  # an import of a module set to None fails
-    assert optuna_search.missing_extra("optuna-gp") == "needs PyTorch, which is not installed: pip install 'mjxskill[optuna-gp]'"
+    assert missing_extra("optuna-gp") == "needs PyTorch, which is not installed: pip install 'mjxskill[optuna-gp]'"
     monkeypatch.setitem(sys.modules, "optuna", None)
-    assert "needs Optuna and PyTorch, which are not installed" in optuna_search.missing_extra("optuna-gp")
-    assert optuna_search.missing_extra("optuna-tpe") == "needs Optuna, which is not installed: pip install 'mjxskill[optuna]'"
-    assert optuna_search.missing_extra("mobo") is None and optuna_search.missing_extra("random") is None
+    assert "needs Optuna and PyTorch, which are not installed" in missing_extra("optuna-gp")
+    assert missing_extra("optuna-tpe") == "needs Optuna, which is not installed: pip install 'mjxskill[optuna]'"
+    assert missing_extra("mobo") is None and missing_extra("random") is None
 
 
 # The real command: tiny episodes, one world; the files of a run, not the physics.

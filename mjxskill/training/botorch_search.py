@@ -18,13 +18,13 @@ share them. Each batch is BoTorch's multi-objective tutorial, unchanged but for 
 Torch's generator is seeded from (seed, number of rows) before every batch, so a resumed run
 proposes what an uninterrupted one did (on the same machine: torch's CPU kernels are
 deterministic there). BoTorch and PyTorch are an optional extra (``pip install
-'mjxskill[botorch]'``); ``missing_extra`` says what to install when they are absent.
+'mjxskill[botorch]'``); ``mjxskill.training.extras.missing_extra`` says what to install when
+they are absent.
 """
 
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import warnings
 
 import numpy as np
@@ -33,22 +33,8 @@ from mjxskill.runs.run_config import RunConfig
 from mjxskill.training.front import hypervolume_reference
 
 OPTIMIZER = "botorch-qlognehvi"
-EXTRA = "botorch"
 SEED_STREAM = 0xB07C  # separates the batches' seeds from every other use of the run's seed
 MC_SAMPLES, RESTARTS, RAW_SAMPLES, MAX_ITER = 128, 10, 512, 200
-
-
-def missing_extra(optimizer: str) -> str | None:
-    """Why ``optimizer`` cannot run here (what is not installed and how to install it), or None
-    (it can, or it is not BoTorch's)."""
-    if optimizer != OPTIMIZER:
-        return None
-    absent = [name for module, name in (("botorch", "BoTorch"), ("torch", "PyTorch"))
-              if importlib.util.find_spec(module) is None]
-    if not absent:
-        return None
-    return (f"needs {' and '.join(absent)}, which {'is' if len(absent) == 1 else 'are'} not installed: "
-            f"pip install 'mjxskill[{EXTRA}]'")
 
 
 def batch_seed(seed: int, rows: int) -> int:
@@ -123,4 +109,4 @@ def ask(config: RunConfig, params: np.ndarray, objectives: np.ndarray, size: int
     return lo + u * (hi - lo)
 
 
-__all__ = ["OPTIMIZER", "ask", "batch_seed", "missing_extra", "qlognehvi_batch", "reference_point", "tutorial_model"]
+__all__ = ["OPTIMIZER", "ask", "batch_seed", "qlognehvi_batch", "reference_point", "tutorial_model"]

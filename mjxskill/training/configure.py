@@ -21,7 +21,7 @@ from mjxskill.errors import PlanError, ResumeConflict, RunError, SettingError
 from mjxskill.runs.run_config import optimizer_problem
 from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.settings import BY_NAME, SETTINGS, cross_problems, optimizer_option_value
-from mjxskill.training import botorch_search, optuna_search
+from mjxskill.training.extras import missing_extra
 from mjxskill.training.priors import describe_prior, prior_from_run, run_prior
 
 
@@ -77,7 +77,7 @@ def new_run_config(scn, task, scenario: str, settings: Mapping[str, object] | No
     for name, problem in cross_problems(values):
         origin = f"{name} {values[name]}" + ("" if name in given else " (the scenario's default)")
         raise SettingError(f"{origin} {problem}", name=name, value=values[name], given=name in given, problem=problem)
-    absent = _missing_extra(values["optimizer"])  # before the run directory is made
+    absent = missing_extra(values["optimizer"])  # before the run directory is made
     if absent:
         raise SettingError(f"optimizer {values['optimizer']} {absent}", name="optimizer", value=values["optimizer"],
                            given=True, problem=absent)
@@ -129,15 +129,10 @@ def resumed_run_config(path: Path | str, settings: Mapping[str, object] | None =
             raise ResumeConflict(f"{run.path} continues with the prior it started with ({describe_prior(config.prior)}), "
                                  f"not the one of the run {prior_from}", run=run.path,
                                  conflicts=(("prior", prior_from, config.prior),))
-    absent = _missing_extra(config.optimizer)
+    absent = missing_extra(config.optimizer)
     if absent:
         raise RunError(f"{run.path} trains with the optimizer {config.optimizer}, which {absent}")
     return config
 
 
 __all__ = ["new_run_config", "resumed_run_config", "stored_scenario"]
-
-
-def _missing_extra(optimizer: str) -> str | None:
-    """Why ``optimizer``'s optional extra cannot run here, or None."""
-    return optuna_search.missing_extra(optimizer) or botorch_search.missing_extra(optimizer)

@@ -28,13 +28,13 @@ The samplers, otherwise at Optuna's defaults:
   told taken as pending); needs PyTorch.
 
 Optuna is an optional extra (``pip install 'mjxskill[optuna]'``, with PyTorch
-``'mjxskill[optuna-gp]'``); ``missing_extra`` says what to install when it is absent.
+``'mjxskill[optuna-gp]'``); ``mjxskill.training.extras.missing_extra`` says what to install
+when it is absent.
 """
 
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import warnings
 
 import numpy as np
@@ -42,20 +42,7 @@ import numpy as np
 from mjxskill.runs.run_config import RunConfig, batch_sizes
 from mjxskill.runs.settings import OPTUNA_OPTIMIZERS
 
-EXTRA = {"optuna-nsga2": "optuna", "optuna-tpe": "optuna", "optuna-gp": "optuna-gp"}
-NEEDS = {"optuna-nsga2": ("optuna",), "optuna-tpe": ("optuna",), "optuna-gp": ("optuna", "torch")}
-NAMES = {"optuna": "Optuna", "torch": "PyTorch"}
 SAMPLER_STREAM = 0x0B7A  # separates the samplers' seeds from every other use of the run's seed
-
-
-def missing_extra(optimizer: str) -> str | None:
-    """Why ``optimizer`` cannot run here (what is not installed and how to install it), or None
-    (it can, or it is none of Optuna's)."""
-    absent = [NAMES[m] for m in NEEDS.get(optimizer, ()) if importlib.util.find_spec(m) is None]
-    if not absent:
-        return None
-    return (f"needs {' and '.join(absent)}, which {'is' if len(absent) == 1 else 'are'} not installed: "
-            f"pip install 'mjxskill[{EXTRA[optimizer]}]'")
 
 
 def sampler_seed(seed: int, rows: int) -> int:
@@ -141,4 +128,4 @@ def _quiet(optuna):
         optuna.logging.set_verbosity(level)
 
 
-__all__ = ["OPTUNA_OPTIMIZERS", "ask", "missing_extra", "sampler_seed"]
+__all__ = ["OPTUNA_OPTIMIZERS", "ask", "sampler_seed"]
