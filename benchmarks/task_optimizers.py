@@ -64,6 +64,7 @@ if str(ROOT) not in sys.path:
 import mjxskill  # noqa: E402,F401  (XLA flags before any JAX computation)
 from mjxskill.engine.build import build_rollout  # noqa: E402
 from mjxskill.errors import UserError  # noqa: E402
+from mjxskill.evaluation.pooled import validated_best  # noqa: E402
 from mjxskill.evaluation.validation import in_contention, validate, validate_rows, validation_settings  # noqa: E402
 from mjxskill.gp import hypervolume, pareto_mask  # noqa: E402
 from mjxskill.runs.atomic_write import write_json, write_text  # noqa: E402
@@ -82,9 +83,10 @@ JSONL = "task_optimizers.jsonl"
 ASK_TIMES = "ask_seconds.csv"  # in each run directory: rows before the batch, seconds of the proposal
 # The pick, as an experiment makes it (mjxskill.evaluation.validation): the CANDIDATES Pareto
 # solutions within the scenario's force bound with the best training success, rolled out again in
-# PER_CONFIG fresh worlds from each known start configuration; the most successful, of equal ones
-# the fastest, is the pick. Its success there is the best of CANDIDATES draws, so it is checked
-# once more in FRESH_PER_CONFIG worlds per configuration from a stream of their own.
+# PER_CONFIG fresh worlds from each known start configuration; the pick is the one an experiment
+# takes (mjxskill.evaluation.pooled.validated_best: the most successful, of equal ones the
+# fastest). Its success there is the best of CANDIDATES draws, so it is checked once more in
+# FRESH_PER_CONFIG worlds per configuration from a stream of their own.
 CANDIDATES, PER_CONFIG, FRESH_PER_CONFIG = 3, 5, 10
 FRESH_SEED = 1_000_003  # added to the run's seed: the fresh check's worlds, apart from the validation's
 PICK = "task_optimizers_pick.json"  # in each run directory: the fresh check, reused when current
@@ -179,9 +181,9 @@ def validated_pick(run: Run, rollout, scn, seed: int, per_config: int, fresh_per
     settings = validation_settings(per_config, CANDIDATES, seed, "native", config.episode_seconds)
     with run.lock():
         checked, _ = validate(run, front, rows, rollout, settings)
-    seconds = checked.seconds if checked.seconds is not None else np.zeros(len(rows))
-    best = int(np.lexsort((seconds, -checked.success))[0])
-    params = front.params[rows[best]]
+    row = validated_best(front, rows, checked)
+    best = rows.index(row)
+    params = front.params[row]
     fresh = {"params": params.tolist(), "per_config": fresh_per_config, "seed": seed + FRESH_SEED,
              "episode_seconds": config.episode_seconds}
     stored = run.path / PICK
@@ -194,7 +196,7 @@ def validated_pick(run: Run, rollout, scn, seed: int, per_config: int, fresh_per
         success, _ = validate_rows(rollout, params[None], fresh_per_config, seed + FRESH_SEED)
         doc = {**fresh, "success": float(success[0])}
         write_json(stored, doc)
-    return {"pick_params": params.tolist(), "pick_training_success": float(front.success_rate[rows[best]]),
+    return {"pick_params": params.tolist(), "pick_training_success": float(front.success_rate[row]),
             "pick_validation_success": float(checked.success[best]), "pick_validation_worlds": checked.worlds,
             "pick_fresh_success": doc["success"],
             "pick_fresh_worlds": fresh_per_config * len(scn.robot.start_configs)}

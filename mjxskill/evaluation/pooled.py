@@ -88,11 +88,17 @@ def pick(front, ev: Evaluation, max_force: float | None = None, validation=None,
         raise RunError("the validation is not of the Pareto solutions in contention: validate the run again")
     if not rows:
         return Pick(None, bound, source)
+    return Pick(validated_best(front, rows, validation), bound, source)
+
+
+def validated_best(front, rows, validation) -> int:
+    """The row of ``front`` a validated pick takes among the contenders ``rows`` (non-empty,
+    in ``validation``'s order): the highest validation success; of equal ones the faster
+    (failures as full episodes), then the training success, then the first objective."""
     r = np.asarray(rows)
-    # equal validation success: the faster (failures as full episodes), then the training success
     seconds = np.zeros(len(r)) if validation.seconds is None else np.nan_to_num(validation.seconds, nan=np.inf)
     order = np.lexsort((-front.objectives[r, 0], -front.success_rate[r], seconds, -np.asarray(validation.success)))
-    return Pick(int(r[order[0]]), bound, source)
+    return int(r[order[0]])
 
 
 def check_front(front, ev: Evaluation) -> None:
@@ -234,4 +240,4 @@ def pooled_table(samples: dict, tests: dict) -> str:
 
 __all__ = ["BASELINES", "GIVEN", "POOLED_GROUPS", "POOLED_LABELS", "TESTED", "Pick", "check_front", "choose_commanded", "contenders", "force_bound", "full_episode_seconds", "group_force_and_time", "group_means",
            "paired_seconds",
-           "pick", "picked_row", "plot_pooled", "pooled_samples", "pooled_table", "pooled_tests"]
+           "pick", "picked_row", "plot_pooled", "pooled_samples", "pooled_table", "pooled_tests", "validated_best"]
