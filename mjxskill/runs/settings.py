@@ -114,9 +114,9 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("engine", "--engine", "text", "physics engine: mjx (compiled MJX), native (native MuJoCo, one process "
             "per core) or auto (MJX on a GPU/TPU, native on a CPU)", scenario=lambda scn: "auto", default="mjx",
             choices=("mjx", "native", "auto"), default_text="auto"),
-    # Random search, Optuna's samplers and BoTorch's qLogNEHVI are runs like any other, to compare the optimizer with
-    # (mjxskill.experiment, benchmarks/task_optimizers.py): the same batches, the same warm-up,
-    # then their proposals instead of the model's.
+    # Random search, Optuna's samplers and BoTorch's qLogNEHVI are runs like any other, to
+    # compare the optimizer with (mjxskill.experiment, benchmarks/task_optimizers.py): the same
+    # batches, the same warm-up, then their proposals instead of the model's.
     Setting("optimizer", "--optimizer", "text", "what proposes the batches after the warm-up: mobo (the "
             "multi-objective Bayesian optimizer), random (uniform random search, a baseline) or one of Optuna's "
             "samplers to compare with: optuna-nsga2, optuna-tpe, optuna-gp (pip install 'mjxskill[optuna]'; "

@@ -124,9 +124,9 @@ def propose(gp, state, config: RunConfig, size: int) -> np.ndarray:
     ``n_init`` rows and their curves part where the optimizers take over. After it, random search
     (``config.optimizer == "random"``) draws uniformly from the bounds with a generator seeded by
     (seed, rows so far), and Optuna's samplers (``optuna-*``) propose from a study rebuilt from the
-    rows so far (``mjxskill.training.optuna_search``), BoTorch's qLogNEHVI (``botorch-qlognehvi``)
-    from a model fitted on them (``mjxskill.training.botorch_search``): either way a resumed run proposes the same
-    batches."""
+    rows so far (``mjxskill.training.optuna_search``), and BoTorch's qLogNEHVI
+    (``botorch-qlognehvi``) from models fitted on them (``mjxskill.training.botorch_search``):
+    either way a resumed run proposes the same batches."""
     n = len(state.x)
     if config.optimizer == "mobo" or n < config.n_init:
         return gp.ask(state, num=size)
