@@ -49,6 +49,7 @@ import mjxskill  # noqa: E402,F401
 
 from mjxskill.gp import hypervolume, minimize  # noqa: E402
 from mjxskill.gp.hypervolume_scalarization import warmup_reference  # noqa: E402
+from mjxskill.gp.settings import GENERATION  # noqa: E402
 
 N_INIT, BATCH, N_BATCHES = 6, 4, 20
 BUDGET = N_INIT + BATCH * N_BATCHES
@@ -474,7 +475,8 @@ def main(argv=None):
                     with open(args.save, "a") as fh:
                         fh.write(json.dumps(dict(problem=name, column=col, seed=seed, hv=hv, hv_warmup_ref=hv_own,
                                                  warmup_ref=own_ref.tolist(), hv_warmup_ref_max=hv_own_max, seconds=dt, load1=load,
-                                                 options={**options, "given_ref": args.given_ref} if col == "mjxskill.gp" else {})) + "\n")
+                                                 options={**options, "given_ref": args.given_ref,
+                                                          "defaults_generation": GENERATION} if col == "mjxskill.gp" else {})) + "\n")
             print(name, seed, {k: round(float(v[-1]), 3) for k, v in cols.items() if v}, f"load {os.getloadavg()[0]:.1f}",
                   flush=True)
         rows.append((name, problem, cols, regrets, times, loads))

@@ -24,6 +24,7 @@ from mjxskill.gp import (
 )
 from mjxskill.gp import optimizer as opt_mod
 from mjxskill.gp.proposal import propose_batch
+from mjxskill.gp.settings import acquisition_defaults
 
 BOUNDS = [[-1.0, 0.0], [1.0, 2.0]]
 # Small acquisition/fit budgets and a small bucket keep compiles and runs cheap.
@@ -117,6 +118,20 @@ def test_state_file_of_format_1_with_a_flat_config_is_read(tmp_path):
         load_state(path)
 
 
+def test_a_state_written_before_the_closed_form_keeps_the_directions(tmp_path):
+    import json
+
+    cfg = MOBOConfig([[0.0] * 3, [1.0] * 3], 3, n_init=4, batch_size=2, ref_point=(2.0, 2.0, 2.0),
+                     acquisition=acquisition_defaults(2, reference_given=True))
+    path = tmp_path / "state.npz"
+    save_state(tell(init(cfg), np.full((4, 3), 0.5), np.ones((4, 3))), path)
+    with np.load(path, allow_pickle=False) as data:
+        meta = json.loads(str(data["config_json"]))
+    del meta["config"]["acquisition"]["hypervolume_improvement"]
+    np.savez(path, x=np.full((4, 3), 0.5), y=np.ones((4, 3)), config_json=np.array(json.dumps(meta)))
+    assert load_state(path).config.acquisition == cfg.acquisition  # not today's closed form for three
+
+
 def test_acquisition_settings_from_flat_options_parse_strings_and_name_bad_keys():
     got = acquisition_settings({"n_raw": "256", "tau": "1e-4", "model": "scalarized", "learning_rate": 0.05,
                                 "fit_steps": 20.0})
@@ -146,7 +161,18 @@ def test_a_given_reference_point_takes_more_directions_unless_the_settings_say_o
     given = MOBOConfig(BOUNDS, 2, ref_point=(4.0, 4.0)).acquisition
     assert (inferred.n_directions, inferred.n_draws, inferred.draw_pairing) == (64, 16, "shared")
     assert (given.n_directions, given.n_draws, given.draw_pairing) == (2048, 1, "per_direction")
-    assert given == acquisition_defaults(reference_given=True)
+    assert (given.hypervolume_improvement, given.n_raw, given.n_opt_steps) == ("directions", 1024, 100)
+    assert given == acquisition_defaults(reference_given=True) == acquisition_defaults(2, reference_given=True)
+    # Three objectives take the closed form and a longer search (generation 3 on).
+    three = MOBOConfig([[0.0] * 3, [1.0] * 3], 3, ref_point=(4.0, 4.0, 4.0)).acquisition
+    assert (three.hypervolume_improvement, three.n_raw, three.n_opt_steps, three.n_directions) == (
+        "exact", 4096, 300, 2048)
+    assert acquisition_defaults(2, reference_given=True, n_objectives=3) == acquisition_defaults(2, reference_given=True)
+    assert MOBOConfig([[0.0] * 3, [1.0] * 3], 3).acquisition == inferred  # no given reference: no change
+    # minimize resolves them once it knows the number of objectives.
+    res = minimize(lambda x: np.stack([x[:, 0], 1 - x[:, 0], x[:, 1]], 1), [[0.0, 0.0], [1.0, 1.0]], budget=4,
+                   n_init=4, ref_point=(2.0, 2.0, 2.0))
+    assert res.state.config.acquisition == three
     assert dataclasses.replace(given, **{k: getattr(inferred, k) for k in GIVEN_REFERENCE_DEFAULTS}) == inferred
     # A mapping changes what it names over those defaults; settings given whole are kept whole.
     named = MOBOConfig(BOUNDS, 2, ref_point=(4.0, 4.0), acquisition={"n_directions": 256}).acquisition

@@ -12,7 +12,8 @@ import pytest
 from mjxskill.gp import AcquisitionSettings, MOBOConfig, ask, init, tell
 from mjxskill.gp import gp as gpm
 from mjxskill.gp import hypervolume_scalarization as hvs
-from mjxskill.gp.proposal import _believer_predictor, _scalarization
+from mjxskill.gp.element_scalarizations import element_scalarizations
+from mjxskill.gp.proposal import _believer_predictor
 
 
 def test_believer_update_equals_conditioning_on_the_believed_points():
@@ -82,8 +83,9 @@ def test_deflated_variance_vanishes_at_observed_points_and_keeps_the_latent_one_
     np.testing.assert_allclose(deflated_far, np.maximum(np.asarray(latent_far) - nv, 1e-12), rtol=1e-9)
 
 
-@pytest.mark.parametrize("scalarization", ["chebyshev", "hypervolume"])
-def test_pending_values_take_away_the_improvement_a_pending_point_already_offers(scalarization):
+@pytest.mark.parametrize("scalarization, improvement", [("chebyshev", "directions"), ("hypervolume", "directions"),
+                                                        ("hypervolume", "exact")])
+def test_pending_values_take_away_the_improvement_a_pending_point_already_offers(scalarization, improvement):
     rng = np.random.default_rng(4)
     y_norm = rng.random((12, 2))
     mask = np.ones(12, bool)
@@ -94,22 +96,24 @@ def test_pending_values_take_away_the_improvement_a_pending_point_already_offers
         pend, pend_mask = jnp.asarray(better), jnp.array([True])
         got = {}
         for pending in ("variance", "values"):
-            scal = _scalarization(*args, AcquisitionSettings(scalarization=scalarization, pending=pending, tau=1e-6))
-            best = scal.incumbents(scal.space, jnp.asarray(mask))[0]
-            got[pending] = float(scal.log_ei(0, best, jnp.asarray(better), var, pend, pend_mask)[0])
+            scal = element_scalarizations(*args, AcquisitionSettings(scalarization=scalarization, pending=pending, tau=1e-6,
+                                                             hypervolume_improvement=improvement))
+            best = jax.tree.map(lambda a: a[0], scal.incumbents(scal.space, jnp.asarray(mask)))
+            got[pending] = float(scal.log_ei(0, best, pend, pend_mask)(jnp.asarray(better), var)[0])
     assert got["variance"] > np.log(1e-3)  # a real improvement while the pending point is ignored
     assert got["values"] < np.log(1e-5)  # none left once the pending point counts at its believed value
 
 
-@pytest.mark.parametrize("draw_pairing", ["shared", "per_direction"])
-def test_hypervolume_scalarization_proposes_distinct_points_in_bounds(draw_pairing):
+@pytest.mark.parametrize("draw_pairing, improvement", [("shared", "directions"), ("per_direction", "directions"),
+                                                       ("per_direction", "exact")])
+def test_hypervolume_scalarization_proposes_distinct_points_in_bounds(draw_pairing, improvement):
     cfg = MOBOConfig(bounds=[[0.0, 0.0], [1.0, 1.0]], n_objectives=2, batch_size=3, n_init=6, seed=1,
                      acquisition=AcquisitionSettings(bucket=16, n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1,
                                                      fit_steps=5, scalarization="hypervolume", model="per_objective",
                                                      n_directions=2, pending="values", variance="deflated",
                                                      directions="quasi_random", single_direction_share=0.34,
                                                      single_direction_reference="front", incumbent="posterior_mean",
-                                                     draw_pairing=draw_pairing),
+                                                     draw_pairing=draw_pairing, hypervolume_improvement=improvement),
                      ref_point=(1.2, 2.2))
     x = np.random.default_rng(0).random((6, 2))
     state = tell(init(cfg), x, np.stack([x[:, 0], 1 - x[:, 0] + x[:, 1] ** 2], 1))
@@ -133,7 +137,7 @@ def test_single_direction_elements_scalarize_about_the_fronts_own_reference():
                                    directions="quasi_random", single_direction_share=0.5,
                                    single_direction_reference="front", beyond_reference="linear")
     with jax.enable_x64(True):
-        scal = _scalarization(jnp.asarray(y_norm), jnp.asarray(mask), jnp.array([1.5, 1.5]), jax.random.PRNGKey(1), 4,
+        scal = element_scalarizations(jnp.asarray(y_norm), jnp.asarray(mask), jnp.array([1.5, 1.5]), jax.random.PRNGKey(1), 4,
                               settings)
         best = np.asarray(scal.incumbents(scal.space, jnp.asarray(mask)))  # (4, 8)
     u, lam, scale = np.asarray(scal.space), np.asarray(scal.directions), np.asarray(scal.scale)
@@ -174,7 +178,7 @@ def test_posterior_mean_incumbent_follows_the_model_not_a_noisy_observation(scal
             post = gpm.condition(gpm.params_from_values([0.5, 0.5], 1.0, noise), jnp.asarray(x),
                                  jnp.asarray((col - col.mean()) / col.std()), jnp.asarray(mask))
             fitted.append(np.asarray(gpm.predict(post, jnp.asarray(x))[0]) * col.std() + col.mean())
-        scal = _scalarization(jnp.asarray(values), jnp.asarray(mask), jnp.array([1.5, 1.5]), jax.random.PRNGKey(0), 3,
+        scal = element_scalarizations(jnp.asarray(values), jnp.asarray(mask), jnp.array([1.5, 1.5]), jax.random.PRNGKey(0), 3,
                               settings)
         # The fitted means in the scalarization's space (hypervolume: reference units, an
         # affine map of each objective; its scale read off two rows).

@@ -21,9 +21,15 @@ _INV_SQRT_EPS = 1.0 / math.sqrt(float(jnp.finfo(jnp.float64).eps))
 
 
 def _log1mexp(x):
-    """log(1 - exp(x)) for x < 0, accurate on both sides of -log 2 (Maechler 2012)."""
-    safe = jnp.minimum(x, -1e-300)
-    return jnp.where(safe > -math.log(2.0), jnp.log(-jnp.expm1(safe)), jnp.log1p(-jnp.exp(safe)))
+    """log(1 - exp(x)) for x < 0, accurate on both sides of -log 2 (Maechler 2012).
+
+    Each branch sees its input clipped into its own side, so that neither is infinite where
+    the other is chosen: x = 0 (two equal log-values) would give log1p(-1) = -inf, and the
+    unchosen branch's infinite derivative times the zero cotangent `where` gives it is NaN.
+    """
+    near = jnp.clip(x, -math.log(2.0), -1e-300)
+    far = jnp.minimum(x, -math.log(2.0))
+    return jnp.where(x > -math.log(2.0), jnp.log(-jnp.expm1(near)), jnp.log1p(-jnp.exp(far)))
 
 
 def log_h(z: jnp.ndarray) -> jnp.ndarray:

@@ -51,7 +51,7 @@ class MOBOConfig:
     acquisition: the model and acquisition settings (validated by their own class); a
     mapping is accepted and read by :func:`acquisition_settings` over the defaults; None:
     the defaults, ``acquisition_defaults(reference_given=ref_point is not None)`` (a given
-    reference point takes more hypervolume directions: settings.GIVEN_REFERENCE_DEFAULTS).
+    reference point takes the closed-form hypervolume improvement: settings.GIVEN_REFERENCE_DEFAULTS).
     ref_point: (m,) reference point of the hypervolume scalarizations in objective units
     (minimized), e.g. the one the run's hypervolume is reported against; None infers it
     (``acquisition.reference``: from the warm-up, or the observed front at each proposal).
@@ -92,7 +92,7 @@ class MOBOConfig:
             if r.shape != (self.n_objectives,) or not np.all(np.isfinite(r)):
                 raise ValueError(f"MOBOConfig.ref_point: expected {self.n_objectives} finite numbers, got {self.ref_point!r}")
             object.__setattr__(self, "ref_point", tuple(float(v) for v in r))
-        defaults = acquisition_defaults(reference_given=self.ref_point is not None)
+        defaults = acquisition_defaults(reference_given=self.ref_point is not None, n_objectives=self.n_objectives)
         if self.acquisition is None:
             object.__setattr__(self, "acquisition", defaults)
         elif isinstance(self.acquisition, Mapping):
@@ -295,6 +295,10 @@ def _config_from_json(meta, path) -> MOBOConfig:
     unknown = set(raw) - {f.name for f in dataclasses.fields(MOBOConfig)}
     if unknown:
         raise ValueError(f"load_state: {path} has unknown config fields {sorted(unknown)}")
+    if isinstance(raw.get("acquisition"), dict) and "hypervolume_improvement" not in raw["acquisition"]:
+        # Written before the closed form existed: that state estimated it over directions
+        # (today's defaults for three objectives and a given reference point would not).
+        raw["acquisition"] = {**raw["acquisition"], "hypervolume_improvement": "directions"}
     try:
         return MOBOConfig(**raw)
     except ValueError as err:
@@ -357,16 +361,20 @@ def minimize(
             raise ValueError(f"minimize: f returned shape {y.shape} for {x.shape[0]} points; expected (q, m)")
         return y
 
-    # The number of objectives is learned from the first warm-up batch.
-    defaults = acquisition_defaults(reference_given=ref_point is not None)
-    if acquisition is None or isinstance(acquisition, Mapping):
-        acquisition = acquisition_settings(acquisition, base=defaults)
-    settings = acquisition_settings(options, base=acquisition)
+    def resolved(n_objectives):
+        # The defaults with a given reference point depend on the number of objectives.
+        defaults = acquisition_defaults(reference_given=ref_point is not None, n_objectives=n_objectives)
+        base = acquisition_settings(acquisition, base=defaults) if acquisition is None or isinstance(
+            acquisition, Mapping) else acquisition
+        return acquisition_settings(options, base=base)
+
+    # The number of objectives is learned from the first warm-up batch (the warm-up draws
+    # use none of the acquisition settings but prior_share, the same whatever that number).
     probe = MOBOConfig(bounds=bounds, n_objectives=1, batch_size=batch_size, n_init=n_init, seed=seed,
-                       acquisition=settings, prior=prior)
+                       acquisition=resolved(None), prior=prior)
     x0 = ask(init(probe))
     y0 = evaluate(x0)
-    cfg = dataclasses.replace(probe, n_objectives=y0.shape[1], ref_point=ref_point)
+    cfg = dataclasses.replace(probe, n_objectives=y0.shape[1], ref_point=ref_point, acquisition=resolved(y0.shape[1]))
     state = tell(init(cfg), x0, y0)
     if callback:
         callback(state)

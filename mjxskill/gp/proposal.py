@@ -1,13 +1,16 @@
 """One model-based batch: fit GPs, then pick q points by sequential greedy log-EI.
 
-Element j of the batch scalarizes the objectives its own random way (``settings.scalarization``):
+Element j of the batch scalarizes the objectives its own random way (``settings.scalarization``;
+``element_scalarizations.py``):
 
 * "hypervolume": random hypervolume scalarizations about a reference point (Golovin and
   Zhang 2020; ``hypervolume_scalarization.py``). Most elements average ``n_directions``
   quasi-random directions, a Monte Carlo estimate of the expected hypervolume improvement;
   the last ``single_direction_share`` of the batch follow one direction each (a single
   random scalarization), about the observed front's own reference point when
-  ``single_direction_reference="front"``;
+  ``single_direction_reference="front"``. With ``hypervolume_improvement="exact"`` (two or
+  three objectives, per-objective model) the averaging elements take the expected
+  hypervolume improvement in closed form instead (``expected_hypervolume.py``);
 * "chebyshev": augmented Chebyshev on a flat Dirichlet weight w_j (ParEGO).
 
 Two models of the scalarization, combined by ``settings.model``:
@@ -56,18 +59,15 @@ from __future__ import annotations
 
 import math
 from functools import partial
-from typing import NamedTuple
-
 import jax
 import jax.numpy as jnp
 import optax
 
 from mjxskill.gp import gp as gpm
-from mjxskill.gp import hypervolume_scalarization as hvs
-from mjxskill.gp.acquisition import chebyshev, log_ei, sample_simplex
+from mjxskill.gp.acquisition import log_ei
+from mjxskill.gp.element_scalarizations import Scalarization, element_scalarizations
 from mjxskill.gp.kernels import matern52
 from mjxskill.gp.prior import UnitPrior, log_prior_unit
-from mjxskill.gp.scalarized_posterior import chebyshev_moments, log_ei_draws, normal_draws
 from mjxskill.gp.settings import AcquisitionSettings
 
 
@@ -127,103 +127,14 @@ def _acquisition_for_element(post: gpm.GPPosterior, y_std, fantasies, fantasy_ma
     return acq
 
 
-class Scalarization(NamedTuple):
-    """What the two models need of the q elements' scalarizations (see ``_scalarization``).
-
-    space: (n, m) objectives the per-objective GPs are fitted to (minimized).
-    targets: (q, n) each element's scalarized observations, to be minimized (scalarized model).
-    directions: (q, m) Chebyshev weights, or (q, k, m) each element's hypervolume directions.
-    scale: (q, m) each element's reference point in ``space`` units (hypervolume: 1, the run's
-      reference, or the front's own; an element scalarizes space / scale). Chebyshev: ones.
-    incumbents: values (n, m) in ``space`` units, mask (n,) -> each element's incumbent (its
-      best scalarized value; (q,) or (q, k) for k directions per element), from the observed
-      values or from the model's posterior means at the observed points.
-    log_ei: (j, incumbent_j, mean (b, m), variance (b, m), pending (q, m), pending_mask (q,))
-      -> (b,) log-EI of element j's scalarization of independent Gaussian objectives in
-      ``space`` units (per-objective model); with ``settings.pending == "values"`` the
-      incumbent also counts the pending points at their believed (posterior mean) values.
-    """
-
-    space: jnp.ndarray
-    targets: jnp.ndarray
-    incumbents: object
-    log_ei: object
-    directions: jnp.ndarray
-    scale: jnp.ndarray
-
-
-def _scalarization(y_norm, mask, ref, key, q: int, settings: AcquisitionSettings) -> Scalarization:
-    """The q elements' random scalarizations: augmented Chebyshev on Dirichlet weights, or
-    hypervolume scalarizations on uniform directions (``hypervolume_scalarization.py``).
-
-    y_norm: (n, m) normalized objectives (minimized); mask: (n,) bool real rows; ref: (m,)
-    reference point in y_norm's units; key: PRNG key of the weights or directions.
-    """
-    m = y_norm.shape[1]
-    k = settings.n_directions
-    paired = settings.draw_pairing == "per_direction"
-    if settings.scalarization == "chebyshev":  # static
-        # Per-direction pairing: n_directions x n_draws distinct draws, all for its one weight.
-        draws = jnp.asarray(normal_draws(settings.n_draws * (k if paired else 1), m))
-        weights = sample_simplex(key, q, m)
-        targets = jax.vmap(lambda w: chebyshev(y_norm, w, settings.alpha))(weights)
-
-        def incumbents(values, rows):  # (q,): minimized
-            scal = jax.vmap(lambda w: chebyshev(values, w, settings.alpha))(weights)
-            return jnp.min(jnp.where(rows[None], scal, jnp.inf), axis=1)
-
-        def log_ei_of(j, b, mean, var, pending, pending_mask):
-            if settings.pending == "values":  # static
-                b = jnp.minimum(b, jnp.min(jnp.where(pending_mask, chebyshev(pending, weights[j], settings.alpha), jnp.inf)))
-            if settings.ei == "draws":  # static
-                return log_ei_draws(mean, var, weights[j], settings.alpha, draws, b, settings.tau)
-            s_mean, s_var = chebyshev_moments(mean, var, weights[j], settings.alpha, draws)
-            return log_ei(s_mean, s_var, b)
-
-        return Scalarization(y_norm, targets, incumbents, log_ei_of, weights, jnp.ones((q, m), y_norm.dtype))
-    # (k, n_draws, m), a block per direction, or (n_draws, m) shared by all (static).
-    draws = jnp.asarray(hvs.paired_normal_draws(k, settings.n_draws, m) if paired else normal_draws(settings.n_draws, m))
-    u = hvs.to_reference_units(y_norm, mask, ref)
-    if settings.beyond_reference == "log":  # static
-        u = hvs.compress_beyond_reference(u)
-    if settings.directions == "quasi_random":  # static
-        directions = hvs.quasi_random_directions(key, q, k, m, paired_draws=paired)
-    else:
-        directions = hvs.sample_directions(key, q * k, m).reshape(q, k, m)
-    n_single = round(settings.single_direction_share * q)
-    # Each element's reference point in reference units (1: the run's); u / scale is what it scalarizes.
-    scale = jnp.ones((q, m), u.dtype)
-    if n_single and k > 1:  # static: the last elements follow one random direction each
-        single = jnp.arange(q) >= q - n_single
-        directions = jnp.where(single[:, None, None], directions[:, :1], directions)
-        if settings.single_direction_reference == "front":  # static
-            local = hvs.front_reference(u, mask, settings.ref_margin)
-            scale = jnp.where(single[:, None], local[None], scale)
-    # The scalarized model's GP sees the m-th root (the anchored Chebyshev value, smoother)
-    # of the element's first direction.
-    targets = -jax.vmap(lambda lam, r: hvs.anchored_chebyshev(u / r, lam))(directions[:, 0], scale)
-
-    def incumbents(values, rows):  # (q, k): maximized
-        scal = jax.vmap(lambda lams, r: jax.vmap(lambda lam: hvs.scalarize(values / r, lam))(lams))(directions, scale)
-        return jnp.max(jnp.where(rows, scal, -jnp.inf), axis=-1)
-
-    def log_ei_hv(j, b, mean, var, pending, pending_mask):
-        r = scale[j]
-        if settings.pending == "values":  # static
-            believed = jax.vmap(lambda lam: hvs.scalarize(pending / r, lam))(directions[j])  # (k, q)
-            b = jnp.maximum(b, jnp.max(jnp.where(pending_mask, believed, -jnp.inf), axis=-1))
-        return hvs.log_ei_hv_draws(mean / r, var / r**2, directions[j], draws, b, settings.tau)
-
-    return Scalarization(u, targets, incumbents, log_ei_hv, directions, scale)
-
-
-def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_of, fantasies, fantasy_mask,
+def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_for, fantasies, fantasy_mask,
                                deflate: bool = False):
     """Per-objective model: log-EI of the element's scalarization, xs (b, d) -> (b,).
 
     posts: the m per-objective posteriors stacked on a leading axis, fitted to the
-    objectives standardized by y_mean, y_sd (m,); log_ei_of(mean, var, pending, pending_mask)
-    in unstandardized units.
+    objectives standardized by y_mean, y_sd (m,); log_ei_for(pending, pending_mask) -> the
+    element's log-EI of (mean, var) in unstandardized units, given the pending points' believed
+    values.
     """
     predictors = [
         _believer_predictor(jax.tree.map(lambda a, i=i: a[i], posts), fantasies, fantasy_mask, deflate)
@@ -232,12 +143,13 @@ def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_of, 
 
     # The believed values of the pending points: the posterior means (the believer keeps them).
     pending = jnp.stack([pr(fantasies)[0] for pr in predictors], axis=-1) * y_sd + y_mean  # (q, m)
+    log_ei_of = log_ei_for(pending, fantasy_mask)
 
     def acq(xs):
         moments = [pr(xs) for pr in predictors]
         mean = jnp.stack([mu for mu, _ in moments], axis=-1) * y_sd + y_mean  # (b, m)
         var = jnp.stack([v for _, v in moments], axis=-1) * y_sd**2
-        val = log_ei_of(mean, var, pending, fantasy_mask)
+        val = log_ei_of(mean, var)
         return jnp.where(jnp.isnan(val), -jnp.inf, val)
 
     return acq
@@ -305,7 +217,7 @@ def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None
     k_w, k_fit, k_acq = jax.random.split(key, 3)
     if ref is None:
         ref = jnp.ones((y_norm.shape[1],), y_norm.dtype)
-    scal = _scalarization(y_norm, mask, ref, k_w, q, settings)
+    scal = element_scalarizations(y_norm, mask, ref, k_w, q, settings)
     k_fit, k_subset = jax.random.split(k_fit)
     rows = _fit_rows(mask, k_subset, settings)
 
@@ -389,7 +301,8 @@ def _per_objective_points(x, mask, scal: Scalarization, fit, fantasies, acq_keys
 
     def choose_o(carry, j):
         fant, fant_mask = carry
-        acq = _acquisition_per_objective(posts_o, y_mean, y_sd, partial(scal.log_ei, j, best[j]), fant, fant_mask,
+        best_j = jax.tree.map(lambda a: a[j], best)
+        acq = _acquisition_per_objective(posts_o, y_mean, y_sd, partial(scal.log_ei, j, best_j), fant, fant_mask,
                                          settings.variance == "deflated")
         acq = prior_weighted(acq, prior, prior_weight, settings.prior_share)
         xj = _maximize(acq, acq_keys[j], d, settings)

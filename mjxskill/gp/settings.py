@@ -30,6 +30,7 @@ CHOICES = {
     "model": ("hybrid", "scalarized", "per_objective"),
     "ei": ("draws", "moments"),
     "draw_pairing": ("shared", "per_direction"),
+    "hypervolume_improvement": ("directions", "exact"),
 }
 
 
@@ -72,6 +73,15 @@ class AcquisitionSettings:
     # each rather than averaging n_directions (only when n_directions > 1): they refine where
     # one direction points, the averaging elements chase the hypervolume.
     single_direction_share: float = 0.25
+    # How the other elements of the per-objective model estimate the expected hypervolume
+    # improvement: "directions" (the n_directions Monte Carlo estimate above) or "exact" (in
+    # closed form over a grid of the non-dominated region, expected_hypervolume.py: no
+    # sampling error; two or three objectives, more keep the directions).
+    hypervolume_improvement: str = "directions"
+    # With three objectives the closed form costs (k + 1)^2 cells per candidate for k points:
+    # its grid keeps at most this many of the non-dominated points (the rest, if any, are
+    # left out and the improvement near them overestimated; expected_hypervolume.grid).
+    exact_max_points: int = 64
     # Their reference point: the run's ("global") or the observed front's nadir plus
     # ref_margin of its extent ("front"; hypervolume_scalarization.front_reference), which
     # spreads their directions over the front's trade-off (RESULTS.md, "Hypervolume
@@ -175,34 +185,56 @@ class AcquisitionSettings:
 # (``optimizer_defaults`` in its config.yaml, mjxskill.runs.run_config; a config.yaml without
 # it means 1) and resumes with it, so a later change of the defaults never changes the
 # optimizer of a run in progress. Generation 1: log-EI on augmented Chebyshev scalarizations
-# (ParEGO) with the hybrid model (RESULTS.md, "Generation 1 defaults").
+# (ParEGO) with the hybrid model (RESULTS.md, "Generation 1 defaults"). Generation 3 changes
+# only what a given reference point changes (GIVEN_REFERENCE_DEFAULTS_BY_GENERATION below).
 DEFAULTS_BY_GENERATION = {
     1: {"scalarization": "chebyshev", "n_directions": 1, "directions": "independent", "single_direction_share": 0.0,
         "single_direction_reference": "global", "final_learning_rate": 0.02, "prior": "gamma", "model": "hybrid",
         "n_draws": 128, "pending": "variance", "incumbent": "observed", "variance": "latent"},
     2: {},
+    3: {},
 }
 GENERATION = max(DEFAULTS_BY_GENERATION)
 
-# What a given reference point (MOBOConfig.ref_point) changes, from generation 2 on: 2048
-# directions, each with its own posterior draw, paired by one joint Sobol set. With the
-# reference given, the hypervolume the acquisition estimates is the one the run is judged by,
-# and more directions resolve the gaps between front points; about a reference inferred from
-# the warm-up (every robot run) they do worse, so the plain defaults stay there (RESULTS.md,
-# "A given reference point: 2048 directions, a posterior draw each").
-GIVEN_REFERENCE_DEFAULTS = {"n_directions": 2048, "n_draws": 1, "draw_pairing": "per_direction"}
+# What a given reference point (MOBOConfig.ref_point) changes, by generation (from 2 on; each
+# generation's plain defaults above are the same from 2 on). With the reference given, the
+# hypervolume the acquisition estimates is the one the run is judged by; about a reference
+# inferred from the warm-up (every robot run) these do worse or cost more than they gain, so
+# the plain defaults stay there.
+# Generation 2: 2048 directions, each with its own posterior draw, paired by one joint Sobol
+# set, which resolve the gaps between front points better than 64 x 16 (RESULTS.md, "A given
+# reference point: 2048 directions, a posterior draw each").
+# Generation 3, three objectives: the expected hypervolume improvement in closed form (the
+# single-direction element keeps its direction) and four times the random candidates and three
+# times the Adam steps per element: late in a run the improvement left is in narrow gaps, where
+# the directions' sampling error and a short search both miss it. With two objectives neither
+# pays: the closed form lost on BraninCurrin, the longer search on ZDT1, so generation 2's
+# given-reference settings stay there (RESULTS.md, "Three objectives: the expected hypervolume
+# improvement in closed form").
+GIVEN_REFERENCE_DEFAULTS_BY_GENERATION = {
+    2: {"n_directions": 2048, "n_draws": 1, "draw_pairing": "per_direction"},
+    3: {"n_directions": 2048, "n_draws": 1, "draw_pairing": "per_direction"},
+}
+GIVEN_REFERENCE_DEFAULTS = GIVEN_REFERENCE_DEFAULTS_BY_GENERATION[GENERATION]
+# What three objectives change beyond those, by generation.
+GIVEN_REFERENCE_THREE_OBJECTIVES_BY_GENERATION = {3: {"hypervolume_improvement": "exact", "n_raw": 4096,
+                                                      "n_opt_steps": 300}}
 
 
-def acquisition_defaults(generation: int = GENERATION, reference_given: bool = False) -> "AcquisitionSettings":
+def acquisition_defaults(generation: int = GENERATION, reference_given: bool = False,
+                         n_objectives: int | None = None) -> "AcquisitionSettings":
     """The default settings of ``generation`` (a key of DEFAULTS_BY_GENERATION); with
     ``reference_given``, those of a run whose reference point is known in advance (from
-    generation 2 on). Raises ValueError naming an unknown generation."""
+    generation 2 on), which from generation 3 on also depend on ``n_objectives`` (None: not
+    known yet, as two). Raises ValueError naming an unknown generation."""
     if generation not in DEFAULTS_BY_GENERATION:
         raise ValueError(f"unknown generation of acquisition defaults {generation!r}; known: "
                          f"{', '.join(map(str, DEFAULTS_BY_GENERATION))}")
     changes = DEFAULTS_BY_GENERATION[generation]
-    if reference_given and generation >= 2:
-        changes = {**changes, **GIVEN_REFERENCE_DEFAULTS}
+    if reference_given and generation in GIVEN_REFERENCE_DEFAULTS_BY_GENERATION:
+        changes = {**changes, **GIVEN_REFERENCE_DEFAULTS_BY_GENERATION[generation]}
+        if n_objectives == 3:
+            changes = {**changes, **GIVEN_REFERENCE_THREE_OBJECTIVES_BY_GENERATION.get(generation, {})}
     return dataclasses.replace(AcquisitionSettings(), **changes)
 
 
