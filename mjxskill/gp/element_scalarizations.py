@@ -135,6 +135,8 @@ def _with_exact_improvement(scal: Scalarization, q: int, n_single: int, settings
         b_directions, points = b
         if settings.pending == "values":  # static
             points = jnp.concatenate([points, jnp.where(pending_mask[:, None], pending, 1.0)])
+        # An element without a single direction scalarizes about the run's reference (scale 1),
+        # so mean and var need no rescaling.
         cells = ehv.grid(points, max_points)
         exact = lambda mean, var: ehv.log_expected_improvement(mean, var, cells)  # noqa: E731
         if not n_single:  # static: no element follows a single direction
