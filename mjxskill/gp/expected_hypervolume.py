@@ -37,6 +37,7 @@ import jax
 import jax.numpy as jnp
 
 from mjxskill.gp.acquisition import _log1mexp, log_ei
+from mjxskill.gp.hypervolume_scalarization import non_dominated
 
 MAX_OBJECTIVES = 3
 
@@ -80,9 +81,9 @@ def grid(points: jnp.ndarray, max_points: int | None = None) -> Grid:
     inside = jnp.all(points < 1.0, axis=-1)
     p = jnp.where(inside[:, None], points, 1.0)
     if max_points is not None and max_points < p.shape[0]:  # static
-        dominated = jnp.any(jnp.all(p[:, None] <= p[None], axis=-1) & jnp.any(p[:, None] < p[None], axis=-1), axis=0)
-        kept = jnp.argsort(dominated | ~inside, stable=True)[:max_points]
-        p = jnp.where((inside & ~dominated)[kept][:, None], p[kept], 1.0)
+        front = non_dominated(p, inside)
+        kept = jnp.argsort(~front, stable=True)[:max_points]
+        p = jnp.where(front[kept][:, None], p[kept], 1.0)
     n = p.shape[0]
     one = jnp.ones((1,), p.dtype)
     edges = tuple(jnp.concatenate([jnp.sort(p[:, i]), one]) for i in range(m - 1))

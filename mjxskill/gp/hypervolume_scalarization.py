@@ -149,6 +149,14 @@ def to_reference_units(y: jnp.ndarray, mask: jnp.ndarray, ref: jnp.ndarray) -> j
     return (y - ideal) / span
 
 
+def non_dominated(u: jnp.ndarray, mask: jnp.ndarray) -> jnp.ndarray:
+    """(n,) bool, jittable: the masked-in rows of u (n, m) (minimized) that no other masked-in
+    row dominates (equal rows do not dominate each other)."""
+    rows = mask[:, None] & mask[None, :]
+    dominates = jnp.all(u[:, None] <= u[None], axis=-1) & jnp.any(u[:, None] < u[None], axis=-1)  # [j, i]: j dominates i
+    return mask & ~jnp.any(dominates & rows, axis=0)
+
+
 def front_reference(u: jnp.ndarray, mask: jnp.ndarray, margin: float) -> jnp.ndarray:
     """(m,) the observed front's own reference point in reference units (jittable): its nadir
     plus ``margin`` times its extent, by ``reference_point``'s rule (an objective where the
@@ -156,9 +164,7 @@ def front_reference(u: jnp.ndarray, mask: jnp.ndarray, margin: float) -> jnp.nda
     reference (1). Directions about it spread over the front's trade-off, where about a
     distant reference most of them favour one objective alone and end at an extreme that
     nothing can improve."""
-    rows = mask[:, None] & mask[None, :]
-    dominates = jnp.all(u[:, None] <= u[None], axis=-1) & jnp.any(u[:, None] < u[None], axis=-1)  # [j, i]: j dominates i
-    on_front = mask & ~jnp.any(dominates & rows, axis=0)
+    on_front = non_dominated(u, mask)
     nadir = jnp.max(jnp.where(on_front[:, None], u, -jnp.inf), axis=0)
     extent = nadir - jnp.min(jnp.where(on_front[:, None], u, jnp.inf), axis=0)
     observed = jnp.max(jnp.where(mask[:, None], u, -jnp.inf), axis=0) - jnp.min(jnp.where(mask[:, None], u, jnp.inf), axis=0)

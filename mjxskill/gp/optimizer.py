@@ -50,8 +50,9 @@ class MOBOConfig:
     bounds: (2, d) lower and upper bounds (any nested sequence; stored as tuples).
     acquisition: the model and acquisition settings (validated by their own class); a
     mapping is accepted and read by :func:`acquisition_settings` over the defaults; None:
-    the defaults, ``acquisition_defaults(reference_given=ref_point is not None)`` (a given
-    reference point takes the closed-form hypervolume improvement: settings.GIVEN_REFERENCE_DEFAULTS).
+    the defaults, ``acquisition_defaults(reference_given=..., n_objectives=...)`` (a given
+    reference point takes more hypervolume directions, settings.GIVEN_REFERENCE_DEFAULTS, and with
+    three objectives the closed-form improvement: GIVEN_REFERENCE_THREE_OBJECTIVES_BY_GENERATION).
     ref_point: (m,) reference point of the hypervolume scalarizations in objective units
     (minimized), e.g. the one the run's hypervolume is reported against; None infers it
     (``acquisition.reference``: from the warm-up, or the observed front at each proposal).

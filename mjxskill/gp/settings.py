@@ -186,7 +186,7 @@ class AcquisitionSettings:
 # it means 1) and resumes with it, so a later change of the defaults never changes the
 # optimizer of a run in progress. Generation 1: log-EI on augmented Chebyshev scalarizations
 # (ParEGO) with the hybrid model (RESULTS.md, "Generation 1 defaults"). Generation 3 changes
-# only what a given reference point changes (GIVEN_REFERENCE_DEFAULTS_BY_GENERATION below).
+# only what a given reference point changes, for three objectives (below).
 DEFAULTS_BY_GENERATION = {
     1: {"scalarization": "chebyshev", "n_directions": 1, "directions": "independent", "single_direction_share": 0.0,
         "single_direction_reference": "global", "final_learning_rate": 0.02, "prior": "gamma", "model": "hybrid",
@@ -196,7 +196,7 @@ DEFAULTS_BY_GENERATION = {
 }
 GENERATION = max(DEFAULTS_BY_GENERATION)
 
-# What a given reference point (MOBOConfig.ref_point) changes, by generation (from 2 on; each
+# What a given reference point (MOBOConfig.ref_point) changes from generation 2 on (each
 # generation's plain defaults above are the same from 2 on). With the reference given, the
 # hypervolume the acquisition estimates is the one the run is judged by; about a reference
 # inferred from the warm-up (every robot run) these do worse or cost more than they gain, so
@@ -211,11 +211,7 @@ GENERATION = max(DEFAULTS_BY_GENERATION)
 # pays: the closed form lost on BraninCurrin, the longer search on ZDT1, so generation 2's
 # given-reference settings stay there (RESULTS.md, "Three objectives: the expected hypervolume
 # improvement in closed form").
-GIVEN_REFERENCE_DEFAULTS_BY_GENERATION = {
-    2: {"n_directions": 2048, "n_draws": 1, "draw_pairing": "per_direction"},
-    3: {"n_directions": 2048, "n_draws": 1, "draw_pairing": "per_direction"},
-}
-GIVEN_REFERENCE_DEFAULTS = GIVEN_REFERENCE_DEFAULTS_BY_GENERATION[GENERATION]
+GIVEN_REFERENCE_DEFAULTS = {"n_directions": 2048, "n_draws": 1, "draw_pairing": "per_direction"}
 # What three objectives change beyond those, by generation.
 GIVEN_REFERENCE_THREE_OBJECTIVES_BY_GENERATION = {3: {"hypervolume_improvement": "exact", "n_raw": 4096,
                                                       "n_opt_steps": 300}}
@@ -231,8 +227,8 @@ def acquisition_defaults(generation: int = GENERATION, reference_given: bool = F
         raise ValueError(f"unknown generation of acquisition defaults {generation!r}; known: "
                          f"{', '.join(map(str, DEFAULTS_BY_GENERATION))}")
     changes = DEFAULTS_BY_GENERATION[generation]
-    if reference_given and generation in GIVEN_REFERENCE_DEFAULTS_BY_GENERATION:
-        changes = {**changes, **GIVEN_REFERENCE_DEFAULTS_BY_GENERATION[generation]}
+    if reference_given and generation >= 2:
+        changes = {**changes, **GIVEN_REFERENCE_DEFAULTS}
         if n_objectives == 3:
             changes = {**changes, **GIVEN_REFERENCE_THREE_OBJECTIVES_BY_GENERATION.get(generation, {})}
     return dataclasses.replace(AcquisitionSettings(), **changes)
