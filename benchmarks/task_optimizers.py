@@ -231,9 +231,33 @@ def with_hypervolumes(records: list[dict]) -> list[dict]:
     return out
 
 
+def finished_runs(out: Path, task: str) -> list[tuple[str, int, Path]]:
+    """(method, seed, path) of every run of ``task`` under ``out`` that has spent its budget."""
+    found = []
+    for method in METHODS:
+        for path in sorted((out / "runs" / task / method).glob("seed-*"), key=lambda p: p.name):
+            if not path.name[5:].isdigit() or not (path / "config.yaml").is_file():
+                continue
+            run = Run(path)
+            config = run.config()
+            if len(run.evaluations(config).iteration) >= config.budget:
+                found.append((method, int(path.name[5:]), path))
+    return found
+
+
 def benchmark(args) -> list[dict]:
+    """Runs (or resumes) every run asked for. The JSONL holds every finished run under
+    ``args.out``: those of other invocations too (other methods or seeds of a task: rebuilt
+    from their run directories, the reference from all of them; other tasks: their lines
+    kept as written)."""
     args.out.mkdir(parents=True, exist_ok=True)
+    path = args.out / JSONL
+    kept = [r for r in read_rows([path], "the results of an earlier run,") if r["task"] not in args.task_list] if path.is_file() else []
     records = []
+
+    def write():
+        write_text(path, "".join(json.dumps(r) + "\n" for r in kept + with_hypervolumes(records)))
+
     for task_name in args.task_list:
         scn = load_scenario(task_name)
         task = plan_task(scn)
@@ -242,18 +266,22 @@ def benchmark(args) -> list[dict]:
               f"{args.init} warm-up + batches of {args.batch}, seeds {args.first_seed}..{args.first_seed + args.seeds - 1}",
               flush=True)
         with build_rollout(scn, task, "native", worlds=args.worlds, episode_seconds=seconds) as rollout:
+            per_config, fresh = (1, 1) if args.quick else (PER_CONFIG, FRESH_PER_CONFIG)
+            asked = {(m, s) for m in args.method_list for s in range(args.first_seed, args.first_seed + args.seeds)}
+            for method, seed, run_path in finished_runs(args.out, task_name):
+                if (method, seed) not in asked:
+                    records.append({**record(Run(run_path), task_name, method, seed, args),
+                                    **validated_pick(Run(run_path), rollout, scn, seed, per_config, fresh)})
             for seed in range(args.first_seed, args.first_seed + args.seeds):
                 for method in args.method_list:
-                    path = args.out / "runs" / task_name / method / f"seed-{seed}"
+                    run_path = args.out / "runs" / task_name / method / f"seed-{seed}"
                     started = time.monotonic()
-                    run_one(rollout, scn, task, method, seed, args, path)
-                    per_config, fresh = (1, 1) if args.quick else (PER_CONFIG, FRESH_PER_CONFIG)
-                    records.append({**record(Run(path), task_name, method, seed, args),
-                                    **validated_pick(Run(path), rollout, scn, seed, per_config, fresh)})
-                    rows = with_hypervolumes(records)
-                    write_text(args.out / JSONL, "".join(json.dumps(r) + "\n" for r in rows))
+                    run_one(rollout, scn, task, method, seed, args, run_path)
+                    records.append({**record(Run(run_path), task_name, method, seed, args),
+                                    **validated_pick(Run(run_path), rollout, scn, seed, per_config, fresh)})
+                    write()
                     print(f"  {method} seed {seed}: {time.monotonic() - started:.0f} s", flush=True)
-    return with_hypervolumes(records)
+    return kept + with_hypervolumes(records)
 
 
 def report(rows: list[dict]) -> str:
@@ -266,6 +294,11 @@ def report(rows: list[dict]) -> str:
              "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for task in dict.fromkeys(r["task"] for r in rows):
         mine = [r for r in rows if r["task"] == task]
+        references = {tuple(r["reference"]) for r in mine if "reference" in r}
+        if len(references) > 1:  # areas about different points do not compare
+            raise UserError(f"--report: the {task} rows are about {len(references)} different reference points "
+                            f"({sorted(references)[:2]}...): run every method on the same seeds (the reference "
+                            "comes from their warm-ups)")
         ours = [r["hypervolume"] for r in mine if r["method"] == OURS]
         for method in dict.fromkeys(r["method"] for r in mine):
             them = [r for r in mine if r["method"] == method]
@@ -282,23 +315,24 @@ def report(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def read_rows(paths: list[Path]) -> list[dict]:
-    """The lines of the JSONL files; UserError naming the file and line that is not a result."""
+def read_rows(paths: list[Path], source: str = "--report") -> list[dict]:
+    """The lines of the JSONL files; UserError naming the file and line that is not a result
+    (``source``: where the path came from)."""
     rows = []
     for path in paths:
         try:
             lines = path.read_text().splitlines()
         except OSError as err:
-            raise UserError(f"--report {path}: cannot read it ({err.strerror})") from None
+            raise UserError(f"{source} {path}: cannot read it ({err.strerror})") from None
         for number, line in enumerate(lines, 1):
             if not line.strip():
                 continue
             try:
                 row = json.loads(line)
             except json.JSONDecodeError as err:
-                raise UserError(f"--report {path} line {number}: not JSON ({err.msg})") from None
+                raise UserError(f"{source} {path} line {number}: not JSON ({err.msg})") from None
             if not isinstance(row, dict) or not {"task", "method", "hypervolume", "budget", "worlds"} <= set(row):
-                raise UserError(f"--report {path} line {number}: not a task_optimizers result")
+                raise UserError(f"{source} {path} line {number}: not a task_optimizers result")
             rows.append(row)
     return rows
 

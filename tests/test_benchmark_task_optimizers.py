@@ -79,6 +79,24 @@ def test_started_again_it_resumes_the_unfinished_run_and_keeps_the_finished(quic
     assert [drop(r) for r in again] == [drop(r) for r in rows]
 
 
+def test_a_later_invocation_keeps_the_finished_runs_of_other_methods_and_the_lines_of_other_tasks(quick):
+    """A second invocation into the same folder (another method, another task) rewrites the
+    file with every finished run in it, not only its own: a task's line from another file is
+    kept as written, and the runs of the methods not asked for are rebuilt from their
+    directories about the same reference."""
+    out, rows = quick
+    elsewhere = {**rows[0], "task": "pick-place", "hypervolume": 1.5}
+    path = out / bench.JSONL
+    path.write_text(path.read_text() + json.dumps(elsewhere) + "\n")
+    again = bench.main(["--quick", "--methods", "random", "--out", str(out)])  # every run finished: recorded again
+    lines = [json.loads(line) for line in path.read_text().splitlines()]
+    assert lines == json.loads(json.dumps(again)) and lines[0] == elsewhere
+    drop = lambda r: {k: v for k, v in r.items() if k != "ask_seconds"}  # noqa: E731
+    key = lambda r: (r["task"], r["method"], r["seed"])  # noqa: E731
+    assert sorted(map(drop, lines[1:]), key=key) == sorted(map(drop, rows), key=key)
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows))
+
+
 def test_report_reads_the_file_and_a_bad_file_is_one_error_line(quick, tmp_path):
     out, rows = quick
     table = bench.report(bench.read_rows([out / bench.JSONL]))
@@ -90,6 +108,14 @@ def test_report_reads_the_file_and_a_bad_file_is_one_error_line(quick, tmp_path)
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert done.stderr.strip().splitlines() == [f"task_optimizers.py: error: --report {bad} line 2: not JSON "
                                                  "(Expecting property name enclosed in double quotes)"]
+
+
+def test_report_refuses_rows_about_different_reference_points(quick, tmp_path):
+    out, rows = quick
+    moved = tmp_path / "moved.jsonl"  # as a run of other seeds, whose warm-ups set another reference
+    moved.write_text(json.dumps({**rows[0], "reference": [r + 1.0 for r in rows[0]["reference"]]}) + "\n")
+    with pytest.raises(bench.UserError, match="the push rows are about 2 different reference points"):
+        bench.report(bench.read_rows([out / bench.JSONL, moved]))
 
 
 def test_the_pick_is_the_validated_best_and_is_checked_again_in_fresh_worlds(quick):
