@@ -167,6 +167,10 @@ def test_a_given_reference_point_takes_more_directions_unless_the_settings_say_o
     three = MOBOConfig([[0.0] * 3, [1.0] * 3], 3, ref_point=(4.0, 4.0, 4.0)).acquisition
     assert (three.hypervolume_improvement, three.n_raw, three.n_opt_steps, three.n_directions) == (
         "exact", 4096, 300, 2048)
+    # and, from generation 4 on, half the random candidates on the bounds; two objectives not
+    assert (three.raw_bounds_share, given.raw_bounds_share, inferred.raw_bounds_share) == (0.5, 0.0, 0.0)
+    assert acquisition_defaults(3, reference_given=True, n_objectives=3) == dataclasses.replace(three,
+                                                                                               raw_bounds_share=0.0)
     assert acquisition_defaults(2, reference_given=True, n_objectives=3) == acquisition_defaults(2, reference_given=True)
     assert MOBOConfig([[0.0] * 3, [1.0] * 3], 3).acquisition == inferred  # no given reference: no change
     # minimize resolves them once it knows the number of objectives.
