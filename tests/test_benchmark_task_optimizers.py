@@ -110,12 +110,29 @@ def test_report_reads_the_file_and_a_bad_file_is_one_error_line(quick, tmp_path)
                                                  "(Expecting property name enclosed in double quotes)"]
 
 
-def test_report_refuses_rows_about_different_reference_points(quick, tmp_path):
+def test_report_puts_rows_about_different_reference_points_on_the_lowest(quick, tmp_path):
     out, rows = quick
-    moved = tmp_path / "moved.jsonl"  # as a run of other seeds, whose warm-ups set another reference
-    moved.write_text(json.dumps({**rows[0], "reference": [r + 1.0 for r in rows[0]["reference"]]}) + "\n")
-    with pytest.raises(bench.UserError, match="the push rows are about 2 different reference points"):
-        bench.report(bench.read_rows([out / bench.JSONL, moved]))
+    # a run of another seed, written by another invocation: its warm-up set a higher reference
+    own = np.array(rows[0]["reference"])
+    other = {**rows[0], "seed": 99, "front": [(own + [3.0, 5.0]).tolist(), (own + [4.0, 2.0]).tolist()],
+             "reference": (own + 1.0).tolist(), "hypervolume": 3.0}
+    moved = tmp_path / "moved.jsonl"
+    moved.write_text(json.dumps(other) + "\n")
+    task = [r for r in bench.read_rows([out / bench.JSONL, moved]) if r["task"] == rows[0]["task"]]
+    common = bench.on_common_reference(task)
+    assert all(r["reference"] == own.tolist() for r in common)
+    # about the lower point, two boxes by hand: 3 x 5 and 4 x 2, less their 3 x 2 overlap
+    assert common[-1]["hypervolume"] == pytest.approx(15.0 + 8.0 - 6.0)
+    assert "hypervolume_history" not in common[-1]
+    assert [r["hypervolume"] for r in common[:-1]] == [r["hypervolume"] for r in task[:-1]]  # already about it
+    assert "Final hypervolumes about push: the lowest of the rows' 2 reference points" in bench.report(
+        bench.read_rows([out / bench.JSONL, moved]))
+
+
+def test_report_refuses_a_run_named_twice(quick):
+    out, _ = quick
+    with pytest.raises(bench.UserError, match="appear in more than one line"):
+        bench.report(bench.read_rows([out / bench.JSONL, out / bench.JSONL]))
 
 
 def test_the_pick_is_the_validated_best_and_is_checked_again_in_fresh_worlds(quick):
