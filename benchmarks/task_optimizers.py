@@ -352,7 +352,7 @@ def read_rows(paths: list[Path], source: str = "--report") -> list[dict]:
                 row = json.loads(line)
             except json.JSONDecodeError as err:
                 raise UserError(f"{source} {path} line {number}: not JSON ({err.msg})") from None
-            if not isinstance(row, dict) or not {"task", "method", "hypervolume", "budget", "worlds"} <= set(row):
+            if not isinstance(row, dict) or not {"task", "method", "seed", "hypervolume", "budget", "worlds", "reference", "front"} <= set(row):
                 raise UserError(f"{source} {path} line {number}: not a task_optimizers result")
             rows.append(row)
     return rows
