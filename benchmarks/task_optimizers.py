@@ -66,6 +66,7 @@ from mjxskill.engine.build import build_rollout  # noqa: E402
 from mjxskill.errors import UserError  # noqa: E402
 from mjxskill.evaluation.pooled import validated_best  # noqa: E402
 from mjxskill.evaluation.validation import in_contention, validate, validate_rows, validation_settings  # noqa: E402
+from mjxskill.experiment.directory import is_done  # noqa: E402
 from mjxskill.gp import hypervolume, pareto_mask  # noqa: E402
 from mjxskill.runs.atomic_write import write_json, write_text  # noqa: E402
 from mjxskill.runs.run_dir import Run  # noqa: E402
@@ -239,8 +240,7 @@ def finished_runs(out: Path, task: str) -> list[tuple[str, int, Path]]:
             if not path.name[5:].isdigit() or not (path / "config.yaml").is_file():
                 continue
             run = Run(path)
-            config = run.config()
-            if len(run.evaluations(config).iteration) >= config.budget:
+            if is_done(run, run.config()):
                 found.append((method, int(path.name[5:]), path))
     return found
 
@@ -252,7 +252,8 @@ def benchmark(args) -> list[dict]:
     kept as written)."""
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / JSONL
-    kept = [r for r in read_rows([path], "the results of an earlier run,") if r["task"] not in args.task_list] if path.is_file() else []
+    earlier = read_rows([path], "the results of an earlier run,") if path.is_file() else []
+    kept = [r for r in earlier if r["task"] not in args.task_list]
     records = []
 
     def write():
@@ -267,18 +268,21 @@ def benchmark(args) -> list[dict]:
               flush=True)
         with build_rollout(scn, task, "native", worlds=args.worlds, episode_seconds=seconds) as rollout:
             per_config, fresh = (1, 1) if args.quick else (PER_CONFIG, FRESH_PER_CONFIG)
+
+            def add(method, seed, run_path):
+                records.append({**record(Run(run_path), task_name, method, seed, args),
+                                **validated_pick(Run(run_path), rollout, scn, seed, per_config, fresh)})
+
             asked = {(m, s) for m in args.method_list for s in range(args.first_seed, args.first_seed + args.seeds)}
             for method, seed, run_path in finished_runs(args.out, task_name):
                 if (method, seed) not in asked:
-                    records.append({**record(Run(run_path), task_name, method, seed, args),
-                                    **validated_pick(Run(run_path), rollout, scn, seed, per_config, fresh)})
+                    add(method, seed, run_path)
             for seed in range(args.first_seed, args.first_seed + args.seeds):
                 for method in args.method_list:
                     run_path = args.out / "runs" / task_name / method / f"seed-{seed}"
                     started = time.monotonic()
                     run_one(rollout, scn, task, method, seed, args, run_path)
-                    records.append({**record(Run(run_path), task_name, method, seed, args),
-                                    **validated_pick(Run(run_path), rollout, scn, seed, per_config, fresh)})
+                    add(method, seed, run_path)
                     write()
                     print(f"  {method} seed {seed}: {time.monotonic() - started:.0f} s", flush=True)
     return kept + with_hypervolumes(records)
@@ -294,8 +298,9 @@ def report(rows: list[dict]) -> str:
              "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     notes = []
     for task in dict.fromkeys(r["task"] for r in rows):
-        mine = on_common_reference([r for r in rows if r["task"] == task])
-        if mine[0]["reference_from"].startswith("the lowest"):
+        given = [r for r in rows if r["task"] == task]
+        mine = on_common_reference(given)
+        if mine is not given:
             notes.append(f"{task}: {mine[0]['reference_from']}, {mine[0]['reference']}")
         ours = [r["hypervolume"] for r in mine if r["method"] == OURS]
         for method in dict.fromkeys(r["method"] for r in mine):
@@ -318,7 +323,8 @@ def on_common_reference(rows: list[dict]) -> list[dict]:
     warm-ups and so, written by separate invocations, about different references: then each
     final hypervolume is computed again from the run's front about the lowest of them (every
     front dominates it; with nested seed sets, the reference of the most warm-ups), and the
-    history, about the run's own, is dropped. UserError where a run appears twice."""
+    history, about the run's own, is dropped (a new list; ``rows`` itself where they agree).
+    UserError where a run appears twice."""
     runs = [(r["method"], r["seed"]) for r in rows]
     repeated = sorted({run for run in runs if runs.count(run) > 1})
     if repeated:
@@ -334,6 +340,9 @@ def on_common_reference(rows: list[dict]) -> list[dict]:
              "hypervolume": float(hypervolume(-np.asarray(r["front"], dtype=float), -lowest)),
              "reference": lowest.tolist(), "reference_from": stated}
             for r in rows]
+
+
+ROW_KEYS = {"task", "method", "seed", "hypervolume", "budget", "worlds", "reference", "front"}  # what report reads
 
 
 def read_rows(paths: list[Path], source: str = "--report") -> list[dict]:
@@ -352,7 +361,7 @@ def read_rows(paths: list[Path], source: str = "--report") -> list[dict]:
                 row = json.loads(line)
             except json.JSONDecodeError as err:
                 raise UserError(f"{source} {path} line {number}: not JSON ({err.msg})") from None
-            if not isinstance(row, dict) or not {"task", "method", "seed", "hypervolume", "budget", "worlds", "reference", "front"} <= set(row):
+            if not isinstance(row, dict) or not ROW_KEYS <= set(row):
                 raise UserError(f"{source} {path} line {number}: not a task_optimizers result")
             rows.append(row)
     return rows
