@@ -152,9 +152,11 @@ def ask_seconds(run_path: Path) -> list[float]:
 
 def run_one(rollout, scn, task, method: str, seed: int, args, path: Path):
     """The run of ``method`` and ``seed`` in ``path``, created or resumed; its evaluations."""
+    # The paper's protocol: the optimizers are compared on the same rows, each set once in its
+    # batch's worlds (the robust protocol's replication is the Bayesian optimizer's own).
     settings = dict(budget=args.budget, batch_size=args.batch, n_init=args.init, worlds=args.worlds, seed=seed,
                     episode_seconds=args.episode_seconds or scn.episode_seconds, engine="native",
-                    optimizer=METHODS[method])
+                    optimizer=METHODS[method], protocol="paper")
     options = QUICK_GP if args.quick and method == OURS else {}
     config = new_run_config(scn, task, scn.name, settings, options)
     run = Run(path)

@@ -14,8 +14,10 @@ from cli_helpers import ROOT, command, error_line, invoke, run_cli, snapshot, su
 from mjxskill.runs.layout import runs_in
 from test_train_cli import QUICK_GP
 
+# The paper's protocol (validated picks); the robust one: tests/test_robust_cli.py.
 TINY = ["--repeats", "2", "--budget", "4", "--batch-size", "2", "--init", "2", "--worlds", "1", "--episode-seconds", "0.2",
-        "--per-config", "1", "--random", "1", "--quiet", *(a for option in QUICK_GP for a in ("--optimizer-option", option))]
+        "--per-config", "1", "--random", "1", "--quiet", "--protocol", "paper", "--confirm-per-config", "0",
+        *(a for option in QUICK_GP for a in ("--optimizer-option", option))]
 RESULTS = ("optimizer/seed-0/evaluations.csv", "optimizer/seed-1/evaluations.csv", "random_search/seed-0/evaluations.csv",
            "random_search/seed-1/evaluations.csv", "optimizer/seed-0/evaluation/evaluation.json",
            "optimizer/seed-1/evaluation/evaluation.json", "optimizer/seed-0/evaluation/validation.json",

@@ -108,7 +108,7 @@ def test_the_installed_wheel_plans_and_trains_outside_the_checkout(venv_python, 
     site = venv_python.parents[1]
     run_dir = outside / "run"
     train = subprocess.Popen(
-        [str(venv_python), "-m", "mjxskill.train", "push", "--budget", "6", "--batch-size", "6", "--init", "6",
+        [str(venv_python), "-m", "mjxskill.train", "push", "--budget", "8", "--batch-size", "6", "--init", "6",
          "--worlds", "1", "--episode-seconds", "0.5", "--engine", "native", "--quiet", "--out", str(run_dir)],
         cwd=outside, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -131,7 +131,8 @@ def test_the_installed_wheel_plans_and_trains_outside_the_checkout(venv_python, 
             train.kill()
             train.wait()
     assert train.returncode == 0, f"{stdout}\n{stderr}"
-    assert (run_dir / "evaluations.csv").read_text().count("\n") == 7  # the header and 6 evaluations
+    # the header and 6 evaluations: the robust protocol's 3/4 of the budget (its race has the rest)
+    assert (run_dir / "evaluations.csv").read_text().count("\n") == 7
     assert "Traceback" not in stderr
 
 

@@ -125,7 +125,8 @@ def test_train_on_the_cluster_writes_the_evaluations_of_a_local_run(cluster, tmp
 
 QUICK_GP = ["n_raw=64", "n_restarts=2", "n_opt_steps=10", "fit_starts=1", "fit_steps=10"]  # test_train_cli's
 EXPERIMENT = ["--repeats", "2", "--worlds", "1", "--budget", "4", "--batch-size", "2", "--init", "2", "--per-config", "1", "--random", "1",
-              "--validation-per-config", "1", *(a for option in QUICK_GP for a in ("--optimizer-option", option))]
+              "--validation-per-config", "1", "--protocol", "paper", "--confirm-per-config", "0",
+              *(a for option in QUICK_GP for a in ("--optimizer-option", option))]
 RUN_FILES = ("evaluations.csv", "evaluation/evaluation.json", "evaluation/validation.json")
 
 

@@ -30,11 +30,14 @@ def test_settings_over_the_scenarios_defaults(push):
 def test_a_value_refused_says_which_setting_and_whether_it_was_given(push):
     scn, task = push
     with pytest.raises(SettingError, match="^n_init 10 exceeds the budget of 6 evaluations$") as given:
-        new_run_config(scn, task, "push", {"budget": 6, "n_init": 10})
+        new_run_config(scn, task, "push", {"budget": 6, "n_init": 10, "protocol": "paper"})
     assert (given.value.name, given.value.value, given.value.given) == ("n_init", 10, True)
     assert isinstance(given.value, RunError)
+    with pytest.raises(SettingError, match=r"^n_init 6 exceeds the 5 evaluations the robust protocol trains with of "
+                                           r"the budget of 6 \(the race has the rest\)$"):
+        new_run_config(scn, task, "push", {"budget": 6, "n_init": 6})
     with pytest.raises(SettingError, match=r"\(the scenario's default\) exceeds the budget of 3") as default:
-        new_run_config(scn, task, "push", {"budget": 3})
+        new_run_config(scn, task, "push", {"budget": 3, "protocol": "paper"})
     assert (default.value.name, default.value.given) == ("n_init", False)
     with pytest.raises(SettingError, match="^budget: must be at least 1, got 0$"):
         new_run_config(scn, task, "push", {"budget": 0})

@@ -92,7 +92,27 @@ def test_csv_round_trips_float64_exactly(tmp_path_factory, values):
     write_csv(path, cols, ev)
     back = read_csv(path, cols)
     np.testing.assert_array_equal(back.iteration, ev.iteration)
-    for x, y in zip(back[1:], ev[1:]):
+    assert not back.pooled  # the paper protocol's columns: no pooling fields
+    for x, y in zip(back[1:7], ev[1:7]):
+        assert x.tobytes() == y.tobytes() or np.array_equal(x, y, equal_nan=True)
+
+
+@settings(max_examples=30, deadline=None)
+@given(values=st.lists(st.tuples(finite, finite, st.floats(width=64), st.integers(1, 10**6), st.integers(-1, 10**6),
+                                 st.floats(width=64)), min_size=1, max_size=5))
+def test_pooled_csv_round_trips_exactly(tmp_path_factory, values):
+    path = tmp_path_factory.mktemp("csv") / "e.csv"
+    v = np.array(values, np.float64)
+    n = len(v)
+    ev = Evaluations(np.arange(n), v[:, :2], v[:, 2:3], v[:, 0], v[:, 1], v[:, 2], v[:, 5], worlds=v[:, 3].astype(int),
+                     replaces=v[:, 4].astype(int), spread=v[:, 5:6])
+    cols = evaluation_columns(("a", "b"), ("o1",), pooled=True)
+    from mjxskill.runs.run_dir import write_csv
+
+    write_csv(path, cols, ev)
+    back = read_csv(path, cols)
+    assert back.pooled
+    for x, y in zip(back, ev):
         assert x.tobytes() == y.tobytes() or np.array_equal(x, y, equal_nan=True)
 
 

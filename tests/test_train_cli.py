@@ -18,8 +18,9 @@ from mjxskill.task import plan_task
 
 # Tiny episodes and a cheap acquisition search: the commands' behaviour, not the physics or the GP.
 QUICK_GP = ["n_raw=64", "n_restarts=2", "n_opt_steps=10", "fit_starts=1", "fit_steps=10"]
+# The paper's protocol: the command's files and behaviour (the robust one: tests/test_robust_cli.py)
 TINY = ["--budget", "6", "--batch-size", "3", "--init", "3", "--worlds", "1", "--episode-seconds", "0.2", "--quiet",
-        *(arg for option in QUICK_GP for arg in ("--optimizer-option", option))]
+        "--protocol", "paper", *(arg for option in QUICK_GP for arg in ("--optimizer-option", option))]
 @pytest.fixture(scope="session")
 def repeated_run(tmp_path_factory):
     """``train push --repeats 2 --seed 1`` on a tiny budget: sub-runs seed-1 and seed-2."""
@@ -131,7 +132,9 @@ BAD_INPUT = (
     (["train", "push", "--budget", "0"], "argument --budget: must be at least 1, got 0"),
     (["train", "push", "--worlds", "many"], "argument --worlds: expected an integer, got 'many'"),
     (["train", "push", "--episode-seconds", "nan"], "argument --episode-seconds: must be a positive finite number"),
-    (["train", "push", "--budget", "6", "--init", "10"], "--init 10 exceeds the budget of 6 evaluations"),
+    (["train", "push", "--budget", "6", "--init", "10"], "--init 10 exceeds the 5 evaluations the robust protocol "
+                                                         "trains with of the budget of 6 (the race has the rest)"),
+    (["train", "push", "--budget", "6", "--init", "10", "--protocol", "paper"], "--init 10 exceeds the budget of 6 evaluations"),
     (["train", "push", "--optimizer-option", "n_rwa=3"], "--optimizer-option: unknown acquisition setting 'n_rwa'; valid settings: scalarization, alpha,"),
     (["train", "push", "--optimizer-option", "n_raw=0"], "--optimizer-option: acquisition setting n_raw: expected a positive integer"),
     (["train", "push", "--resume", "{tmp}"], "is not a run directory"),

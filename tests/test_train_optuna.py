@@ -108,7 +108,7 @@ def test_missing_extra_says_what_to_install(monkeypatch):
 
 # The real command: tiny episodes, one world; the files of a run, not the physics.
 TINY = ["--budget", "12", "--batch-size", "6", "--init", "6", "--worlds", "1", "--episode-seconds", "0.2",
-        "--engine", "native", "--quiet", "--seed", "3"]
+        "--engine", "native", "--quiet", "--seed", "3", "--protocol", "paper"]
 
 
 @pytest.fixture(scope="module")

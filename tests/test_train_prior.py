@@ -127,7 +127,7 @@ def test_the_scenarios_prior_is_the_default_and_prior_from_overrides_it(tmp_path
     path = tmp_path / "push.yaml"
     path.write_text(shipped_text("push").replace("manual_parameters:\n", PRIORS, 1))
     scn, task = scenario_and_task(str(path), None)
-    config = new_run_config(scn, task, str(path), {"budget": 60})
+    config = new_run_config(scn, task, str(path), {"budget": 60, "protocol": "paper"})
     lo, hi = np.asarray(task.bounds)
     assert task.parameter_names[0] == "Push.offset_x_start" and task.parameter_names[3] == "Push.offset_y_goal"
     assert config.prior["mean"] == [[-0.03, 0.0, 0.0, -0.1]]
@@ -136,7 +136,7 @@ def test_the_scenarios_prior_is_the_default_and_prior_from_overrides_it(tmp_path
     earlier = run_with_front(tmp_path, "earlier", make_config(parameter_names=task.parameter_names,
                                                               parameter_units=task.parameter_units,
                                                               bounds=(tuple(map(float, lo)), tuple(map(float, hi)))))
-    over = new_run_config(scn, task, str(path), {"budget": 60}, prior_from=earlier.path)
+    over = new_run_config(scn, task, str(path), {"budget": 60, "protocol": "paper"}, prior_from=earlier.path)
     assert over.prior["mean"] == prior_from_run(earlier.path, task.parameter_names, task.bounds)["mean"]
     assert over.prior["source"].endswith("overrides the scenario's parameter_priors")
     plain, plain_task = scenario_and_task("push", None)

@@ -11,9 +11,10 @@ the experiment only (its evaluations follow the experiment's protocol). A run's 
 to ``RUN_DIR/evaluation/`` and is reused when it is current (``mjxskill.evaluation.evaluate_run``). A repeated run evaluates sub-run i in
 the worlds of seed ``--seed`` + i and pools them: one picked solution per run against the
 baselines (``mjxskill.evaluation.pooled``; each pick validated as an experiment's is, unless
-``--validation-per-config 0``), in ``DIR/evaluation/``. An experiment evaluates every
+``--validation-per-config 0``, or under the robust protocol its race's winner,
+``mjxskill.evaluation.racing``), in ``DIR/evaluation/``. An experiment evaluates every
 repetition whose runs are finished with its own protocol (``--validation-per-config`` may change
-how its picks are validated) and rewrites its report.
+how its picks are validated), races or validates and confirms its picks, and rewrites its report.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from mjxskill.errors import CommandError
 from mjxskill.evaluation.baselines import table
 from mjxskill.evaluation.evaluate_run import FOLDER, differences_from_earlier, evaluate_run, evaluation_settings
 from mjxskill.evaluation.pooled import force_bound, group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
+from mjxskill.evaluation import racing
 from mjxskill.evaluation.validation import in_contention, validate, validation_settings
 from mjxskill.experiment.directory import Experiment, is_done, repetition_settings, runs_of
 from mjxskill.runs.atomic_write import refuse_links_out, write_text
@@ -132,8 +134,11 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
             if not repeated:
                 print(table(ev, tests))
             print(f"wrote {sub.path / FOLDER}")
-            validation = _validate(args, sub, sub_config, bound, rollout, settings) if repeated else None
-            results.append((sub, sub_config, ev, validation))
+            choice = None
+            if repeated:
+                choice = (_race(sub, sub_config, scn, bound, rollout) if sub_config.protocol == "robust"
+                          else _validate(args, sub, sub_config, bound, rollout, settings))
+            results.append((sub, sub_config, ev, choice))
     finally:
         rollout.close()
     if repeated:
@@ -172,11 +177,23 @@ def _validate(args, sub, config, bound, rollout, settings: dict):
     return validation
 
 
+def _race(sub, config, scn, bound, rollout):
+    """The race of one robust sub-run's front for its pick within ``bound`` ((N or None, source))
+    (``mjxskill.evaluation.racing``; finished rounds reused)."""
+    settings = dict(racing.run_race_settings(config, scn), max_force=None if bound[0] is None else float(bound[0]))
+    front = sub.front(config)
+    with sub.lock():
+        raced = racing.race(sub.path, front, rollout, settings, config.batch_size)
+    print(f"{sub.path}: {racing.describe(raced, front, config, settings)}", flush=True)
+    return raced
+
+
 def _pool(run, config, results, bound) -> str:
     """Picks within ``bound`` ((N or None, source)), pooled groups and tests of a repeated run into
-    ``DIR/evaluation/``."""
-    picks = [pick(sub.front(c), ev, bound[0], validation, bound[1]) for sub, c, ev, validation in results]
-    validations = [v for *_, v in results]
+    ``DIR/evaluation/``; a robust sub-run's pick is its race's winner."""
+    picks = [pick(sub.front(c), ev, bound[0], source=bound[1], race=choice) if isinstance(choice, racing.Race)
+             else pick(sub.front(c), ev, bound[0], choice, bound[1]) for sub, c, ev, choice in results]
+    validations = [None if isinstance(v, racing.Race) else v for *_, v in results]
     results = [(sub, c, ev) for sub, c, ev, _ in results]
     samples = pooled_samples([ev for _, _, ev in results], picks)
     tests = pooled_tests(samples)
@@ -200,7 +217,8 @@ def _experiment(args: argparse.Namespace) -> int:
     # lazy: an experiment's driver and report, and the experiment command's flags, cost evaluate
     # --help and its bad-input errors ~0.03 s (+7 %); only an experiment directory needs them
     from mjxskill.cli.experiment import change_validation, settle_bound
-    from mjxskill.experiment.driver import evaluate_timed, validate_timed
+    from mjxskill.experiment.driver import confirm_timed, evaluate_timed, race_timed, validate_timed
+    from mjxskill.experiment.picks import repetition_pick
     from mjxskill.experiment.report import write_report
 
     exp = Experiment(args.run)
@@ -239,10 +257,20 @@ def _experiment(args: argparse.Namespace) -> int:
                 _say(scn, settings, opt, opt.config(), task)
                 ran = evaluate_timed(exp, opt, rollout, task, settings, progress=_progress)
                 print(f"wrote {opt.path / 'evaluation'}" if ran else f"{opt.path / 'evaluation'} is current: reused")
-                validated = validate_timed(exp, opt, rollout, config, protocol, seed)
-                if validated is not None:
-                    print(f"validated the pick's candidates of seed {seed}" if validated else
-                          f"the validation of seed {seed} is current: reused")
+                if config.protocol == "robust":
+                    raced = race_timed(exp, opt, rollout, config, protocol, seed)
+                    print(f"raced the front of seed {seed} for its pick" if raced else
+                          f"the race of seed {seed} is finished: reused")
+                else:
+                    validated = validate_timed(exp, opt, rollout, config, protocol, seed)
+                    if validated is not None:
+                        print(f"validated the pick's candidates of seed {seed}" if validated else
+                              f"the validation of seed {seed} is current: reused")
+                confirmed = confirm_timed(exp, opt, rollout, task, config, protocol, seed,
+                                          repetition_pick(exp, seed - config.seed))
+                if confirmed is not None:
+                    print(f"confirmed the pick of seed {seed}" if confirmed else
+                          f"the confirmation of seed {seed} is current: reused")
         finally:
             rollout.close()
         print(write_report(exp))

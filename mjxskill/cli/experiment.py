@@ -37,6 +37,7 @@ from mjxskill.task import describe, planning_texts
 
 # The evaluation's flags: name -> (default, what the protocol field is called)
 EVALUATION_DEFAULTS = {"per_config": 5, "random": 10, "max_force": None}  # max_force None: the scenario's
+CONFIRM_DEFAULT = 20  # worlds per start configuration of the pick's confirmation (standard error under a point)
 VALIDATION = ("validation_per_config", "validation_candidates")  # the pick's validation: may change on resume
 
 
@@ -55,8 +56,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--random", type=cli_args.int_in(0, MAX_RANDOM_SETS), help="random parameter sets per evaluation (default 10)")
     parser.add_argument("--max-force", type=cli_args.nonnegative_float, metavar="N",
                         help="bound on the picked solution's commanded force, N (default: the scenario's pick.max_force)")
-    cli_args.add_validation_arguments(parser, "before each pick", "default 5; on --resume the experiment's own, which "
+    cli_args.add_validation_arguments(parser, "before each pick of the paper's protocol (the robust protocol races its "
+                                              "front instead)", "default 5; on --resume the experiment's own, which "
                                               "this flag changes: the picks are made again, nothing is retrained")
+    parser.add_argument("--confirm-per-config", type=cli_args.int_in(0, MAX_PER_CONFIG), metavar="N",
+                        help=f"after each pick, the pick and the operators' sets are rolled out in N fresh worlds from "
+                             f"every known and unseen start configuration (default {CONFIRM_DEFAULT}; 0: none)")
     parser.add_argument("--out", type=Path, help="experiment directory (default runs/<task>-experiment-<timestamp>)")
     parser.add_argument("--resume", type=Path, metavar="EXP_DIR", help="continue the experiment in EXP_DIR")
     add_accept_scenario_change(parser)
@@ -72,8 +77,10 @@ def _runs_both(text: str) -> str:
 
 
 def _protocol_conflicts(args: argparse.Namespace, protocol) -> list[str]:
-    stored = {"per_config": protocol.per_config, "random": protocol.random_sets, "max_force": protocol.max_force}
-    flags = {"per_config": "--per-config", "random": "--random", "max_force": "--max-force"}
+    stored = {"per_config": protocol.per_config, "random": protocol.random_sets, "max_force": protocol.max_force,
+              "confirm_per_config": protocol.confirm_per_config}
+    flags = {"per_config": "--per-config", "random": "--random", "max_force": "--max-force",
+             "confirm_per_config": "--confirm-per-config"}
     return [f"{flags[k]} {getattr(args, k)} (the experiment has {stored[k]})" for k in stored
             if getattr(args, k) is not None and getattr(args, k) != stored[k]]
 
@@ -112,7 +119,9 @@ def bound_words(protocol) -> str:
     return f"{protocol.max_force:g} N ({source.split(':')[0]})"
 
 
-def _validation_words(protocol) -> str:
+def _validation_words(protocol, config=None) -> str:
+    if config is not None and config.protocol == "robust":
+        return "by racing the front in fresh worlds (the robust protocol)"
     if not protocol.validation_per_config:
         return "by training success alone (no validation)"
     return (f"after validating the {protocol.validation_candidates} best candidates in {protocol.validation_per_config} "
@@ -141,6 +150,9 @@ def _main(args: argparse.Namespace) -> int:
                                    "scenario; the two would not be comparable")
             if accept_scenario(args, exp.optimizer, scn):
                 config = exp.config()
+            if config.protocol == "robust" and any(getattr(args, field) is not None for field in VALIDATION):
+                raise CommandError(f"{exp.path} picks by racing its front (the robust protocol), not by validation; "
+                                   "drop --validation-per-config and --validation-candidates")
             change_validation(args, exp, protocol)  # after every check: a refused resume changes nothing
             settle_bound(exp, scn)
             return _run(args, exp, config, scn, task, started)
@@ -152,10 +164,17 @@ def _main(args: argparse.Namespace) -> int:
     if args.cluster is not None:
         config = dataclasses.replace(config, cluster="ray")
     bound, source = force_bound(args.max_force, scn.pick)
+    validation = {field: getattr(args, field) for field in VALIDATION if getattr(args, field) is not None}
+    if config.protocol == "robust":
+        if validation:
+            raise CommandError(f"--{next(iter(validation)).replace('_', '-')}: the robust protocol picks by racing its "
+                               "front, not by validation; drop it, or give --protocol paper")
+        validation = {"validation_per_config": 0}
     protocol = Protocol(per_config=args.per_config or EVALUATION_DEFAULTS["per_config"],
                         random_sets=EVALUATION_DEFAULTS["random"] if args.random is None else args.random,
                         max_force=bound, max_force_source=source,
-                        **{field: getattr(args, field) for field in VALIDATION if getattr(args, field) is not None})
+                        confirm_per_config=CONFIRM_DEFAULT if args.confirm_per_config is None else args.confirm_per_config,
+                        **validation)
     exp = Experiment(args.out or Path("runs") / f"{scn.name}-experiment-{time.strftime('%Y%m%d-%H%M%S')}")
     exp.create(config, protocol, scn.source, planning_texts(task))
     with exp.lock():
@@ -166,11 +185,13 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
     protocol = exp.protocol()
     print(describe(scn, task))
     print(f"experiment: {config.repeats} repetitions (seeds {config.seed}..{config.seed + config.repeats - 1}) of the "
-          f"optimizer and of random search; {config.budget} evaluations in batches of {config.batch_size}, "
+          f"optimizer and of random search; {config.training_rows} evaluations in batches of {config.batch_size}, "
           f"{config.n_init} random warm-up, {config.worlds} worlds, {config.episode_seconds:g} s episodes")
     print(f"evaluation per repetition: {protocol.per_config} worlds per start configuration, {protocol.random_sets} "
           f"random sets; pick bound " + bound_words(protocol)
-          + f"; picks made {_validation_words(protocol)}")
+          + f"; picks made {_validation_words(protocol, config)}"
+          + (f"; the pick and the operators' sets confirmed in {protocol.confirm_per_config} worlds per start "
+             "configuration" if protocol.confirm_per_config else ""))
     print(f"experiment directory: {exp.path}", flush=True)
     why = "the experiment's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
     print(f"engine: {config.engine} ({why})", flush=True)
@@ -196,7 +217,7 @@ def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> in
 
         def progress_for(run_config):
             kind = "random search" if run_config.optimizer == "random" else "optimizer"
-            return Progress(run_config.budget, args.quiet, f"{kind} seed {run_config.seed}: ")
+            return Progress(run_config.training_rows, args.quiet, f"{kind} seed {run_config.seed}: ")
 
         def evaluation_progress(done: int, total: int) -> None:
             print(f"  evaluated {done}/{total} parameter sets ({time.monotonic() - started:.0f} s)", flush=True)

@@ -27,8 +27,9 @@ class Progress:
         # bad-input errors import this module
         from mjxskill.gp import hypervolume
 
-        hv = hypervolume(-ev.objectives, ref) if ref is not None and len(ev) else float("nan")
-        best = float(np.max(ev.success_rate)) if len(ev) else float("nan")
+        current = ev.current()
+        hv = hypervolume(-ev.objectives[current], ref) if ref is not None and len(ev) else float("nan")
+        best = float(np.max(ev.success_rate[current])) if len(ev) else float("nan")
         return {"hv": f"{hv:.4g}" if math.isfinite(hv) else "warm-up", "best_success": f"{best:.0%}" if len(ev) else "-"}
 
     def start(self, ev: Evaluations, ref) -> None:

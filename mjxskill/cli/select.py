@@ -79,6 +79,29 @@ def _fronts(path: Path):
     return out, len(refs) > 1
 
 
+def _say_race_winners(fronts, several: bool) -> None:
+    """The pick of each robust run listed: the winner of its race (mjxskill.evaluation.racing)."""
+    from mjxskill.evaluation.racing import raced_pick  # lazy: imports mujoco, as in _fronts
+
+    for ref, sub, _, front in fronts:
+        raced = raced_pick(sub.path, front)
+        if raced is not None:
+            k, won, worlds = raced
+            where = f"{ref.kind} seed {ref.seed} " if several else ""
+            print(f"{where}race winner (the run's pick): row {k}, success {won}/{worlds} in fresh worlds of the known "
+                  f"start configurations (race.json); --pick {k if not several else _union_row(fronts, ref, k)} takes it")
+
+
+def _union_row(fronts, ref, k: int) -> int:
+    """The listed row (#) of row ``k`` of the run ``ref`` among ``fronts``."""
+    before = 0
+    for other, _, _, front in fronts:
+        if other == ref:
+            return before + k
+        before += len(front)
+    raise ValueError(ref)
+
+
 def _say_what_decided(union, i: int, validated, other: int | None, owner) -> None:
     """What a pick by constraint rested on, where some solutions were validated: a validated
     pick beside an unvalidated solution that did better in training, or a pick by training
@@ -106,7 +129,7 @@ def _main(args: argparse.Namespace) -> int:
     if args.min_success is not None and args.min_success > 1:
         raise CommandError(f"--min-success is a rate between 0 and 1, got {args.min_success}")
     _, run, config, _ = fronts[0]
-    union = concat_all([f for *_, f in fronts], len(config.parameter_names), len(config.objective_names))
+    union = concat_all([f for *_, f in fronts], len(config.parameter_names), len(config.objective_names), config.pooled)
     seconds = []  # the validation's mean times to success, for the tie-break between equal validations
     validated, worlds = validated_union(((run, front) for _, run, _, front in fronts),
                                         damaged=lambda message: print(f"{build_parser().prog}: warning: {message}; "
@@ -123,6 +146,7 @@ def _main(args: argparse.Namespace) -> int:
     else:
         print(f"Pareto front of {run.path} ({len(union)} solutions):")
         print(front_table(config, union, validated))
+    _say_race_winners(fronts, several)
     if validated is not None:
         print(f"validated: the success rate of the picks' contenders in fresh worlds ({' or '.join(map(str, sorted(set(worlds[worlds > 0]))))} per solution; "
               "evaluation/validation.json); a pick by constraint takes a validated solution first")

@@ -30,6 +30,8 @@ from mjxskill.cli.progress import Progress
 from mjxskill.cli.run_settings import (accept_scenario, add_accept_scenario_change, add_setting_arguments, new_config,
                                         resumed_config)
 from mjxskill.engine.build import build_rollout, resolve_engine
+from mjxskill.evaluation import racing
+from mjxskill.runs.training_protocol import race_episodes
 from mjxskill.task import describe, planning_texts
 from mjxskill.training import report
 from mjxskill.training.loop import rollout_evaluator, train
@@ -97,6 +99,9 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
     print(f"objectives (larger is better): {', '.join(config.objective_names)}")
     print(f"budget {config.budget} evaluations, batches of {config.batch_size}, {config.n_init} random warm-up, "
           f"{config.worlds} worlds, {config.episode_seconds:g} s episodes, seed {config.seed}"
+          + (f"; robust protocol: {config.training_rows} evaluations (the most promising sets rolled out again in "
+             f"fresh worlds), then a race of the front in {race_episodes(config.budget, config.worlds)} episodes"
+             if config.protocol == "robust" else "; the paper's protocol")
           + (f", {config.repeats} repeats" if config.repeats > 1 else "")
           + AFTER_WARM_UP.get(config.optimizer, ""))
     print(describe_prior(config.prior) + (" (the run's own)" if args.resume is not None and config.prior else ""))
@@ -119,9 +124,13 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> 
                 sub_config = sub.config()
                 label = f"seed {sub_config.seed}: " if config.repeats > 1 else ""
                 evaluate = rollout_evaluator(rollout, sub_config.batch_size, sub_config.seed)
-                ev = train(sub, sub_config, evaluate, progress=Progress(sub_config.budget, args.quiet, label))
+                ev = train(sub, sub_config, evaluate, progress=Progress(sub_config.training_rows, args.quiet, label))
                 report.write_run_figures(sub, sub_config, ev)
                 print(report.summary(sub, sub_config, ev), flush=True)
+                if sub_config.protocol == "robust":  # the pick: the front raced in fresh worlds
+                    front, settings = sub.front(sub_config), racing.run_race_settings(sub_config, scn)
+                    raced = racing.race(sub.path, front, rollout, settings, sub_config.batch_size)
+                    print(racing.describe(raced, front, sub_config, settings), flush=True)
     except KeyboardInterrupt:  # figures of what is done; the CSV already holds every finished batch
         return cli.interrupt.stopped("mjxskill.train", lambda: report.write_run_figures(sub, sub_config, sub.evaluations(sub_config)))
     finally:

@@ -98,15 +98,18 @@ def build_candidates(task, pareto_params: np.ndarray, n_random: int, seed: int) 
 CHUNK_FIELDS = ("success", *METRICS, "peak_commanded_force", "success_seconds", "world_seconds")
 
 
-def evaluation_worlds(rollout, per_config: int, seed: int):
+EVALUATION_STREAM = 0xE7A1  # the evaluation worlds' PRNG stream (training 0x0ED0)
+
+
+def evaluation_worlds(rollout, per_config: int, seed: int, stream: int = EVALUATION_STREAM):
     """The worlds every candidate runs in: ``per_config`` from each known, then each unseen
-    start configuration (configuration-major, leading shape (C * per_config,)). Returns
-    (worlds, config_names (C,), known (C,) bool)."""
+    start configuration (configuration-major, leading shape (C * per_config,)), drawn from
+    ``seed``'s ``stream``. Returns (worlds, config_names (C,), known (C,) bool)."""
     import jax  # lazy: ~1 s; evaluate's --help and bad-input errors import this module
 
     scn = rollout.scenario
     known_cfg, unseen_cfg = np.asarray(scn.robot.start_configs), np.asarray(scn.robot.eval_configs)
-    key_known, key_unseen = jax.random.split(jax.random.fold_in(jax.random.PRNGKey(seed), 0xE7A1))
+    key_known, key_unseen = jax.random.split(jax.random.fold_in(jax.random.PRNGKey(seed), stream))
     parts = [rollout.worlds_per_config(key_known, per_config, known_cfg)]
     if len(unseen_cfg):
         parts.append(rollout.worlds_per_config(key_unseen, per_config, unseen_cfg))
@@ -144,12 +147,12 @@ def evaluate_chunk(rollout, chunk: np.ndarray, worlds, n_cfg: int, per_config: i
 
 
 def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: int, batch_size: int,
-                        done: dict | None = None, on_chunk=None) -> Evaluation:
-    """Runs every candidate in the same per-configuration worlds (known + unseen configs), in
-    chunks of ``batch_size`` candidates. ``done``: chunk start -> a chunk's results computed
-    before (skipped: an evaluation resumes); ``on_chunk(start, result)`` is called after each
-    new chunk (to keep it on disk)."""
-    worlds, names, known = evaluation_worlds(rollout, per_config, seed)
+                        done: dict | None = None, on_chunk=None, stream: int = EVALUATION_STREAM) -> Evaluation:
+    """Runs every candidate in the same per-configuration worlds (known + unseen configs, from
+    ``seed``'s ``stream``), in chunks of ``batch_size`` candidates. ``done``: chunk start -> a
+    chunk's results computed before (skipped: an evaluation resumes); ``on_chunk(start,
+    result)`` is called after each new chunk (to keep it on disk)."""
+    worlds, names, known = evaluation_worlds(rollout, per_config, seed, stream)
     n_cfg = len(names)
     params = candidates.params
     chunks = []

@@ -129,7 +129,7 @@ def evaluate_run(run: Run, config: RunConfig, rollout, task, settings: dict, pro
     tests = plot_boxes(ev, folder / "success.png", _title(config))
     # evaluation.json last: its presence says the evaluation is complete
     write_json(folder / RESULT, {"format": FORMAT, "settings": settings, "parameter_names": list(config.parameter_names),
-                                  **_document(ev)})
+                                  **evaluation_document(ev)})
     chunk_path.unlink(missing_ok=True)
     return ev, tests, False
 
@@ -148,10 +148,16 @@ def load_evaluation(run: Run) -> tuple[Evaluation, dict]:
     path = run.path / FOLDER / RESULT
     if not path.is_file():
         raise RunError(f"{run.path} has not been evaluated yet (no {FOLDER}/{RESULT}): run python -m mjxskill.evaluate {run.path}")
+    return read_evaluation(path, FORMAT, "evaluation", "delete it and evaluate again")
+
+
+def read_evaluation(path: Path, fmt: str, what: str, remedy: str) -> tuple[Evaluation, dict]:
+    """(evaluation, its settings) from a file :func:`evaluation_document` wrote with format
+    ``fmt``; RunError naming ``what`` and the ``remedy`` when it is damaged."""
     try:
-        doc = json.loads(read_text(path, RunError, "evaluation"))
-        if doc.get("format") != FORMAT:
-            raise ValueError(f"format {FORMAT!r} expected")
+        doc = json.loads(read_text(path, RunError, what))
+        if doc.get("format") != fmt:
+            raise ValueError(f"format {fmt!r} expected")
         c = doc["candidates"]
         n, n_cfg = len(c["names"]), len(doc["config_names"])
         candidates = Candidates(tuple(c["names"]), tuple(c["groups"]), _array(c["params"], (n, -1)))
@@ -161,8 +167,8 @@ def load_evaluation(run: Run) -> tuple[Evaluation, dict]:
                         tuple(doc["config_names"]), **optional)
         if ev.known.shape != (n_cfg,) or not isinstance(doc["settings"], dict):
             raise ValueError("the configurations do not match")
-    except (KeyError, TypeError, ValueError) as err:
-        raise RunError(f"{path} is not a readable evaluation ({err}); delete it and evaluate again") from None
+    except (KeyError, TypeError, ValueError, AttributeError) as err:
+        raise RunError(f"{path} is not a readable {what} ({err}); {remedy}") from None
     return ev, doc["settings"]
 
 
@@ -184,7 +190,8 @@ def _plain(value):
     return [_plain(v) for v in a]
 
 
-def _document(ev: Evaluation) -> dict:
+def evaluation_document(ev: Evaluation) -> dict:
+    """``ev`` as plain JSON data (NaN as null), what :func:`read_evaluation` reads."""
     c = ev.candidates
     return {"candidates": {"names": list(c.names), "groups": list(c.groups), "params": _plain(c.params)},
             "config_names": list(ev.config_names), "known": [bool(k) for k in ev.known], "success": _plain(ev.success),
@@ -216,4 +223,5 @@ def _read_chunks(path: Path, settings: dict, candidates: Candidates) -> dict:
     return done
 
 
-__all__ = ["CHUNKS", "FOLDER", "RESULT", "RESULT_SETTINGS", "differences_from_earlier", "evaluate_run", "evaluation_current", "evaluation_settings", "load_evaluation"]
+__all__ = ["CHUNKS", "FOLDER", "RESULT", "RESULT_SETTINGS", "differences_from_earlier", "evaluate_run", "evaluation_current",
+           "evaluation_document", "evaluation_settings", "load_evaluation", "read_evaluation"]

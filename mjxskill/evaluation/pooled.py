@@ -71,16 +71,20 @@ def force_bound(max_force: float | None, stated=None) -> tuple[float | None, str
     return None, "none (the scenario states no pick.max_force and none was given)"
 
 
-def pick(front, ev: Evaluation, max_force: float | None = None, validation=None, source: str | None = None) -> Pick:
+def pick(front, ev: Evaluation, max_force: float | None = None, validation=None, source: str | None = None,
+         race=None) -> Pick:
     """The picked Pareto solution of a run (``front``: its training Pareto rows, the ones ``ev``
     evaluated as ``pareto-<k>``) within ``max_force`` N of commanded force (None: unbounded;
     ``source``: where that bound comes from, default ``force_bound``'s words for a bound
     given or none). ``validation``
     (``mjxskill.evaluation.validation.Validation`` of the rows :func:`contenders` names): the
-    highest validation success among them decides."""
+    highest validation success among them decides. ``race`` (a run of the robust protocol,
+    ``mjxskill.evaluation.racing.Race`` within that bound): its winner is the pick."""
     check_front(front, ev)
     bound = None if max_force is None else float(max_force)
     source = force_bound(bound)[1] if source is None else source
+    if race is not None:
+        return Pick(race.winner, bound, source)
     if validation is None:
         return Pick(choose_commanded(front, bound), bound, source)
     rows = contenders(front, bound, validation.candidates or len(validation.rows))

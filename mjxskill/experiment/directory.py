@@ -33,7 +33,10 @@ from mjxskill.evaluation.evaluate_run import evaluation_settings
 from mjxskill.runs.run_dir import Run, RunConfig, created_whole
 from mjxskill.runs.run_lock import RunLock, lock_run
 from mjxskill.evaluation.pooled import GIVEN, force_bound
+from mjxskill.evaluation.confirmation import confirmation_settings
+from mjxskill.evaluation.racing import race_settings
 from mjxskill.evaluation.validation import validation_settings
+from mjxskill.runs.training_protocol import race_episodes
 from mjxskill.runs.layout import EXPERIMENT, OPTIMIZER_RUNS, RANDOM_RUNS
 from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_RANDOM_SETS, MAX_VALIDATION_CANDIDATES
 
@@ -52,7 +55,11 @@ class Protocol:
     validation_per_config: fresh worlds from each known start configuration in which the
     validation_candidates best solutions within the bound are rolled out again before the pick
     (``mjxskill.evaluation.validation``; 0: the training success alone decides, as in an
-    experiment.yaml written before validation existed, which has neither key)."""
+    experiment.yaml written before validation existed, which has neither key); a run of the
+    robust protocol picks by its race instead (``mjxskill.evaluation.racing``).
+    confirm_per_config: worlds from each known and unseen start configuration in which the
+    pick and the operators' sets are rolled out after the pick (``mjxskill.evaluation.confirmation``;
+    0: none, as in an experiment.yaml written before it existed)."""
 
     per_config: int = 5
     random_sets: int = 10
@@ -60,19 +67,23 @@ class Protocol:
     validation_per_config: int = 5
     validation_candidates: int = 3
     max_force_source: str | None = None
+    confirm_per_config: int = 0
 
     def to_yaml(self, task: str) -> str:
         return yaml.safe_dump({"format": FORMAT, "task": task, "per_config": self.per_config,
                                "random_sets": self.random_sets, "max_force": self.max_force,
                                "validation_per_config": self.validation_per_config,
                                "validation_candidates": self.validation_candidates,
-                               "max_force_source": self.max_force_source}, sort_keys=False)
+                               "max_force_source": self.max_force_source,
+                               **({"confirm_per_config": self.confirm_per_config} if self.confirm_per_config else {})},
+                              sort_keys=False)
 
     @classmethod
     def from_yaml(cls, text: str, where: str) -> "Protocol":
         root = compose_text(text, where, RunError)
         f = root.mapping(required=("format", "task", "per_config", "random_sets", "max_force"),
-                         optional=("validation_per_config", "validation_candidates", "max_force_source"))
+                         optional=("validation_per_config", "validation_candidates", "max_force_source",
+                                   "confirm_per_config"))
         if f["format"].is_null() or f["format"].scalar() != FORMAT:
             f["format"].fail(f"not an mjxskill experiment (format {FORMAT!r} expected)")
         max_force = None if f["max_force"].is_null() else f["max_force"].number(nonnegative=True)
@@ -84,7 +95,8 @@ class Protocol:
                    random_sets=f["random_sets"].integer(minimum=0, maximum=MAX_RANDOM_SETS),
                    max_force=max_force, max_force_source=source,
                    validation_per_config=f["validation_per_config"].integer(minimum=0, maximum=MAX_PER_CONFIG) if "validation_per_config" in f else 0,
-                   validation_candidates=f["validation_candidates"].integer(minimum=1, maximum=MAX_VALIDATION_CANDIDATES) if "validation_candidates" in f else 3)
+                   validation_candidates=f["validation_candidates"].integer(minimum=1, maximum=MAX_VALIDATION_CANDIDATES) if "validation_candidates" in f else 3,
+                   confirm_per_config=f["confirm_per_config"].integer(minimum=0, maximum=MAX_PER_CONFIG) if "confirm_per_config" in f else 0)
 
 
 def random_search_config(config: RunConfig) -> RunConfig:
@@ -256,8 +268,24 @@ def repetition_validation(config: RunConfig, protocol: Protocol, seed: int) -> d
                                config.episode_seconds)
 
 
+def repetition_race(config: RunConfig, protocol: Protocol, seed: int, n_known: int) -> dict | None:
+    """The race settings of the repetition of seed ``seed`` (None: its runs are of the paper's
+    protocol, whose pick is validated): the race's share of the run's budget, the protocol's bound."""
+    if config.protocol != "robust":
+        return None
+    return race_settings(seed, config.engine, config.episode_seconds, race_episodes(config.budget, config.worlds),
+                         protocol.max_force, n_known)
+
+
+def repetition_confirmation(config: RunConfig, protocol: Protocol, seed: int) -> dict | None:
+    """The confirmation settings of the repetition of seed ``seed`` (None: the protocol has none)."""
+    if not protocol.confirm_per_config:
+        return None
+    return confirmation_settings(protocol.confirm_per_config, seed, config.engine, config.episode_seconds)
+
+
 def is_done(run: Run, config: RunConfig) -> bool:
-    return len(run.evaluations(config)) >= config.budget
+    return len(run.evaluations(config)) >= config.training_rows
 
 
 def time_key(kind: str, seed: int) -> str:
@@ -265,4 +293,5 @@ def time_key(kind: str, seed: int) -> str:
 
 
 __all__ = ["FORMAT", "STATE", "Experiment", "Protocol", "is_done", "random_search_config",
-           "repetition_settings", "repetition_validation", "runs_of", "time_key"]
+           "repetition_confirmation", "repetition_race", "repetition_settings", "repetition_validation", "runs_of",
+           "time_key"]

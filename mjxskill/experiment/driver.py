@@ -34,14 +34,19 @@ import time
 from typing import Callable, Sequence
 
 from mjxskill.evaluation.evaluate_run import evaluate_run
+from mjxskill.evaluation.confirmation import confirm, confirmation_candidates
+from mjxskill.evaluation.racing import load_race, race
 from mjxskill.experiment.directory import (
     Experiment,
     Protocol,
+    repetition_confirmation,
+    repetition_race,
     repetition_settings,
     repetition_validation,
     time_key,
 )
 from mjxskill.experiment.report import write_report
+from mjxskill.experiment.picks import repetition_pick
 from mjxskill.experiment.stats import finished_repetitions
 from mjxskill.training.loop import BatchResult, rollout_evaluator, train
 from mjxskill.training.report import write_repeats, write_run_figures
@@ -110,6 +115,44 @@ def validate_timed(exp: Experiment, run: Run, rollout, config: RunConfig, protoc
     return not reused
 
 
+def race_timed(exp: Experiment, run: Run, rollout, config: RunConfig, protocol: Protocol, seed: int) -> bool | None:
+    """Races the front of one optimizer run of the robust protocol for its pick
+    (``mjxskill.evaluation.racing``; finished rounds reused). True when a round ran now, False
+    when all were done, None when the run picks by validation instead."""
+    settings = repetition_race(config, protocol, seed, len(rollout.scenario.robot.start_configs))
+    if settings is None:
+        return None
+    run_config = run.config()
+    t0 = time.monotonic()
+    with run.lock():
+        front = run.front(run_config)
+        done = load_race(run.path, front, settings) is not None
+        if not done:
+            race(run.path, front, rollout, settings, run_config.batch_size)
+    if not done:
+        exp.add_time(time_key(KINDS[run_config.optimizer], run_config.seed), "race_seconds", time.monotonic() - t0)
+    return not done
+
+
+def confirm_timed(exp: Experiment, run: Run, rollout, task, config: RunConfig, protocol: Protocol, seed: int,
+                  pick_row: int | None) -> bool | None:
+    """Rolls the pick (``pick_row`` of the front; None: no pick) and the operators' sets out in
+    the protocol's confirmation worlds (``mjxskill.evaluation.confirmation``; reused when
+    current). True when it ran now, False when reused, None when the protocol has none."""
+    settings = repetition_confirmation(config, protocol, seed)
+    if settings is None:
+        return None
+    run_config = run.config()
+    t0 = time.monotonic()
+    with run.lock():
+        front = run.front(run_config)
+        picked = None if pick_row is None else front.params[pick_row]
+        _, reused = confirm(run.path, rollout, confirmation_candidates(task, picked), settings, run_config.batch_size)
+    if not reused:
+        exp.add_time(time_key(KINDS[run_config.optimizer], run_config.seed), "confirm_seconds", time.monotonic() - t0)
+    return not reused
+
+
 def share_cluster(cpus: int, pending: int) -> tuple[int, int]:
     """(repetitions run at the same time, Ray actors of each) on a cluster of ``cpus`` CPUs with
     ``pending`` repetitions left: one actor per CPU in all, at least one each."""
@@ -141,9 +184,15 @@ def run_repetition(exp: Experiment, i: int, rollout, task, *, progress_for, log:
         ran |= train_timed(exp, rnd, rollout, progress_for)
         log(f"{said}: evaluation")
         ran |= evaluate_timed(exp, opt, rollout, task, repetition_settings(config, protocol, seed), evaluation_progress)
-        if protocol.validation_per_config:
+        if config.protocol == "robust":
+            log(f"{said}: race of the front for the pick")
+            ran |= bool(race_timed(exp, opt, rollout, config, protocol, seed))
+        elif protocol.validation_per_config:
             log(f"{said}: validation of the pick")
             ran |= bool(validate_timed(exp, opt, rollout, config, protocol, seed))
+        if protocol.confirm_per_config:
+            log(f"{said}: confirmation of the pick in {protocol.confirm_per_config} worlds per start configuration")
+            ran |= bool(confirm_timed(exp, opt, rollout, task, config, protocol, seed, repetition_pick(exp, i)))
     except BaseException:
         exp.add_interval(seed, started, time.time(), interrupted=True)
         raise

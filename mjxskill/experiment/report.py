@@ -66,8 +66,8 @@ def _table(head: list[str], rows: list[list[str]]) -> list[str]:
 
 def markdown(s: dict, figures: bool = True) -> str:
     """report.md from the summary ``s`` (``stats.summarize``); ``figures``: link the plots."""
-    sections = (_header, _paper_section, _success_section, _picked_section, _fronts_section, _hypervolume_section,
-                _wall_time_section, _protocol_section)
+    sections = (_header, _paper_section, _success_section, _picked_section, _confirmation_section, _episodes_section,
+                _fronts_section, _hypervolume_section, _wall_time_section, _protocol_section)
     return "\n".join(line for section in sections for line in section(s, figures))
 
 
@@ -143,6 +143,8 @@ def _success_section(s: dict, figures: bool) -> list[str]:
 
 def _picked_section(s: dict, figures: bool) -> list[str]:
     lines = ["## Picked solutions", "", f"Rule: {s['pick_rule']}.", ""]
+    if "race" in s:
+        return lines + _raced_picks(s)
     names = list(s["protocol"]["parameters"])
     validated = s.get("training_pick", {}).get("validated", False)
     rows = [[str(r["seed"]), _num(r["pareto_row"], "{}"), _num(r["bound_N"], "{:.2f} N")]
@@ -155,6 +157,71 @@ def _picked_section(s: dict, figures: bool) -> list[str]:
     lines += _table(["seed", "Pareto row", "bound", *(n.split(".")[-1] for n in names), "training success",
                      *(["validation success"] if validated else []), "commanded force [N]", "known", "unseen"], rows)
     return lines + [""] + _validation_effect(s) + _sweep(s)
+
+
+def _raced_picks(s: dict) -> list[str]:
+    """The picks of raced repetitions: parameters, training success over the worlds the run
+    pooled, race success, and the evaluation's and the confirmation's success rates."""
+    names = list(s["protocol"]["parameters"])
+    confirmed = "confirmation" in s
+    races = {r["seed"]: r for r in s["race"]}
+    rows = []
+    for r in s["picked"]:
+        race = races.get(r["seed"], {})
+        plan = ", ".join(f"{x['contenders']} x {x['worlds']}" for x in race.get("rounds", []))
+        if r["pareto_row"] is None:
+            rows.append([str(r["seed"]), "-", "no Pareto solution within the bound"] + [""] * (len(names) + 5 + 2 * confirmed))
+            continue
+        rows.append([str(r["seed"]), str(r["pareto_row"]), f"{race.get('contenders', '-')} ({plan})"]
+                    + [_num(r["parameters"][n], "{:.4g}") for n in names]
+                    + [f"{_pct(r['training_success'])} of {r.get('training_worlds', '-')}",
+                       f"{r.get('race_successes', '-')}/{r.get('race_worlds', '-')}",
+                       _num(r["training_peak_commanded_force_N"], "{:.2f}"), _pct(r["known"]), _pct(r["unseen"])]
+                    + ([_pct(r.get("confirmed_known")), _pct(r.get("confirmed_unseen"))] if confirmed else []))
+    head = ["seed", "Pareto row", "contenders (rounds: contenders x worlds)", *(n.split(".")[-1] for n in names),
+            "training success (worlds)", "race success", "commanded force [N]", "evaluation known", "evaluation unseen",
+            *(["confirmed known", "confirmed unseen"] if confirmed else [])]
+    per = s["protocol"]["per_config"]
+    return _table(head, rows) + ["", f"Evaluation: {per} worlds per start configuration (the paper's evaluation, every "
+                                 "Pareto solution). Confirmed: the confirmation's worlds (next section).", ""]
+
+
+def _confirmation_section(s: dict, figures: bool) -> list[str]:
+    """The pick and the operators' sets in the confirmation's worlds, per repetition and pooled."""
+    c = s.get("confirmation")
+    if not c:
+        return []
+    names = list(c["pooled"])
+    lines = ["## Confirmation: the pick and the operators' sets in many worlds", "",
+             f"Every repetition rolls its pick and the operators' illustrative sets out in the same {c['per_config']} "
+             f"fresh worlds from each of the {c['configs']} start configurations (known and unseen), drawn from the "
+             "repetition's seed on a stream of their own, apart from the training, race and evaluation worlds.", ""]
+    rows = [[str(e["seed"])] + [f"{_pct(e['candidates'][n]['known'])} / {_pct(e['candidates'][n]['unseen'])}"
+                                if n in e["candidates"] else "-" for n in names] for e in c["repetitions"]]
+    lines += _table(["seed", *(f"{n} known / unseen" for n in names)], rows)
+    pooled = [[n, _pct(p["known"]), _pct(p["unseen"]), _pct(p["lowest_unseen"]),
+               _num(p["full_episode_time_s"], "{:.2f} s"), _num(p["peak_commanded_force_N"], "{:.2f} N")]
+              for n, p in c["pooled"].items()]
+    lines += ["", "Pooled over the repetitions:", ""]
+    lines += _table(["candidate", "known", "unseen", "lowest repetition, unseen",
+                     "time to success (failure = full episode)", "commanded force"], pooled)
+    return lines + [""]
+
+
+def _episodes_section(s: dict, figures: bool) -> list[str]:
+    """The episodes each repetition's optimizer run and pick spent, against the paper's budget."""
+    e = s.get("episodes")
+    if not e:
+        return []
+    p = s["protocol"]
+    rows = [[str(r["seed"]), str(r["training"]), str(r["replication"]), str(r["race"]), str(r["total"]),
+             f"{r['of_paper_budget']:.3f}"] for r in e]
+    return (["## Episodes spent", ""]
+            + _table(["seed", "new parameter sets", "rolled out again", "race", "total",
+                      f"of the paper's {p['budget']} x {p['worlds']}"], rows)
+            + ["", "Training episodes (new sets and those rolled out again) are the run's budget x worlds; the race "
+               "adds its share. The evaluation and the confirmation measure the pick for this report and are not "
+               "counted: a user does not run them.", ""])
 
 
 def _sweep(s: dict) -> list[str]:
@@ -201,16 +268,18 @@ def _hypervolume_section(s: dict, figures: bool) -> list[str]:
 
 def _wall_time_section(s: dict, figures: bool) -> list[str]:
     lines = ["## Wall time", ""]
+    raced = any(k["optimizer"].get(f) is not None for k in s["wall_time"].values() for f in ("race_seconds", "confirm_seconds"))
+    picking = ("race_seconds", "confirm_seconds") if raced else ("validate_seconds",)
     rows = []
     for seed, kinds in s["wall_time"].items():
         o, r = kinds["optimizer"], kinds["random_search"]
         total = sum(e.get(k, 0.0) for e, k in ((o, "train_seconds"), (r, "train_seconds"), (o, "evaluate_seconds"),
-                                                (o, "validate_seconds")))
+                                                *((o, f) for f in picking)))
         rows.append([seed, _secs(o, "train_seconds"), _secs(o, "simulation_seconds"), _secs(r, "train_seconds"),
-                     _num(o.get("evaluate_seconds"), "{:.0f} s"), _num(o.get("validate_seconds"), "{:.0f} s"),
+                     _num(o.get("evaluate_seconds"), "{:.0f} s"), *(_num(o.get(f), "{:.0f} s") for f in picking),
                      f"{total:.0f} s"])
     lines += _table(["seed", "optimizer run (evaluations)", "of it simulation", "random search run", "evaluation",
-                     "validation", "repetition"], rows)
+                     *(["race", "confirmation"] if raced else ["validation"]), "repetition"], rows)
     sessions = s["sessions"]
     return lines + ["", f"{len(sessions)} session(s); start-up (planning, engine start, compilation) "
                     + ", ".join(f"{x['startup_seconds']:.0f} s ({x['engine']}, {x['cpus']} CPUs)" for x in sessions)

@@ -17,16 +17,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mjxskill.evaluation.evaluate_run import evaluation_current, load_evaluation
 from mjxskill.evaluation.baselines import Evaluation, significance
+from mjxskill.evaluation.confirmation import confirmation_candidates, load_confirmation
+from mjxskill.evaluation.racing import Race
 from mjxskill.experiment.directory import (
     Experiment,
     Protocol,
     is_done,
-    repetition_settings,
-    repetition_validation,
+    repetition_confirmation,
     time_key,
 )
+from mjxskill.experiment.picks import opt_task, picked_repetition
+from mjxskill.experiment.robustness import confirmation_summary, episode_summary, race_summary
 from mjxskill.training.front import HV_MARGIN, hypervolume_history, pareto_mask_of
 from mjxskill.evaluation.pooled import (
     Pick,
@@ -41,7 +43,7 @@ from mjxskill.evaluation.pooled import (
     pooled_tests,
 )
 from mjxskill.runs.run_dir import Evaluations, RunConfig
-from mjxskill.evaluation.validation import Validation, in_contention, load_validation
+from mjxskill.evaluation.validation import Validation
 
 # The paper's numbers (Mayr et al., experiments section), per scenario name.
 PAPER = {
@@ -62,30 +64,31 @@ class Repetition(NamedTuple):
     pick: Pick
     validation: Validation | None = None  # of the pick's contenders (None: the protocol has none)
     training_pick: Pick | None = None  # what the training success alone picks (the rule without validation)
+    race: Race | None = None  # the race that made the pick (a run of the robust protocol; None: validated)
+    confirmation: Evaluation | None = None  # the pick and the operators' sets in many worlds (None: none)
 
 
 def finished_repetitions(exp: Experiment, config: RunConfig, protocol: Protocol) -> list[Repetition]:
-    """The repetitions whose runs are finished, evaluated and (when the protocol says so) whose
-    pick is validated, with the settings of ``protocol``."""
-    reps = []
+    """The repetitions whose runs are finished, evaluated, picked (validated or raced, when the
+    protocol says so) and confirmed (when it says so), with the settings of ``protocol``."""
+    reps, task = [], None
     for i, (opt, rnd) in enumerate(exp.runs(config)):
-        seed = config.seed + i
-        opt_config, rnd_config = opt.config(), rnd.config()
-        if not (is_done(opt, opt_config) and is_done(rnd, rnd_config)
-                and evaluation_current(opt, opt_config, repetition_settings(config, protocol, seed))):
+        rnd_config = rnd.config()
+        picked = picked_repetition(exp, config, protocol, i)
+        if picked is None or not is_done(rnd, rnd_config):
             continue
-        front = opt.front(opt_config)
-        ev, _ = load_evaluation(opt)
-        validation = None
-        settings = repetition_validation(config, protocol, seed)
+        seed, opt_config, front, ev, chosen, validation, raced = picked
+        confirmation = None
+        settings = repetition_confirmation(config, protocol, seed)
         if settings is not None:
-            rows = in_contention(front, protocol.max_force, protocol.validation_candidates)
-            validation = load_validation(opt, front, rows, settings)
-            if validation is None:
+            picked_params = None if chosen.row is None else front.params[chosen.row]
+            task = task or opt_task(exp, config)
+            confirmation = load_confirmation(opt.path, confirmation_candidates(task, picked_params), settings)
+            if confirmation is None:
                 continue
-        reps.append(Repetition(seed, opt.evaluations(opt_config), rnd.evaluations(rnd_config), front, ev,
-                               pick(front, ev, protocol.max_force, validation, protocol.max_force_source), validation,
-                               pick(front, ev, protocol.max_force, source=protocol.max_force_source)))
+        reps.append(Repetition(seed, opt.evaluations(opt_config), rnd.evaluations(rnd_config), front, ev, chosen,
+                               validation, pick(front, ev, protocol.max_force, source=protocol.max_force_source), raced,
+                               confirmation))
     return reps
 
 
@@ -194,6 +197,13 @@ def summarize(exp: Experiment) -> dict:
     front = front_sizes(reps)
     state = exp.state()
     n_known = int(reps[0].evaluation.known.sum()) if reps else None
+    robust = {}  # only where there is something to say: a paper-protocol report stays as it was
+    if any(r.race is not None for r in reps):
+        robust["race"] = race_summary(reps)
+    if config.protocol == "robust":
+        robust["episodes"] = episode_summary(reps, config)
+    if any(r.confirmation is not None for r in reps):
+        robust["confirmation"] = confirmation_summary(reps, protocol.confirm_per_config, config.episode_seconds)
     return {
         "task": config.task,
         "status": {"repetitions_done": len(reps), "repetitions": config.repeats},
@@ -208,7 +218,7 @@ def summarize(exp: Experiment) -> dict:
                      "validation_candidates": protocol.validation_candidates,
                      "known_configs": n_known, "unseen_configs": None if not reps else int((~reps[0].evaluation.known).sum()),
                      "evaluation_seeds": "each repetition's own training seed"},
-        "pick_rule": pick_rule(protocol, n_known),
+        "pick_rule": pick_rule(protocol, n_known, raced=config.protocol == "robust"),
         "picked": [_picked(r, config) for r in reps],
         "training_pick": training_pick(reps),
         "bound_sweep": bound_sweep(reps, protocol),
@@ -225,6 +235,7 @@ def summarize(exp: Experiment) -> dict:
                                     for kind in ("optimizer", "random_search")} for r in reps},
         "sessions": state["sessions"],
         "paper": paper_rows(config.task, front, means, force_time, times),
+        **robust,
     }
 
 
@@ -271,12 +282,22 @@ def bound_sweep(reps: list[Repetition], protocol: Protocol) -> list[dict]:
     return out
 
 
-def pick_rule(protocol: Protocol, n_known: int | None) -> str:
-    """The pick rule in words (report.json's ``pick_rule``)."""
+def pick_rule(protocol: Protocol, n_known: int | None, raced: bool = False) -> str:
+    """The pick rule in words (report.json's ``pick_rule``); ``raced``: the runs' robust protocol
+    picks by racing their fronts."""
     force = ("commanded force (peak_commanded_force: the largest feed-forward force the skills command in an episode, "
              "mean over the training worlds; not the measured contact force) is at most the bound")
     source = protocol.max_force_source or force_bound(protocol.max_force)[1]
     bound = "Bound: " + (source if protocol.max_force is None else f"{protocol.max_force:g} N, {source}")
+    if raced:
+        return (f"the Pareto solutions whose {force} race in fresh worlds of the known start configurations "
+                "(successive halving: ceil(log2 K) rounds share the race's episodes, every contender of a round is "
+                "rolled out in the same worlds and the better half goes on, ranked by success over all its race "
+                "worlds, then the lower mean time to success there with a failure counted as the full episode, "
+                "then the higher success bound of training); the last one left is picked. The contenders are the "
+                "K with the highest success bound of training among those whose success may be the highest (the "
+                "upper bound of their success over their training worlds not below another's lower bound), K the "
+                f"most the first round can roll out once in every known start configuration. {bound}")
     if not protocol.validation_per_config:
         return (f"the Pareto solution with the highest training success rate among those whose {force}; ties: the "
                 f"higher first objective. {bound}")
@@ -316,6 +337,15 @@ def _picked(r: Repetition, config: RunConfig) -> dict:
                    training_success=float(r.front.success_rate[p.row]), training_peak_commanded_force_N=float(r.front.peak_commanded_force[p.row]),
                    validation_success=None if r.validation is None else r.validation.success_of(p.row),
                    known=float(ev.mean(True)[row]), unseen=_finite(ev.mean(False)[row]))
+    if r.race is not None and p.row is not None:
+        won, worlds = r.race.race_success(p.row)
+        out.update(race_successes=won, race_worlds=worlds)
+        if r.optimizer.pooled:
+            out["training_worlds"] = int(r.front.worlds[p.row])
+    if r.confirmation is not None and p.row is not None:
+        c = r.confirmation
+        out.update(confirmed_known=float(c.success[0, c.known].mean()),
+                   confirmed_unseen=_finite(c.success[0, ~c.known].mean()) if (~c.known).any() else None)
     if r.validation is not None:
         out["validation_rates"] = {str(row): rate for row, rate in zip(r.validation.rows, map(float, r.validation.success))}
         out["validation_worlds"] = r.validation.worlds

@@ -37,7 +37,8 @@ class RunEntry:
     def front(self) -> Evaluations:
         """The rows of pareto.csv (none before the first batch is written)."""
         if not (self.run.path / PARETO).is_file():
-            return Evaluations.empty(len(self.config.parameter_names), len(self.config.objective_names))
+            return Evaluations.empty(len(self.config.parameter_names), len(self.config.objective_names),
+                                     self.config.pooled)
         return self.run.pareto(self.config)
 
 

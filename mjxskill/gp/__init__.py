@@ -5,7 +5,8 @@ scalarizations by default, augmented Chebyshev as an option), sequential greedy 
 
 ``minimize(f, bounds, budget, ...)`` for a whole run; ``MOBOConfig(bounds, n_objectives,
 batch_size, n_init, seed, acquisition=AcquisitionSettings(...))`` and ``init``/``ask``/``tell`` and
-``save_state``/``load_state`` for a run that stops and resumes; ``Prior(mean, std, weights)``
+``save_state``/``load_state`` for a run that stops and resumes (``tell(..., noise=...)`` and
+``observed`` for rows with a known noise variance, e.g. means over several evaluations); ``Prior(mean, std, weights)``
 (``MOBOConfig(prior=...)``, ``minimize(..., prior=...)``) for where good values are believed to
 lie: it shapes the warm-up and weights the acquisition (piBO); ``pareto_mask`` and
 ``hypervolume`` to read the result. Objectives are minimized.
@@ -22,6 +23,7 @@ from mjxskill.gp.optimizer import (
     init,
     load_state,
     minimize,
+    observed,
     save_state,
     tell,
 )
@@ -41,6 +43,7 @@ __all__ = [
     "init",
     "load_state",
     "minimize",
+    "observed",
     "pareto_mask",
     "save_state",
     "tell",

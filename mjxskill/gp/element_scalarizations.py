@@ -6,8 +6,9 @@ hypervolume scalarizations about a reference point (most elements averaging
 improvement, or with ``hypervolume_improvement="exact"`` that expectation in closed form,
 ``expected_hypervolume.py``; the last ``single_direction_share`` following one direction
 each), or augmented Chebyshev on flat Dirichlet weights (ParEGO). ``element_scalarizations``
-returns their targets for the scalarized model and their incumbents and log-EI for the
-per-objective model (``proposal.py``).
+returns their targets for the scalarized model, their incumbents and log-EI for the
+per-objective model (``proposal.py``), and the factors that carry a noise variance of the
+normalized objectives into the space the per-objective GPs are fitted in.
 """
 
 from __future__ import annotations
@@ -42,6 +43,13 @@ class Scalarization(NamedTuple):
       ``settings.pending == "values"`` the incumbent also counts the pending points at their
       believed (posterior mean) values. What depends on the incumbent and the pending points
       alone is computed once, outside the loop over candidates.
+    variance_factor: (n, m) the factor that turns a noise variance of row i's normalized
+      objective k into that of its ``space`` value (delta method: the squared derivative of
+      the map from y_norm to ``space`` at that row, 1 / span^2 of the reference units, times
+      1 / u^2 where the value is log-compressed beyond the reference point; Chebyshev: ones).
+    new_variance_factor: (m,) the same for a new observation, whose value is not known: the
+      factor of a value within the reference point (an upper bound: the compression only
+      shrinks it).
     """
 
     space: jnp.ndarray
@@ -50,6 +58,8 @@ class Scalarization(NamedTuple):
     log_ei: object
     directions: jnp.ndarray
     scale: jnp.ndarray
+    variance_factor: jnp.ndarray
+    new_variance_factor: jnp.ndarray
 
 
 def element_scalarizations(y_norm, mask, ref, key, q: int, settings: AcquisitionSettings) -> Scalarization:
@@ -79,11 +89,16 @@ def element_scalarizations(y_norm, mask, ref, key, q: int, settings: Acquisition
                 return lambda mean, var: log_ei_draws(mean, var, weights[j], settings.alpha, draws, b, settings.tau)
             return lambda mean, var: log_ei(*chebyshev_moments(mean, var, weights[j], settings.alpha, draws), b)
 
-        return Scalarization(y_norm, targets, incumbents, log_ei_of, weights, jnp.ones((q, m), y_norm.dtype))
+        return Scalarization(y_norm, targets, incumbents, log_ei_of, weights, jnp.ones((q, m), y_norm.dtype),
+                             jnp.ones_like(y_norm), jnp.ones((m,), y_norm.dtype))
     # (k, n_draws, m), a block per direction, or (n_draws, m) shared by all (static).
     draws = jnp.asarray(hvs.paired_normal_draws(k, settings.n_draws, m) if paired else normal_draws(settings.n_draws, m))
+    _, span = hvs.reference_scaling(y_norm, mask, ref)
     u = hvs.to_reference_units(y_norm, mask, ref)
+    new_factor = 1.0 / span**2
+    factor = jnp.broadcast_to(new_factor, u.shape)
     if settings.beyond_reference == "log":  # static
+        factor = factor * hvs.compress_beyond_reference_slope(u) ** 2
         u = hvs.compress_beyond_reference(u)
     if settings.directions == "quasi_random":  # static
         directions = hvs.quasi_random_directions(key, q, k, m, paired_draws=paired)
@@ -113,7 +128,7 @@ def element_scalarizations(y_norm, mask, ref, key, q: int, settings: Acquisition
             b = jnp.maximum(b, jnp.max(jnp.where(pending_mask, believed, -jnp.inf), axis=-1))
         return lambda mean, var: hvs.log_ei_hv_draws(mean / r, var / r**2, directions[j], draws, b, settings.tau)
 
-    directed = Scalarization(u, targets, best_scalarized, log_ei_directions, directions, scale)
+    directed = Scalarization(u, targets, best_scalarized, log_ei_directions, directions, scale, factor, new_factor)
     if settings.hypervolume_improvement == "directions" or m > ehv.MAX_OBJECTIVES:  # static
         return directed
     return _with_exact_improvement(directed, q, n_single if k > 1 else 0, settings)

@@ -5,6 +5,13 @@ False are padding. Padding rows get an identity block in the covariance and a ze
 so they add nothing to the log-determinant or the quadratic form, and every shape stays
 constant while the data grows (no recompiles within a size bucket).
 
+Observation noise: every real row has the fitted homoscedastic noise variance ``noise(p)``
+(a learned nugget, for model misfit and unknown noise) and, when ``obs_noise`` (n,) is given,
+its own known noise variance on top (a row that is the mean of several noisy evaluations:
+BoTorch's fixed-noise GP with a learned nugget beside it). ``obs_noise`` is data, not a
+hyperparameter; None is a static branch that computes exactly what a GP without it does.
+:func:`predict` is always the latent (noise-free) posterior.
+
 Conventions: inputs are scaled to the unit cube, targets standardized (zero mean, unit
 variance over the real rows). Hyperparameters are log-parameterized above a floor, with the
 Gamma priors BoTorch used for Matern 5/2 GPs on such data before its 0.12 (lengthscale
@@ -48,7 +55,7 @@ class GPPosterior(NamedTuple):
     params: GPParams
     x: jnp.ndarray  # (n, d) float64 training inputs (padding rows arbitrary)
     mask: jnp.ndarray  # (n,) bool, True for real rows
-    chol: jnp.ndarray  # (n, n) float64 lower Cholesky factor of K + noise I (padded)
+    chol: jnp.ndarray  # (n, n) float64 lower Cholesky factor of K + diag(noise + obs_noise) (padded)
     k_inv: jnp.ndarray  # (n, n) float64 inverse of the same matrix, padding rows zeroed
     alpha: jnp.ndarray  # (n,) float64 k_inv @ (y - mean)
 
@@ -111,26 +118,39 @@ def log_prior(p: GPParams, prior: str = "gamma") -> jnp.ndarray:
     return ls_term + _gamma_logpdf(outputscale(p), 2.0, 0.15) + _gamma_logpdf(noise(p), 1.1, 0.05)
 
 
-def _padded_cov(p: GPParams, x, mask):
-    """(n, n) K + (noise + jitter) I on real rows, identity on padding rows."""
+def observation_noise(obs_noise: jnp.ndarray) -> jnp.ndarray:
+    """(n,) known noise variances made safe to add to a covariance diagonal: negative and
+    non-finite entries (a caller's bug) become 0."""
+    return jnp.where(jnp.isfinite(obs_noise) & (obs_noise > 0.0), obs_noise, 0.0)
+
+
+def _padded_cov(p: GPParams, x, mask, obs_noise=None):
+    """(n, n) K + diag(noise + obs_noise + jitter) on real rows, identity on padding rows
+    (obs_noise (n,) or None: none)."""
     k = matern52(x, x, lengthscales(p), outputscale(p))
     both = mask[:, None] & mask[None, :]
     eye = jnp.eye(x.shape[0], dtype=x.dtype)
-    return jnp.where(both, k, 0.0) + eye * jnp.where(mask, noise(p) + JITTER, 1.0)
+    diag = noise(p) + JITTER
+    if obs_noise is not None:  # static
+        diag = diag + observation_noise(obs_noise)
+    return jnp.where(both, k, 0.0) + eye * jnp.where(mask, diag, 1.0)
 
 
-def log_marginal_likelihood(p: GPParams, x, y, mask) -> jnp.ndarray:
-    """log N(y | mean, K + noise I) over the real rows (scalar), with a cheap gradient.
+def log_marginal_likelihood(p: GPParams, x, y, mask, obs_noise=None) -> jnp.ndarray:
+    """log N(y | mean, K + diag(noise + obs_noise)) over the real rows (scalar), with a cheap
+    gradient.
 
-    Args: x (n, d), y (n,), mask (n,) bool.
+    Args: x (n, d), y (n,), mask (n,) bool, obs_noise (n,) known noise variances or None.
 
     The value is the usual Cholesky form. Its gradient is the closed form
-    dL/dtheta = 0.5 sum((a a^T - K^-1) * dK/dtheta), dL/dmean = sum(a), a = K^-1 (y - mean),
-    attached through a surrogate with the same gradient, because reverse-mode autodiff through
-    the Cholesky factorization costs several times more on a CPU (benchmarks/RESULTS.md,
-    "Figures once quoted in mjxskill/gp's comments").
+    dL/dC = 0.5 (a a^T - C^-1) contracted with dC, dL/dmean = sum(a), a = C^-1 (y - mean),
+    C the covariance, attached through a surrogate with the same gradient, because
+    reverse-mode autodiff through the Cholesky factorization costs several times more on a CPU
+    (benchmarks/RESULTS.md, "Figures once quoted in mjxskill/gp's comments"). The surrogate
+    holds C itself, so the gradient is right for any part of C: the hyperparameters' (obs_noise
+    is data; its own gradient, unused, is right too).
     """
-    cov = _padded_cov(p, x, mask)
+    cov = _padded_cov(p, x, mask, obs_noise)
     chol = jnp.linalg.cholesky(cov)
     r = jnp.where(mask, y - p.mean, 0.0)
     w = jsl.solve_triangular(chol, r, lower=True)
@@ -143,21 +163,24 @@ def log_marginal_likelihood(p: GPParams, x, y, mask) -> jnp.ndarray:
     return jax.lax.stop_gradient(value - surrogate) + surrogate
 
 
-def fit_loss(p: GPParams, x, y, mask, prior: str = "gamma") -> jnp.ndarray:
+def fit_loss(p: GPParams, x, y, mask, prior: str = "gamma", obs_noise=None) -> jnp.ndarray:
     """Negative (log marginal likelihood + log prior) per real row; NaN mapped to +inf."""
     n = jnp.maximum(jnp.sum(mask), 1)
-    loss = -(log_marginal_likelihood(p, x, y, mask) + log_prior(p, prior)) / n
+    loss = -(log_marginal_likelihood(p, x, y, mask, obs_noise) + log_prior(p, prior)) / n
     return jnp.where(jnp.isfinite(loss), loss, jnp.inf)
 
 
-def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "gamma") -> GPParams:
+def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "gamma",
+        obs_noise=None) -> GPParams:
     """MAP hyperparameters by ``n_steps`` L-BFGS steps from ``n_starts`` starts:
     :func:`default_params` and ``n_starts - 1`` random lengthscales.
 
     Args:
       x: (n, d) float64 unit-cube inputs; y: (n,) float64 standardized targets;
       mask: (n,) bool real rows; key: PRNG key for the random starts;
-      prior: the hyperparameter prior (see :func:`log_prior`).
+      prior: the hyperparameter prior (see :func:`log_prior`);
+      obs_noise: (n,) float64 known noise variance of each row (standardized units), added to
+        the fitted noise, or None.
     Returns:
       GPParams of the start with the lowest final loss.
     """
@@ -173,7 +196,7 @@ def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "
             [base.raw_lengthscales[None], jnp.log(rand_ls - LENGTHSCALE_FLOOR)], axis=0
         )
     )
-    loss = lambda p: fit_loss(p, x, y, mask, prior)
+    loss = lambda p: fit_loss(p, x, y, mask, prior, obs_noise)
     opt = optax.lbfgs()
     value_and_grad = optax.value_and_grad_from_state(loss)
 
@@ -201,10 +224,11 @@ def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "
     return jax.tree.map(lambda a: a[best], finals)
 
 
-def condition(p: GPParams, x, y, mask) -> GPPosterior:
-    """Conditions the GP with hyperparameters ``p`` on x (n, d), y (n,), mask (n,) bool: the
-    training covariance is factorized once here for every later :func:`predict`."""
-    cov = _padded_cov(p, x, mask)
+def condition(p: GPParams, x, y, mask, obs_noise=None) -> GPPosterior:
+    """Conditions the GP with hyperparameters ``p`` on x (n, d), y (n,), mask (n,) bool, with
+    obs_noise (n,) the rows' known noise variances (or None): the training covariance is
+    factorized once here for every later :func:`predict`."""
+    cov = _padded_cov(p, x, mask, obs_noise)
     chol = jnp.linalg.cholesky(cov)
     k_inv = jsl.cho_solve((chol, True), jnp.eye(x.shape[0], dtype=x.dtype))
     both = mask[:, None] & mask[None, :]

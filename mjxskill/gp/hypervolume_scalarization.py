@@ -135,17 +135,23 @@ def scalarize(u: jnp.ndarray, direction: jnp.ndarray) -> jnp.ndarray:
     return jnp.where(t > 0.0, jnp.maximum(t, 0.0) ** m, t)
 
 
+def reference_scaling(y: jnp.ndarray, mask: jnp.ndarray, ref: jnp.ndarray):
+    """(ideal (m,), span (m,)) of :func:`to_reference_units`: u = (y - ideal) / span."""
+    ideal = jnp.min(jnp.where(mask[:, None], y, jnp.inf), axis=0)
+    worst = jnp.max(jnp.where(mask[:, None], y, -jnp.inf), axis=0)
+    span = ref - ideal
+    fallback = jnp.where(worst > ideal, worst - ideal, 1.0)
+    span = jnp.where(span > 1e-12 * fallback, span, fallback)
+    return ideal, span
+
+
 def to_reference_units(y: jnp.ndarray, mask: jnp.ndarray, ref: jnp.ndarray) -> jnp.ndarray:
     """(n, m) objectives -> (y - ideal) / (ref - ideal), ideal the best masked-in value.
 
     ref (m,) in the units of y. Where ref is not above the ideal (a reference point that
     nothing reaches yet), the span falls back to the observed range so the scale stays finite.
     """
-    ideal = jnp.min(jnp.where(mask[:, None], y, jnp.inf), axis=0)
-    worst = jnp.max(jnp.where(mask[:, None], y, -jnp.inf), axis=0)
-    span = ref - ideal
-    fallback = jnp.where(worst > ideal, worst - ideal, 1.0)
-    span = jnp.where(span > 1e-12 * fallback, span, fallback)
+    ideal, span = reference_scaling(y, mask, ref)
     return (y - ideal) / span
 
 
@@ -175,6 +181,11 @@ def front_reference(u: jnp.ndarray, mask: jnp.ndarray, margin: float) -> jnp.nda
 def compress_beyond_reference(u: jnp.ndarray) -> jnp.ndarray:
     """u for u <= 1, 1 + log(u) above: continuous with its first derivative, monotone."""
     return jnp.where(u > 1.0, 1.0 + jnp.log(jnp.maximum(u, 1.0)), u)
+
+
+def compress_beyond_reference_slope(u: jnp.ndarray) -> jnp.ndarray:
+    """The derivative of :func:`compress_beyond_reference` at u: 1 for u <= 1, 1 / u above."""
+    return jnp.where(u > 1.0, 1.0 / jnp.maximum(u, 1.0), 1.0)
 
 
 def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.ndarray, draws: jnp.ndarray, best,

@@ -19,6 +19,13 @@ Non-finite objective values (a crashed rollout) are kept in the state and on dis
 model sees them as the worst value observed for that objective (1 after normalization),
 which steers proposals away from them without breaking the GP.
 
+Known observation noise: a row may be the mean of several noisy evaluations (a parameter set
+rolled out in several randomized worlds), with a known noise variance of each objective's
+value (``MOBOState.noise``; ``tell(..., noise=...)``, or ``observed`` for a state built from
+pooled rows). The per-objective GPs then fit each row with its own noise beside their fitted
+noise (``proposal.propose_batch``'s ``obs_noise``). A state has noise for all its rows or for
+none (None: no known noise).
+
 Precision: the GP runs in float64 under a local ``jax.enable_x64(True)`` scope; importing or
 using this module does not change ``jax_enable_x64`` for the rest of the process.
 """
@@ -33,88 +40,12 @@ from typing import Callable, Mapping, NamedTuple
 import jax
 import numpy as np
 
+from mjxskill.gp.config import STATE_FORMAT, MOBOConfig, config_from_json
 from mjxskill.gp.hypervolume_scalarization import reference_point, warmup_reference
 from mjxskill.gp.pareto import pareto_mask
-from mjxskill.gp.prior import Prior, pibo_weight, prior_of, prior_rows, sample_unit, unit_prior
+from mjxskill.gp.prior import Prior, pibo_weight, prior_rows, sample_unit, unit_prior
 from mjxskill.gp.proposal import propose_batch
 from mjxskill.gp.settings import CHOICES, AcquisitionSettings, acquisition_defaults, acquisition_settings
-
-_STATE_FORMAT = "mjxskill.gp.MOBOState/2"
-_OLD_FORMAT = "mjxskill.gp.MOBOState/1"  # flat config: acquisition settings beside the problem
-
-
-@dataclasses.dataclass(frozen=True)
-class MOBOConfig:
-    """Problem and optimizer settings (immutable, JSON-serializable).
-
-    bounds: (2, d) lower and upper bounds (any nested sequence; stored as tuples).
-    acquisition: the model and acquisition settings (validated by their own class); a
-    mapping is accepted and read by :func:`acquisition_settings` over the defaults; None:
-    the defaults, ``acquisition_defaults(reference_given=..., n_objectives=...)`` (a given
-    reference point takes more hypervolume directions, settings.GIVEN_REFERENCE_DEFAULTS, and with
-    three objectives the closed-form improvement: GIVEN_REFERENCE_THREE_OBJECTIVES_BY_GENERATION).
-    ref_point: (m,) reference point of the hypervolume scalarizations in objective units
-    (minimized), e.g. the one the run's hypervolume is reported against; None infers it
-    (``acquisition.reference``: from the warm-up, or the observed front at each proposal).
-    prior: where good parameter values are believed to lie (``Prior``, or its ``to_dict``
-    mapping), checked against the bounds; None: no prior (uniform warm-up, plain acquisition).
-    """
-
-    bounds: tuple
-    n_objectives: int
-    batch_size: int = 8
-    n_init: int = 40
-    seed: int = 0
-    acquisition: AcquisitionSettings | None = None
-    ref_point: tuple | None = None
-    prior: Prior | None = None
-
-    def __post_init__(self):
-        b = np.asarray(self.bounds, dtype=np.float64)
-        if b.ndim != 2 or b.shape[0] != 2 or b.shape[1] < 1:
-            raise ValueError(f"MOBOConfig.bounds: expected shape (2, d), got {b.shape}")
-        if not np.all(np.isfinite(b)):
-            raise ValueError(f"MOBOConfig.bounds: must be finite, got {b.tolist()}")
-        bad = np.flatnonzero(b[0] >= b[1])
-        if bad.size:
-            i = int(bad[0])
-            raise ValueError(
-                f"MOBOConfig.bounds: lower >= upper in dimension {i} ({b[0, i]} >= {b[1, i]})"
-            )
-        object.__setattr__(self, "bounds", tuple(tuple(float(v) for v in row) for row in b))
-        for name in ("n_objectives", "batch_size"):
-            v = getattr(self, name)
-            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
-                raise ValueError(f"MOBOConfig.{name}: expected a positive integer, got {v!r}")
-        if not isinstance(self.n_init, (int, np.integer)) or self.n_init < 2:
-            raise ValueError(f"MOBOConfig.n_init: need at least 2 warm-up points, got {self.n_init!r}")
-        if self.ref_point is not None:
-            r = np.asarray(self.ref_point, dtype=np.float64)
-            if r.shape != (self.n_objectives,) or not np.all(np.isfinite(r)):
-                raise ValueError(f"MOBOConfig.ref_point: expected {self.n_objectives} finite numbers, got {self.ref_point!r}")
-            object.__setattr__(self, "ref_point", tuple(float(v) for v in r))
-        defaults = acquisition_defaults(reference_given=self.ref_point is not None, n_objectives=self.n_objectives)
-        if self.acquisition is None:
-            object.__setattr__(self, "acquisition", defaults)
-        elif isinstance(self.acquisition, Mapping):
-            object.__setattr__(self, "acquisition", acquisition_settings(self.acquisition, defaults))
-        elif not isinstance(self.acquisition, AcquisitionSettings):
-            raise ValueError(f"MOBOConfig.acquisition: expected AcquisitionSettings or a mapping, got {self.acquisition!r}")
-        try:
-            object.__setattr__(self, "prior", prior_of(self.prior))
-            if self.prior is not None:
-                self.prior.check_bounds(self.bounds)
-        except ValueError as err:
-            raise ValueError(f"MOBOConfig.prior: {err}") from None
-
-    @property
-    def dim(self) -> int:
-        return len(self.bounds[0])
-
-    def to_dict(self) -> dict:
-        """Plain JSON-able form: the acquisition settings nested as a mapping."""
-        return {**{f.name: getattr(self, f.name) for f in dataclasses.fields(self)}, "acquisition": self.acquisition.to_dict(),
-                "prior": None if self.prior is None else self.prior.to_dict()}
 
 
 class MOBOState(NamedTuple):
@@ -123,6 +54,9 @@ class MOBOState(NamedTuple):
     config: MOBOConfig
     x: np.ndarray  # (n, d) float64, in the config's bounds
     y: np.ndarray  # (n, m) float64, may hold NaN/inf (kept, penalized in the model)
+    # (n, m) float64 noise variances of the rows' objective values (objective units squared),
+    # or None: no known noise.
+    noise: np.ndarray | None = None
 
 
 class MOBOResult(NamedTuple):
@@ -189,6 +123,7 @@ def reference_of(state: MOBOState) -> np.ndarray:
 
 
 def _padded_training_set(state: MOBOState):
+    """(x, y_norm, mask, ref) padded to the bucket size, in the proposal's units."""
     cfg = state.config
     lo, hi = np.asarray(cfg.bounds)
     n = len(state.x)
@@ -204,6 +139,22 @@ def _padded_training_set(state: MOBOState):
     # No finite value to place it by: just beyond the worst observed (normalized 1).
     ref = np.where(np.isfinite(ref), ref, 1.0 + cfg.acquisition.ref_margin)
     return x, y, mask, ref
+
+
+def _noise_arguments(state: MOBOState, size: int) -> dict:
+    """propose_batch's obs_noise (size, m), padded like the training set, and new_noise (m,),
+    the median noise of the rows with a finite value, in normalized units (noise / span^2);
+    no arguments for a state without noise. A non-finite value is replaced by the worst one:
+    its noise is 0."""
+    if state.noise is None:
+        return {}
+    _, span = _normalization(state.y)
+    finite = np.isfinite(state.y)
+    noise = np.where(finite, state.noise, 0.0) / span**2
+    obs = np.zeros((size, noise.shape[1]))
+    obs[: len(noise)] = noise
+    new = np.array([np.median(noise[finite[:, i], i]) if finite[:, i].any() else 0.0 for i in range(noise.shape[1])])
+    return {"obs_noise": obs, "new_noise": new}
 
 
 def proposal_key(seed: int, n_observations: int):
@@ -245,13 +196,18 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
             prior_args = (jax.tree.map(jax.numpy.asarray, unit_prior(cfg.prior, cfg.bounds)),
                           jax.numpy.asarray(pibo_weight(cfg.acquisition.pibo_beta, n), jax.numpy.float64))
         points, _ = propose_batch(x, y, mask, proposal_key(cfg.seed, n), ref, *prior_args, q=q,
-                                  settings=cfg.acquisition)
+                                  settings=cfg.acquisition, **_noise_arguments(state, len(x)))
         u = np.asarray(points, np.float64)
     return np.clip(lo + u * (hi - lo), lo, hi)
 
 
-def tell(state: MOBOState, x, y) -> MOBOState:
-    """A new state with the evaluated batch appended. x (q, d) inside bounds, y (q, m)."""
+def tell(state: MOBOState, x, y, noise=None) -> MOBOState:
+    """A new state with the evaluated batch appended. x (q, d) inside bounds, y (q, m);
+    noise (q, m) the noise variances of y (finite and >= 0 where y is finite), or None.
+
+    A state holds noise for all its rows or for none: noise must be given exactly when the
+    state's rows have it (any way for a state without rows).
+    """
     cfg = state.config
     x = np.asarray(x, dtype=np.float64)
     y = np.asarray(y, dtype=np.float64)
@@ -270,44 +226,44 @@ def tell(state: MOBOState, x, y) -> MOBOState:
     if outside.any():
         row = int(np.flatnonzero(outside)[0])
         raise ValueError(f"tell: x row {row} = {x[row].tolist()} lies outside the bounds {cfg.bounds}")
-    return state._replace(x=np.concatenate([state.x, x]), y=np.concatenate([state.y, y]))
+    if len(state.x) and (noise is None) != (state.noise is None):
+        have = "no noise" if state.noise is None else "noise"
+        raise ValueError(f"tell: the state's {len(state.x)} rows have {have}; noise must be given for all rows or "
+                         f"for none, got noise={'None' if noise is None else 'an array'}")
+    if noise is None:
+        return state._replace(x=np.concatenate([state.x, x]), y=np.concatenate([state.y, y]), noise=None)
+    noise = np.asarray(noise, dtype=np.float64)
+    if noise.shape != y.shape:
+        raise ValueError(f"tell: noise must have shape {y.shape} to match y, got {noise.shape}")
+    bad = np.isfinite(y) & ~(np.isfinite(noise) & (noise >= 0))
+    if bad.any():
+        row = int(np.flatnonzero(bad.any(axis=1))[0])
+        raise ValueError(f"tell: noise row {row} = {noise[row].tolist()} is not a variance (finite, >= 0)")
+    earlier = state.noise if state.noise is not None else np.zeros((0, cfg.n_objectives))
+    return state._replace(x=np.concatenate([state.x, x]), y=np.concatenate([state.y, y]),
+                          noise=np.concatenate([earlier, noise]))
+
+
+def observed(config: MOBOConfig, x, y, noise=None) -> MOBOState:
+    """The state of a run that observed x (n, d), y (n, m) and, if given, their noise
+    variances noise (n, m): e.g. rebuilt from pooled rows before each ask."""
+    return tell(init(config), x, y, noise)
 
 
 def save_state(state: MOBOState, path) -> None:
-    """Writes the state as NPZ (arrays + the config as JSON); no pickle."""
-    config_json = json.dumps({"format": _STATE_FORMAT, "config": state.config.to_dict()})
+    """Writes the state as NPZ (arrays, the noise array when the state has one, and the config
+    as JSON); no pickle."""
+    config_json = json.dumps({"format": STATE_FORMAT, "config": state.config.to_dict()})
+    noise = {} if state.noise is None else {"noise": state.noise}
     with open(path, "wb") as fh:
-        np.savez(fh, x=state.x, y=state.y, config_json=np.array(config_json))
+        np.savez(fh, x=state.x, y=state.y, config_json=np.array(config_json), **noise)
 
 
 _PRIOR_STREAM = 0x9A10  # the prior's warm-up draws: a generator apart from the uniform ones
 
-_PROBLEM_FIELDS = ("bounds", "n_objectives", "batch_size", "n_init", "seed")
-
-
-def _config_from_json(meta, path) -> MOBOConfig:
-    """The config of a state file: format 2 (nested acquisition) or 1 (flat, converted)."""
-    if not isinstance(meta, dict) or meta.get("format") not in (_STATE_FORMAT, _OLD_FORMAT):
-        raise ValueError(f"load_state: {path} is not an mjxskill optimizer state")
-    raw = dict(meta["config"])
-    if meta["format"] == _OLD_FORMAT:
-        # Format 1 wrote every acquisition field beside the problem fields: regroup them.
-        raw = {**{k: raw.pop(k) for k in _PROBLEM_FIELDS if k in raw}, "acquisition": raw}
-    unknown = set(raw) - {f.name for f in dataclasses.fields(MOBOConfig)}
-    if unknown:
-        raise ValueError(f"load_state: {path} has unknown config fields {sorted(unknown)}")
-    if isinstance(raw.get("acquisition"), dict) and "hypervolume_improvement" not in raw["acquisition"]:
-        # Written before the closed form existed: that state estimated it over directions
-        # (today's defaults for three objectives and a given reference point would not).
-        raw["acquisition"] = {**raw["acquisition"], "hypervolume_improvement": "directions"}
-    try:
-        return MOBOConfig(**raw)
-    except ValueError as err:
-        raise ValueError(f"load_state: {path}: {err}") from None
-
-
 def load_state(path) -> MOBOState:
-    """Reads a state written by :func:`save_state` (or by format 1), validating it."""
+    """Reads a state written by :func:`save_state` (or by format 1), validating it; a file
+    without a noise array is a state without noise."""
     path = Path(path)
     with np.load(path, allow_pickle=False) as data:
         missing = {"x", "y", "config_json"} - set(data.files)
@@ -315,10 +271,14 @@ def load_state(path) -> MOBOState:
             raise ValueError(f"load_state: {path} lacks {sorted(missing)}")
         meta = json.loads(str(data["config_json"]))
         x, y = data["x"].astype(np.float64), data["y"].astype(np.float64)
-    state = init(_config_from_json(meta, path))
+        noise = data["noise"].astype(np.float64) if "noise" in data.files else None
+    state = init(config_from_json(meta, path))
     if x.shape[0] == 0:
         return state
-    return tell(state, x, y)
+    try:
+        return tell(state, x, y, noise)
+    except ValueError as err:
+        raise ValueError(f"load_state: {path}: {err}") from None
 
 
 def minimize(

@@ -26,6 +26,12 @@ Two models of the scalarization, combined by ``settings.model``:
 * "hybrid": the first ceil(q/2) elements scalarized, the rest per-objective, all in one
   greedy sequence.
 
+Known observation noise (``obs_noise``, ``new_noise``; per-objective model only): a row that
+is the mean of several noisy evaluations has its own noise variance per objective. It is
+carried into the space each per-objective GP is fitted in (``Scalarization.variance_factor``,
+then standardization) and added to that GP's covariance diagonal beside its fitted noise
+(``gp.py``); the Kriging believer's pending points get the noise of one new observation.
+
 The defaults (``settings.AcquisitionSettings``, and ``settings.GIVEN_REFERENCE_DEFAULTS``
 when the reference point is given) and the measurements that chose them:
 benchmarks/RESULTS.md, "Multi-objective BO quality".
@@ -80,19 +86,21 @@ def standardize(s: jnp.ndarray, mask: jnp.ndarray) -> jnp.ndarray:
     return jnp.where(mask, (s - mu) / sd, 0.0)
 
 
-def _believer_predictor(post: gpm.GPPosterior, fantasies, fantasy_mask, deflate: bool = False):
+def _believer_predictor(post: gpm.GPPosterior, fantasies, fantasy_mask, deflate: bool = False, new_noise=None):
     """Posterior of one GP after the Kriging believer: xs (b, d) -> mean (b,), variance (b,).
 
     The believed values equal the posterior mean, so the mean is that of ``post`` and only
     the variance shrinks, by a Schur complement over the q fantasies (masked-out fantasies,
-    not yet chosen, contribute nothing).
+    not yet chosen, contribute nothing). Each fantasy's observation noise is the fitted
+    noise, plus ``new_noise`` (a scalar, the GP's standardized units) when given.
     """
     p = post.params
     ls, os, nv = gpm.lengthscales(p), gpm.outputscale(p), gpm.noise(p)
     # Posterior covariance of the fantasies given the data, plus their observation noise.
     k_f = gpm.cross_cov(post, fantasies)  # (q, n)
     kinv_kf = k_f @ post.k_inv  # (q, n)
-    s = matern52(fantasies, fantasies, ls, os) - kinv_kf @ k_f.T + nv * jnp.eye(fantasies.shape[0])
+    fantasy_noise = nv if new_noise is None else nv + new_noise  # static branch
+    s = matern52(fantasies, fantasies, ls, os) - kinv_kf @ k_f.T + fantasy_noise * jnp.eye(fantasies.shape[0])
     both = fantasy_mask[:, None] & fantasy_mask[None, :]
     s = jnp.where(both, s, jnp.eye(fantasies.shape[0]))
     s_chol = jnp.linalg.cholesky(s + gpm.JITTER * jnp.eye(fantasies.shape[0]))
@@ -128,16 +136,18 @@ def _acquisition_for_element(post: gpm.GPPosterior, y_std, fantasies, fantasy_ma
 
 
 def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_for, fantasies, fantasy_mask,
-                               deflate: bool = False):
+                               deflate: bool = False, new_noise=None):
     """Per-objective model: log-EI of the element's scalarization, xs (b, d) -> (b,).
 
     posts: the m per-objective posteriors stacked on a leading axis, fitted to the
     objectives standardized by y_mean, y_sd (m,); log_ei_for(pending, pending_mask) -> the
     element's log-EI of (mean, var) in unstandardized units, given the pending points' believed
-    values.
+    values; new_noise: (m,) the noise variance of a new observation in each GP's standardized
+    units, or None.
     """
     predictors = [
-        _believer_predictor(jax.tree.map(lambda a, i=i: a[i], posts), fantasies, fantasy_mask, deflate)
+        _believer_predictor(jax.tree.map(lambda a, i=i: a[i], posts), fantasies, fantasy_mask, deflate,
+                            None if new_noise is None else new_noise[i])
         for i in range(y_mean.shape[0])
     ]
 
@@ -214,8 +224,8 @@ def _maximize(acq, key, d: int, settings: AcquisitionSettings) -> jnp.ndarray:
 
 
 @partial(jax.jit, static_argnames=("q", "settings"))
-def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None, prior_weight=0.0, *, q: int,
-                  settings: AcquisitionSettings = AcquisitionSettings()):
+def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None, prior_weight=0.0, obs_noise=None,
+                  new_noise=None, *, q: int, settings: AcquisitionSettings = AcquisitionSettings()):
     """q new points in the unit cube.
 
     Args:
@@ -227,9 +237,17 @@ def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None
       ref: (m,) float64 reference point in the units of y_norm (hypervolume scalarization).
       prior: the parameter prior in unit-cube coordinates (traced arrays), or None.
       prior_weight: piBO's exponent of the prior, beta / n (a traced scalar).
+      obs_noise: (n, m) float64 known noise variance of each row's value of each objective,
+        in the units of y_norm (padding rows ignored), or None: none known.
+      new_noise: (m,) float64 the noise variance of one new observation in the same units
+        (the Kriging believer's pending points), or None: the fitted noise alone.
+      Negative or non-finite noise variances are taken as 0. Both need
+      ``settings.model == "per_objective"`` (ValueError otherwise).
     Returns:
       (points (q, d) float64 in [0, 1]^d, fitted GPParams).
     """
+    if (obs_noise is not None or new_noise is not None) and settings.model != "per_objective":  # static
+        raise ValueError(f"propose_batch: obs_noise and new_noise need model='per_objective', not {settings.model!r}")
     n, d = x.shape
     k_w, k_fit, k_acq = jax.random.split(key, 3)
     if ref is None:
@@ -238,9 +256,9 @@ def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None
     k_fit, k_subset = jax.random.split(k_fit)
     rows = _fit_rows(mask, k_subset, settings)
 
-    def fit(y):
+    def fit(y, noise=None):
         return gpm.fit(x[rows], y[rows], mask[rows], k_fit, n_starts=settings.fit_starts, n_steps=settings.fit_steps,
-                       prior=settings.prior)
+                       prior=settings.prior, obs_noise=None if noise is None else noise[rows])
 
     acq_keys = jax.random.split(k_acq, q)
     fantasies = (jnp.full((q, d), 0.5, jnp.float64), jnp.zeros((q,), bool))
@@ -253,7 +271,7 @@ def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None
         points.append(pts)
     if n_scal < q:
         pts, params_o = _per_objective_points(x, mask, scal, fit, fantasies, acq_keys, range(n_scal, q), prior,
-                                              prior_weight, settings)
+                                              prior_weight, settings, obs_noise, new_noise)
         points.append(pts)
         params = params_o if params is None else params
     return jnp.concatenate(points, axis=0), params
@@ -295,9 +313,10 @@ def _scalarized_points(x, mask, scal: Scalarization, fit, fantasies, acq_keys, n
 
 
 def _per_objective_points(x, mask, scal: Scalarization, fit, fantasies, acq_keys, elements: range, prior,
-                          prior_weight, settings: AcquisitionSettings):
+                          prior_weight, settings: AcquisitionSettings, obs_noise=None, new_noise=None):
     """The batch's points ``elements`` from one GP per objective, each maximizing the log-EI of
-    its scalarization of their posterior. Returns (points (len(elements), d), the GPs' parameters)."""
+    its scalarization of their posterior (obs_noise (n, m), new_noise (m,): known noise
+    variances in y_norm's units, or None). Returns (points (len(elements), d), the GPs' parameters)."""
     d = x.shape[1]
     space = scal.space
     cnt = jnp.maximum(jnp.sum(mask), 1)
@@ -305,8 +324,16 @@ def _per_objective_points(x, mask, scal: Scalarization, fit, fantasies, acq_keys
     y_var = jnp.sum(jnp.where(mask[:, None], (space - y_mean) ** 2, 0.0), axis=0) / jnp.maximum(cnt - 1, 1)
     y_sd = jnp.sqrt(jnp.where(y_var > 1e-18, y_var, 1.0))
     y_std = jax.vmap(lambda col: standardize(col, mask), in_axes=1)(space)  # (m, n)
-    params_o = jax.lax.map(fit, y_std)
-    posts_o = jax.vmap(lambda p, y: gpm.condition(p, x, y, mask))(params_o, y_std)
+    if obs_noise is None:  # static
+        params_o = jax.lax.map(fit, y_std)
+        posts_o = jax.vmap(lambda p, y: gpm.condition(p, x, y, mask))(params_o, y_std)
+    else:
+        # Into the GPs' space (the scalarization's map, then standardization); padding rows 0.
+        noise_std = jnp.where(mask[:, None], gpm.observation_noise(obs_noise) * scal.variance_factor / y_sd**2, 0.0).T
+        params_o = jax.lax.map(lambda args: fit(*args), (y_std, noise_std))
+        posts_o = jax.vmap(lambda p, y, v: gpm.condition(p, x, y, mask, v))(params_o, y_std, noise_std)
+    if new_noise is not None:  # static
+        new_noise = gpm.observation_noise(new_noise) * scal.new_variance_factor / y_sd**2
     if settings.incumbent == "posterior_mean":  # static
         # The model's own values at the observed points: a fitted noise lets its mean sit
         # below an observed optimum, and an incumbent from the observations then gives
@@ -320,7 +347,7 @@ def _per_objective_points(x, mask, scal: Scalarization, fit, fantasies, acq_keys
         fant, fant_mask = carry
         best_j = jax.tree.map(lambda a: a[j], best)
         acq = _acquisition_per_objective(posts_o, y_mean, y_sd, partial(scal.log_ei, j, best_j), fant, fant_mask,
-                                         settings.variance == "deflated")
+                                         settings.variance == "deflated", new_noise)
         acq = prior_weighted(acq, prior, prior_weight, settings.prior_share)
         xj = _maximize(acq, acq_keys[j], d, settings)
         return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj

@@ -29,6 +29,14 @@ from mjxskill.runs.atomic_write import append_text, write_text
 # max_force (the commanded force): they are read with the contact forces unknown (NaN).
 FORCE_COLUMNS = ("peak_contact_force", "mean_contact_force", "peak_commanded_force")
 LEGACY_FORCE_COLUMNS = ("max_force",)
+# A run of the robust protocol (mjxskill.runs.training_protocol) pools a parameter set's worlds
+# when it rolls it out again: after the force columns, how many worlds the row's values pool,
+# which earlier row of the same parameter set it replaces (its index in batch order; -1: a new
+# parameter set), and per objective the world-to-world standard deviation of the per-world
+# value whose mean the row holds (``sd_<objective>``; the success bound's is the per-world
+# success's).
+POOLING_COLUMNS = ("worlds", "replaces")
+SPREAD_PREFIX = "sd_"
 
 
 class Evaluations(NamedTuple):
@@ -49,24 +57,47 @@ class Evaluations(NamedTuple):
     peak_contact_force: np.ndarray
     mean_contact_force: np.ndarray
     peak_commanded_force: np.ndarray
+    worlds: np.ndarray | None = None
+    replaces: np.ndarray | None = None
+    spread: np.ndarray | None = None
 
     def __len__(self) -> int:  # type: ignore[override]
         return len(self.iteration)
 
     @classmethod
-    def empty(cls, n_params: int, n_objectives: int) -> "Evaluations":
-        return cls(np.zeros(0, int), np.zeros((0, n_params)), np.zeros((0, n_objectives)),
+    def empty(cls, n_params: int, n_objectives: int, pooled: bool = False) -> "Evaluations":
+        """No rows; ``pooled``: with the pooling fields of the robust protocol."""
+        rows = cls(np.zeros(0, int), np.zeros((0, n_params)), np.zeros((0, n_objectives)),
                    *(np.zeros(0) for _ in range(1 + len(FORCE_COLUMNS))))
+        if pooled:  # not _replace: len() is rows
+            rows = cls(*rows[:7], worlds=np.zeros(0, int), replaces=np.zeros(0, int), spread=np.zeros((0, n_objectives)))
+        return rows
+
+    @property
+    def pooled(self) -> bool:
+        """Whether the rows carry the pooling fields (a run of the robust protocol)."""
+        return self.worlds is not None
+
+    def current(self, upto: int | None = None) -> np.ndarray:
+        """(n,) bool: the rows no later row among the first ``upto`` (None: all) replaces,
+        one per parameter set (every row when the rows do not pool)."""
+        mask = np.ones(len(self), bool)
+        if self.pooled:
+            replaced = self.replaces[: len(self) if upto is None else upto]
+            mask[replaced[(replaced >= 0) & (replaced < len(self))]] = False
+        return mask
 
     def take(self, index) -> "Evaluations":
-        return Evaluations(*(np.asarray(a)[index] for a in self))
+        return Evaluations(*(None if a is None else np.asarray(a)[index] for a in self))
 
     def concat(self, other: "Evaluations") -> "Evaluations":
-        return Evaluations(*(np.concatenate([a, b]) for a, b in zip(self, other)))
+        if self.pooled != other.pooled:
+            raise ValueError("cannot join rows with and without the pooling fields")
+        return Evaluations(*(None if a is None else np.concatenate([a, b]) for a, b in zip(self, other)))
 
 
-def concat_all(parts, n_params: int, n_objectives: int) -> Evaluations:
-    out = Evaluations.empty(n_params, n_objectives)
+def concat_all(parts, n_params: int, n_objectives: int, pooled: bool = False) -> Evaluations:
+    out = Evaluations.empty(n_params, n_objectives, pooled)
     for part in parts:
         out = out.concat(part)
     return out
@@ -81,9 +112,10 @@ def format_rows(ev: Evaluations) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     for i in range(len(ev)):
+        pooling = [] if not ev.pooled else [int(ev.worlds[i]), int(ev.replaces[i]), *map(_format, ev.spread[i])]
         writer.writerow(
             [int(ev.iteration[i]), *map(_format, ev.params[i]), *map(_format, ev.objectives[i]),
-             _format(ev.success_rate[i]), *(_format(getattr(ev, c)[i]) for c in FORCE_COLUMNS)]
+             _format(ev.success_rate[i]), *(_format(getattr(ev, c)[i]) for c in FORCE_COLUMNS), *pooling]
         )
     return out.getvalue()
 
@@ -150,7 +182,9 @@ def parse(data: bytes, columns: list[str], bounds, where: str) -> Parsed:
         got = next(csv.reader([header]), []) if header else "nothing"
         raise RunError(f"{where} does not have the columns this task expects: got {got}, expected {columns}")
     o = sum(1 for c in columns if c.startswith("objective_"))
-    p = len(columns) - o - 2 - (len(LEGACY_FORCE_COLUMNS) if legacy else len(FORCE_COLUMNS))
+    pooled = POOLING_COLUMNS[0] in columns
+    extra = len(POOLING_COLUMNS) + o if pooled else 0  # the pooling columns after the forces
+    p = len(columns) - o - 2 - (len(LEGACY_FORCE_COLUMNS) if legacy else len(FORCE_COLUMNS)) - extra
     lo, hi = np.asarray(bounds, np.float64) if bounds is not None else (None, None)
     tol = None if bounds is None else 1e-9 * (hi - lo)  # the optimizer's own tolerance (mjxskill.gp.tell)
     values, numbers, texts, rejected = [], [], [], []
@@ -158,7 +192,7 @@ def parse(data: bytes, columns: list[str], bounds, where: str) -> Parsed:
         last = number == len(lines)
         if last and raw == b"":
             break  # the file ends with a line end, as it should
-        reason, row = _row(raw, columns, p, lo, hi, tol)
+        reason, row = _row(raw, columns, p, lo, hi, tol, o if pooled else None)
         if last:  # no line end after it: the process stopped while writing it
             reason = "cut short (no line end: the run was stopped while writing it)"
         if reason == "empty":
@@ -170,16 +204,20 @@ def parse(data: bytes, columns: list[str], bounds, where: str) -> Parsed:
             numbers.append(number)
             texts.append(raw.decode("utf-8"))
     data_ = np.array(values, np.float64).reshape(-1, len(columns))
-    forces = data_[:, 2 + p + o:]
+    forces = data_[:, 2 + p + o: len(columns) - extra]
     if legacy:
         forces = np.concatenate([np.full((len(data_), 2), np.nan), forces], axis=1)
     rows = Evaluations(data_[:, 0].astype(int), data_[:, 1 : 1 + p], data_[:, 1 + p : 1 + p + o],
                        data_[:, 1 + p + o], *forces.T)
+    if pooled:
+        tail = data_[:, len(columns) - extra:]
+        rows = Evaluations(*rows[:7], worlds=tail[:, 0].astype(int), replaces=tail[:, 1].astype(int), spread=tail[:, 2:])
     return Parsed(rows, np.array(numbers, int), texts, rejected, legacy)
 
 
-def _row(raw: bytes, columns, p: int, lo, hi, tol) -> tuple[str | None, list[float] | None]:
-    """(None, values) for a usable row, else (reason, None); ("empty", None) for a blank line."""
+def _row(raw: bytes, columns, p: int, lo, hi, tol, o: int | None = None) -> tuple[str | None, list[float] | None]:
+    """(None, values) for a usable row, else (reason, None); ("empty", None) for a blank line.
+    ``o``: the number of objectives of a row with the pooling columns (None: it has none)."""
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -202,6 +240,13 @@ def _row(raw: bytes, columns, p: int, lo, hi, tol) -> tuple[str | None, list[flo
             return f"{columns[1 + i]} = {fields[1 + i]} is not a finite number", None
         if v < lo[i] - tol[i] or v > hi[i] + tol[i]:
             return f"{columns[1 + i]} = {fields[1 + i]} is outside its bounds [{lo[i]:g}, {hi[i]:g}]", None
+    if o is not None:
+        at = len(columns) - len(POOLING_COLUMNS) - o
+        worlds, replaces = row[at], row[at + 1]
+        if not (worlds >= 1 and worlds.is_integer()):
+            return f"worlds {fields[at]!r} is not a positive whole number of worlds", None
+        if not (replaces >= -1 and replaces.is_integer()):
+            return f"replaces {fields[at + 1]!r} is not a row number (or -1)", None
     return None, row
 
 

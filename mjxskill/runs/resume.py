@@ -40,7 +40,7 @@ def resume_batches(run: Run, config: RunConfig) -> dict[int, Evaluations]:
         if batches.rejected:
             _append_set_aside(run.path / SET_ASIDE, kept.name, batches.rejected)
         run.write_evaluations(config, concat_all(batches.complete.values(), len(config.parameter_names),
-                                                 len(config.objective_names)))
+                                                 len(config.objective_names), config.pooled))
         what = (f"{_rows(len(batches.rejected))} of {run.path / EVALUATIONS} set aside in {SET_ASIDE}: "
                 f"{_reasons(batches.rejected)}" if batches.rejected else
                 f"the batches of {run.path / EVALUATIONS} were out of order and are rewritten in order"

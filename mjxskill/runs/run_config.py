@@ -19,8 +19,9 @@ import yaml
 
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import Field, compose_text
-from mjxskill.runs.evaluations_csv import FORCE_COLUMNS
+from mjxskill.runs.evaluations_csv import FORCE_COLUMNS, POOLING_COLUMNS, SPREAD_PREFIX
 from mjxskill.runs.settings import NO_DEFAULT, SETTINGS, cross_problems, optimizer_option_value
+from mjxskill.runs.training_protocol import training_rows
 
 FORMAT = "mjxskill.run/1"
 CLUSTERS = ("ray",)  # what a run's ``cluster`` may say besides null
@@ -58,6 +59,8 @@ class RunConfig:
     # "random": uniform random search after the warm-up; "optuna-*": one of Optuna's samplers
     # (mjxskill.training.loop)
     optimizer: str = "mobo"
+    # How the run spends its episodes (mjxskill.runs.training_protocol); "paper" before the setting.
+    protocol: str = "paper"
     # The optimizer's parameter prior: {"source": text, "mean": (K, P), "std": (K, P), "weights":
     # (K,)} (mjxskill.training.priors); None: none (every run before priors).
     prior: dict | None = None
@@ -154,7 +157,19 @@ class RunConfig:
 
     def columns(self) -> list[str]:
         """Header of evaluations.csv and pareto.csv."""
-        return evaluation_columns(self.parameter_names, self.objective_names)
+        return evaluation_columns(self.parameter_names, self.objective_names, self.pooled)
+
+    @property
+    def training_rows(self) -> int:
+        """The evaluations the run trains with (``training_protocol.training_rows``): its budget,
+        or under the robust protocol the share of it that leaves the rest to the race."""
+        return training_rows(self.budget, self.protocol)
+
+    @property
+    def pooled(self) -> bool:
+        """Whether the run pools a parameter set's worlds when it rolls it out again (the robust
+        protocol, mjxskill.runs.training_protocol), so that its rows carry the pooling columns."""
+        return self.protocol == "robust"
 
     def sub_run(self, seed: int) -> "RunConfig":
         """The configuration of repeat ``seed`` of a repeated run."""
@@ -258,8 +273,11 @@ def optimizer_problem(config: RunConfig) -> str | None:
     return None
 
 
-def evaluation_columns(parameter_names, objective_names) -> list[str]:
-    return ["iteration", *parameter_names, *(f"objective_{o}" for o in objective_names), "success_rate", *FORCE_COLUMNS]
+def evaluation_columns(parameter_names, objective_names, pooled: bool = False) -> list[str]:
+    """The CSV header; ``pooled``: with the pooling columns of the robust protocol."""
+    pooling = [*POOLING_COLUMNS, *(f"{SPREAD_PREFIX}{o}" for o in objective_names)] if pooled else []
+    return ["iteration", *parameter_names, *(f"objective_{o}" for o in objective_names), "success_rate", *FORCE_COLUMNS,
+            *pooling]
 
 
 def batch_sizes(budget: int, batch_size: int, n_init: int) -> Iterator[int]:

@@ -121,14 +121,15 @@ class Run:
         """evaluations.csv sorted into the run's batches, with every line that is not used."""
         path = self.path / EVALUATIONS
         parsed = parse(read_bytes(path), config.columns(), config.bounds, str(path))
-        return assign_batches(parsed, list(batch_sizes(config.budget, config.batch_size, config.n_init)))
+        return assign_batches(parsed, list(batch_sizes(config.training_rows, config.batch_size, config.n_init)))
 
     def evaluations(self, config: RunConfig | None = None) -> Evaluations:
         """The complete batches on disk in batch order (nothing is changed on disk; resuming is
         ``mjxskill.runs.resume``'s)."""
         config = self.config() if config is None else config
         batches = self.batches(config)
-        return concat_all(batches.complete.values(), len(config.parameter_names), len(config.objective_names))
+        return concat_all(batches.complete.values(), len(config.parameter_names), len(config.objective_names),
+                          config.pooled)
 
     def append(self, ev: Evaluations) -> None:
         append_rows(self.path / EVALUATIONS, ev)
@@ -251,7 +252,8 @@ def _write_run(folder: Path, config: RunConfig, scenario_text: str, texts: dict[
     for name, text in texts.items():
         (folder / name).write_text(text if text.endswith("\n") else text + "\n")
     if config.repeats == 1:
-        write_csv(folder / EVALUATIONS, config.columns(), Evaluations.empty(len(config.parameter_names), len(config.objective_names)))
+        write_csv(folder / EVALUATIONS, config.columns(), Evaluations.empty(len(config.parameter_names), len(config.objective_names),
+                                                                         config.pooled))
     (folder / CONFIG).write_text(config.to_yaml())
 
 

@@ -20,6 +20,7 @@ import yaml
 from mjxskill.errors import RunError, UserError
 from mjxskill.runs.atomic_write import write_text
 from mjxskill.runs.run_dir import CONFIG, EVALUATIONS, SCENARIO_COPY, Run, RunConfig
+from mjxskill.runs.training_protocol import objective_names
 from mjxskill.scenario import load_scenario, scenario_path
 from mjxskill.scenario.fields import compose_text, read_text
 from mjxskill.task import plan_task
@@ -39,8 +40,9 @@ def check_same_task(scn, task, config: RunConfig, where: Path) -> None:
         mismatch.append(f"task {config.task!r}, not {scn.name!r}")
     elif tuple(task.parameter_names) != config.parameter_names:
         mismatch.append(f"parameters {list(config.parameter_names)}, not {list(task.parameter_names)}")
-    elif tuple(scn.objective_names) != config.objective_names:
-        mismatch.append(f"objectives {list(config.objective_names)}, not {list(scn.objective_names)}")
+    elif objective_names(scn.objective_names, config.protocol) != config.objective_names:
+        mismatch.append(f"objectives {list(config.objective_names)}, not "
+                        f"{list(objective_names(scn.objective_names, config.protocol))}")
     elif not np.array_equal(np.asarray(task.bounds, np.float64), np.asarray(config.bounds, np.float64)):
         mismatch.append(f"parameter bounds {[list(b) for b in config.bounds]}, not the scenario's current "
                         f"{np.asarray(task.bounds).tolist()} (the scenario file changed since)")

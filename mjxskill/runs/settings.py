@@ -23,6 +23,8 @@ from mjxskill.scenario.schema import (MAX_BATCH, MAX_BATCH_EPISODES, MAX_BUDGET,
                                      MAX_SEED, MAX_WORLDS, MIN_N_INIT)
 
 
+from mjxskill.runs.training_protocol import PROTOCOLS, training_rows
+
 NO_DEFAULT = object()
 # Optuna's multi-objective samplers, an optional extra (mjxskill.training.optuna_search)
 OPTUNA_OPTIMIZERS = ("optuna-nsga2", "optuna-tpe", "optuna-gp")
@@ -95,7 +97,9 @@ def _float(value) -> float:
 
 SETTINGS: tuple[Setting, ...] = (
     Setting("goal", "--goal", "text", "PDDL goal to plan instead of the scenario's", scenario=lambda scn: scn.goal),
-    Setting("budget", "--budget", "int", "evaluations (parameter sets) per run", minimum=1, maximum=MAX_BUDGET,
+    Setting("budget", "--budget", "int", "evaluations (parameter sets) per run; the robust protocol spends 1.15 x "
+            "budget x worlds episodes: 3/4 of the budget in evaluations, the rest in its race", minimum=1,
+            maximum=MAX_BUDGET,
             scenario=lambda scn: scn.optimizer.budget),
     Setting("batch_size", "--batch-size", "int", "parameter sets per batch", minimum=1, maximum=MAX_BATCH,
             scenario=lambda scn: scn.optimizer.batch_size),
@@ -122,6 +126,14 @@ SETTINGS: tuple[Setting, ...] = (
             "samplers to compare with: optuna-nsga2, optuna-tpe, optuna-gp (pip install 'mjxskill[optuna]'; "
             "optuna-gp: 'mjxskill[optuna-gp]') or BoTorch's botorch-qlognehvi (pip install 'mjxskill[botorch]')",
             default="mobo", choices=OPTIMIZERS),
+    # How a run spends its episodes (mjxskill.runs.training_protocol): "robust" rolls promising
+    # parameter sets out again in fresh worlds while it trains, makes the success rate's lower
+    # bound an objective of its own and races the front for its pick; "paper" is the paper's
+    # protocol (every evaluation in fresh worlds, its objectives), every run before the setting.
+    Setting("protocol", "--protocol", "text", "how the run spends its episodes: robust (parameter sets that look "
+            "best rolled out again in fresh worlds, the success rate's lower bound an objective, the front raced "
+            "for the pick) or paper (the paper's protocol: each parameter set once, in its batch's worlds)",
+            scenario=lambda scn: "robust", default="paper", choices=PROTOCOLS, default_text="robust"),
 )
 BY_NAME = {s.name: s for s in SETTINGS}
 SEED = BY_NAME["seed"]  # evaluate's and select's --seed have the same bounds
@@ -131,8 +143,11 @@ def cross_problems(values: dict) -> list[tuple[str, str]]:
     """(setting name, problem) for checks over several settings, e.g. the warm-up within the
     budget; the caller puts where the value came from in front."""
     problems = []
-    if values["n_init"] > values["budget"]:
-        problems.append(("n_init", f"exceeds the budget of {values['budget']} evaluations"))
+    rows = training_rows(values["budget"], values.get("protocol", "paper"))
+    if values["n_init"] > rows:
+        problems.append(("n_init", f"exceeds the budget of {values['budget']} evaluations" if rows == values["budget"] else
+                         f"exceeds the {rows} evaluations the robust protocol trains with of the budget of "
+                         f"{values['budget']} (the race has the rest)"))
     if values["batch_size"] * values["worlds"] > MAX_BATCH_EPISODES:
         problems.append(("worlds", f"with batches of {values['batch_size']} make {values['batch_size'] * values['worlds']} "
                                    f"episodes per call, more than {MAX_BATCH_EPISODES}"))

@@ -21,6 +21,7 @@ from mjxskill.errors import PlanError, ResumeConflict, RunError, SettingError
 from mjxskill.runs.run_config import optimizer_problem
 from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.settings import BY_NAME, SETTINGS, cross_problems, optimizer_option_value
+from mjxskill.runs.training_protocol import objective_names
 from mjxskill.training.extras import missing_extra
 from mjxskill.training.priors import describe_prior, prior_from_run, run_prior
 
@@ -87,7 +88,7 @@ def new_run_config(scn, task, scenario: str, settings: Mapping[str, object] | No
         parameter_names=tuple(task.parameter_names),
         parameter_units=tuple(task.parameter_units),
         bounds=(tuple(map(float, task.bounds[0])), tuple(map(float, task.bounds[1]))),
-        objective_names=tuple(scn.objective_names),
+        objective_names=objective_names(scn.objective_names, values["protocol"]),
         optimizer_options=options,
         prior=run_prior(scn, task, prior_from),
         **values,

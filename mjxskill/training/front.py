@@ -27,13 +27,14 @@ def hypervolume_reference(warmup_objectives: np.ndarray) -> np.ndarray:
 
 
 def hypervolume_history(ev: Evaluations, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Hypervolume after each batch: (evaluations done (k,), hypervolume (k,))."""
+    """Hypervolume after each batch: (evaluations done (k,), hypervolume (k,)), of the rows
+    current then (``Evaluations.current``)."""
     # lazy: mjxskill.gp imports jax and scipy (~2 s); the commands' --help and bad-input errors
     # import this module (through training.loop and training.report), which must not pay for them
     from mjxskill.gp import hypervolume
 
     ends = np.flatnonzero(np.diff(np.append(ev.iteration, -1)) != 0) + 1
-    return ends, np.array([hypervolume(-ev.objectives[:e], ref) for e in ends])
+    return ends, np.array([hypervolume(-ev.objectives[:e][ev.current(e)[:e]], ref) for e in ends])
 
 
 def reference_from(run: Run, config: RunConfig, ev: Evaluations, store: bool = True) -> np.ndarray | None:
@@ -48,7 +49,7 @@ def reference_from(run: Run, config: RunConfig, ev: Evaluations, store: bool = T
                            f"{len(config.objective_names)} objectives; delete it and --resume recomputes it")
         return ref
     warmup = ev.iteration < _warmup_batches(config)
-    if warmup.sum() < min(config.n_init, config.budget):
+    if warmup.sum() < min(config.n_init, config.training_rows):
         return None
     ref = hypervolume_reference(ev.objectives[warmup])
     if store:
@@ -58,12 +59,17 @@ def reference_from(run: Run, config: RunConfig, ev: Evaluations, store: bool = T
 
 def _warmup_batches(config: RunConfig) -> int:
     """How many batches the random warm-up takes (``batch_sizes`` stops it at n_init points)."""
-    ends = np.cumsum(list(batch_sizes(config.budget, config.batch_size, config.n_init)))
-    return int(np.searchsorted(ends, min(config.n_init, config.budget)) + 1)
+    ends = np.cumsum(list(batch_sizes(config.training_rows, config.batch_size, config.n_init)))
+    return int(np.searchsorted(ends, min(config.n_init, config.training_rows)) + 1)
 
 
 def pareto_mask_of(ev: Evaluations) -> np.ndarray:
-    """(n,) bool: the non-dominated rows (objectives maximized)."""
+    """(n,) bool: the non-dominated rows (objectives maximized) among the current ones (a row
+    that a later one pooling more worlds of its parameter set replaces is no longer one)."""
     from mjxskill.gp import pareto_mask  # lazy: gp imports jax and scipy (~2 s), see hypervolume_history
 
-    return pareto_mask(-ev.objectives) if len(ev) else np.zeros(0, bool)
+    mask = np.zeros(len(ev), bool)
+    current = ev.current()
+    if current.any():
+        mask[current] = pareto_mask(-ev.objectives[current])
+    return mask

@@ -18,21 +18,27 @@ from mjxskill.training.front import pareto_mask_of, reference_from
 from mjxskill.runs.evaluations_csv import FORCE_COLUMNS
 from mjxskill.runs.resume import resume_batches
 from mjxskill.runs.run_config import optimizer_config
-from mjxskill.runs.run_dir import OPTIMIZER_STATE, Evaluations, Run, RunConfig, batch_sizes, concat_all
+from mjxskill.runs.run_dir import EVALUATIONS, OPTIMIZER_STATE, Evaluations, Run, RunConfig, batch_sizes, concat_all
 from mjxskill.runs.settings import BOTORCH_OPTIMIZERS, OPTUNA_OPTIMIZERS
-from mjxskill.training import botorch_search, optuna_search
+from mjxskill.runs.training_protocol import REPLICATIONS_PER_BATCH
+from mjxskill.training import botorch_search, optuna_search, replication
 
 
 class BatchResult(NamedTuple):
-    """What one evaluated batch of B parameter sets gives: objectives (B, O), larger is better;
-    success_rate (B,) in [0, 1]; peak_contact_force, mean_contact_force, peak_commanded_force
-    (B,) N, means over the worlds (``Evaluations``)."""
+    """What one evaluated batch of B parameter sets gives: objectives (B, O), larger is better
+    (the scenario's: a run of the robust protocol adds the success bound itself); success_rate
+    (B,) in [0, 1]; peak_contact_force, mean_contact_force, peak_commanded_force (B,) N, means
+    over the worlds (``Evaluations``); spread (B, O): each objective's world-to-world standard
+    deviation (ddof 1), and worlds: how many worlds each set was rolled out in (what the robust
+    protocol pools; None: not given)."""
 
     objectives: np.ndarray
     success_rate: np.ndarray
     peak_contact_force: np.ndarray
     mean_contact_force: np.ndarray
     peak_commanded_force: np.ndarray
+    spread: np.ndarray | None = None
+    worlds: int | None = None
 
 
 # (params (B, P) float64, batch index) -> BatchResult. Must be a pure function of its inputs:
@@ -68,14 +74,28 @@ def rollout_evaluator(rollout, batch_size: int, seed: int) -> BatchEvaluator:
         out = rollout(padded, rollout_key(seed, iteration))
         success = np.asarray(out.success, np.float64)[:n]
         forces = {name: np.asarray(out.metrics[name], np.float64)[:n].mean(axis=1) for name in FORCE_COLUMNS}
+        per_world = world_objectives(rollout, out)[:n]
+        spread = per_world.std(axis=1, ddof=1) if per_world.shape[1] > 1 else np.full(per_world.shape[::2], np.nan)
         return BatchResult(objectives=np.asarray(out.objectives, np.float64)[:n], success_rate=success.mean(axis=1),
-                           **forces)
+                           **forces, spread=spread, worlds=success.shape[1])
 
     return evaluate
 
 
+def world_objectives(rollout, out) -> np.ndarray:
+    """(B, W, O) each world's objectives (the sums of their weighted rewards; ``out.objectives``
+    is their mean over the W worlds), from the per-world reward totals of ``out``."""
+    names = tuple(rollout.objective_names)
+    first = np.asarray(out.success)
+    values = np.zeros(first.shape + (len(names),))
+    for reward in rollout.scenario.rewards:
+        values[..., names.index(reward.objective)] += reward.weight * np.asarray(out.metrics[f"reward_{reward.name}"],
+                                                                                 np.float64)
+    return values
+
+
 def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Progress | None = None) -> Evaluations:
-    """Runs (or continues) the optimizer loop of ``run`` to ``config.budget`` evaluations.
+    """Runs (or continues) the optimizer loop of ``run`` to ``config.training_rows`` evaluations.
 
     The complete batches on disk are kept (``mjxskill.runs.resume``: what cannot be used is
     set aside, never dropped) and only the missing ones are evaluated. The optimizer state is
@@ -85,26 +105,35 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
     from mjxskill import gp  # lazy: gp imports jax and scipy (~2 s), as rollout_key's jax
 
     done = resume_batches(run, config)
-    shape = (len(config.parameter_names), len(config.objective_names))
+    shape = (len(config.parameter_names), len(config.objective_names), config.pooled)
     state = gp.init(optimizer_config(config))
-    sizes = list(batch_sizes(config.budget, config.batch_size, config.n_init))
+    sizes = list(batch_sizes(config.training_rows, config.batch_size, config.n_init))
     known = lambda: concat_all((done[b] for b in sorted(done)), *shape)  # noqa: E731  (in batch order)
     ev = known()
+    replication.check_pointers(ev, str(run.path / EVALUATIONS))
     if progress:
         progress.start(ev, reference_from(run, config, ev))
     for batch, size in enumerate(sizes):
-        if batch in done:  # replayed: the optimizer sees it where the uninterrupted run did
+        if config.pooled:  # the rows so far pooled, each with its noise (mjxskill.training.replication)
+            if batch in done:
+                continue
+            earlier = concat_all((done[b] for b in range(batch)), *shape)
+            state = _pooled_state(gp, state.config, earlier)
+            new = done[batch] = _pooled_batch(gp, state, config, earlier, batch, size, evaluate)
+            x = new.params
+        elif batch in done:  # replayed: the optimizer sees it where the uninterrupted run did
             state = gp.tell(state, done[batch].params, -done[batch].objectives)
             continue
-        x = propose(gp, state, config, size)
-        result = evaluate(x, batch)
-        new = done[batch] = Evaluations(np.full(len(x), batch), x, *(np.asarray(a, np.float64) for a in result))
+        else:
+            x = propose(gp, state, config, size)
+            result = evaluate(x, batch)
+            new = done[batch] = Evaluations(np.full(len(x), batch), x, *(np.asarray(a, np.float64) for a in result[:5]))
         ev = known()
         if max(done) == batch:
             run.append(new)  # on disk before anything else happens
         else:  # filled in before batches already on disk: the file stays in batch order
             run.write_evaluations(config, ev)
-        state = gp.tell(state, x, -new.objectives)
+        state = _pooled_state(gp, state.config, ev) if config.pooled else gp.tell(state, x, -new.objectives)
         _save_state(gp, state, run.path / OPTIMIZER_STATE)
         run.write_pareto(config, ev, pareto_mask_of(ev))
         if progress:
@@ -116,6 +145,42 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
 
 
 RANDOM_SEARCH_STREAM = 0x5EA2C  # separates random search's draws from every other use of the seed
+REPLICATION_STREAM = 0x2E911  # the success model's fits that choose what to roll out again
+
+
+def _pooled_state(gp, cfg, ev: Evaluations):
+    """The optimizer state of a pooled run's current rows: their objectives and success rates,
+    each with its noise variance (``replication.model_view``)."""
+    if not len(ev):
+        return gp.init(cfg)
+    x, values, noise = replication.model_view(ev)
+    return gp.tell(gp.init(cfg), x, -values, noise=noise)
+
+
+def _pooled_batch(gp, state, config: RunConfig, earlier: Evaluations, batch: int, size: int,
+                  evaluate: BatchEvaluator) -> Evaluations:
+    """Batch ``batch`` of a pooled run: after the warm-up, REPLICATIONS_PER_BATCH of its places
+    roll out again the sets ``replication.choose`` names (the Bayesian optimizer's runs only:
+    what it is compared with proposes as it would alone), the others new proposals; the rows of
+    the first pool their earlier worlds."""
+    import jax  # lazy, as rollout_key's
+
+    again = np.zeros(0, int)
+    if config.optimizer == "mobo" and len(state.x) >= config.n_init and size > 1:
+        key = jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(config.seed), REPLICATION_STREAM), batch)
+        again = replication.choose(earlier, min(REPLICATIONS_PER_BATCH, size - 1), config.worlds, config.bounds, key)
+    x = propose(gp, state, config, size - len(again))
+    result = evaluate(np.concatenate([x, earlier.params[again]]), batch)
+    k = len(x)
+    objectives = np.asarray(result.objectives, np.float64)
+    # an evaluator that gives no spread: the rows' noise is the fitted one alone (replication.noise_variances)
+    spread = np.full(objectives.shape, np.nan) if result.spread is None else np.asarray(result.spread, np.float64)
+    worlds = config.worlds if result.worlds is None else result.worlds
+    parts = [replication.PooledResult(objectives[s], spread[s], np.asarray(result.success_rate, np.float64)[s],
+                                      tuple(np.asarray(f, np.float64)[s] for f in result[2:5]), worlds)
+             for s in (slice(0, k), slice(k, None))]
+    new = replication.new_rows(batch, x, parts[0])
+    return new.concat(replication.pooled_rows(batch, earlier, again, parts[1])) if len(again) else new
 
 
 def propose(gp, state, config: RunConfig, size: int) -> np.ndarray:

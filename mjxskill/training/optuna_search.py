@@ -100,7 +100,7 @@ def _generations(config: RunConfig, objectives: np.ndarray) -> list[int]:
     complete = np.all(np.isfinite(objectives), axis=1)
     generations: list[int] = []
     newest, count = 0, 0
-    sizes = batch_sizes(config.budget, config.batch_size, config.n_init)
+    sizes = batch_sizes(config.training_rows, config.batch_size, config.n_init)
     while len(generations) < len(objectives):
         size = next(sizes)
         generation = newest + 1 if count >= config.n_init else newest

@@ -1,0 +1,150 @@
+"""How many episodes the robust protocol's race needs (issue 43): the measurements behind
+``training_protocol.TRAINING_SHARE``.
+
+    python benchmarks/race_budget.py grid --out benchmarks/results/2026-12-06/peg_grid.json
+    python benchmarks/race_budget.py matrix RUN_DIR --out benchmarks/results/2026-12-06/peg_front_matrix.npz
+    python benchmarks/race_budget.py simulate benchmarks/results/2026-12-06/peg_front_matrix.npz
+
+``grid``: the peg's success over a grid of force, spiral radius and path velocity, every set in
+the same 150 worlds (10 from each of the 15 start configurations, key 11): the shape of the
+success landscape. ``matrix``: the best front members of a run (by success bound) and the
+operators' sets, each in the same 600 worlds of the known start configurations (120 each, key
+555), every world's success and time kept. ``simulate``: successive halving, as
+``mjxskill.evaluation.racing`` runs it, replayed on that matrix (each round's worlds drawn
+without replacement per configuration) 400 times per race budget: the mean success of the
+winner over the matrix's worlds, and how often it is the best set.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from mjxskill.evaluation.racing import schedule
+
+
+def _rollout(task_name: str):
+    from mjxskill.engine.build import build_rollout
+    from mjxskill.runs.run_task import scenario_and_task
+
+    scn, task = scenario_and_task(task_name, None)
+    return scn, task, build_rollout(scn, task, "native", worlds=7, episode_seconds=scn.episode_seconds)
+
+
+def _outcomes(rollout, params: np.ndarray, worlds, chunk: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """(success (N, W) bool, seconds to success (N, W), a failure the whole episode)."""
+    success, seconds = [], []
+    for start in range(0, len(params), chunk):
+        out = rollout.run_worlds(params[start : start + chunk], worlds)
+        won, tick = np.asarray(out.success), np.asarray(out.metrics["bt_done_tick"])
+        success.append(won)
+        seconds.append(np.where(won & (tick >= 0), (tick + 1) / rollout.scenario.bt_hz, rollout.episode_seconds))
+        print(f"  {min(start + chunk, len(params))}/{len(params)} sets", flush=True)
+    return np.concatenate(success), np.concatenate(seconds)
+
+
+def grid(out: Path) -> None:
+    import jax
+
+    scn, _, rollout = _rollout("peg")
+    configs = np.concatenate([np.asarray(scn.robot.start_configs), np.asarray(scn.robot.eval_configs)])
+    worlds = rollout.worlds_per_config(jax.random.PRNGKey(11), 10, configs)
+    params = np.array([(-f, r, v) for f in (4.0, 7.0, 10.0) for r in (0.03, 0.05) for v in (0.02, 0.035, 0.05, 0.065)])
+    try:
+        success, seconds = _outcomes(rollout, params, worlds)
+    finally:
+        rollout.close()
+    rows = [{"force": float(p[0]), "radius": float(p[1]), "path_velocity": float(p[2]), "success": float(s.mean()),
+             "time_to_success_full_episode_s": float(t.mean())} for p, s, t in zip(params, success, seconds)]
+    out.write_text(json.dumps({"worlds": int(success.shape[1]), "key": 11, "sets": rows}, indent=1) + "\n")
+    for r in rows:
+        print(r)
+
+
+def matrix(run_dir: Path, out: Path, count: int = 9) -> None:
+    import jax
+
+    from mjxskill.runs.run_dir import Run
+
+    run = Run(run_dir)
+    front = run.pareto(run.config())
+    rows = [int(i) for i in np.argsort(-front.objectives[:, -1], kind="stable")[:count]]
+    scn, task, rollout = _rollout(run.config().task)
+    params = np.concatenate([front.params[rows], np.array(list(task.manual_parameters.values()), np.float64)])
+    worlds = rollout.worlds_per_config(jax.random.PRNGKey(555), 120, np.asarray(scn.robot.start_configs))
+    try:
+        success, seconds = _outcomes(rollout, params, worlds)
+    finally:
+        rollout.close()
+    np.savez(out, rows=rows, params=params, names=[f"pareto-{r}" for r in rows] + list(task.manual_parameters),
+             success=success, seconds=seconds, per_config=120)
+    print(dict(zip([f"pareto-{r}" for r in rows] + list(task.manual_parameters), success.mean(axis=1).round(3))))
+
+
+def simulate(path: Path, budgets=(420, 700, 980, 1120, 1400), races: int = 400) -> dict:
+    data = np.load(path)
+    names = [str(n) for n in data["names"]]
+    front = [i for i, n in enumerate(names) if n.startswith("pareto-")]
+    success, seconds, per = data["success"].astype(float), data["seconds"], int(data["per_config"])
+    n_configs = success.shape[1] // per
+    truth = success.mean(axis=1)
+    best = front[int(np.argmax(truth[front]))]
+    out = {"sets": dict(zip(names, truth.round(4).tolist())), "races": races, "budgets": {}}
+    for budget in budgets:
+        rng = np.random.default_rng(0)
+        winners = [_race(front, budget, success, seconds, per, n_configs, rng) for _ in range(races)]
+        won = truth[winners]
+        out["budgets"][budget] = {"winner_mean": float(won.mean()), "best_picked": float(np.mean(np.array(winners) == best)),
+                                  "winner_5th_percentile": float(np.percentile(won, 5))}
+        print(budget, out["budgets"][budget], flush=True)
+    return out
+
+
+def _race(rows, budget: int, success, seconds, per: int, n_configs: int, rng) -> int:
+    """One successive-halving race over ``rows`` (the racing module's schedule and ranking)."""
+    k, plan = schedule(len(rows), n_configs, budget)
+    alive = list(rows[:k])
+    won, worlds, time = dict.fromkeys(alive, 0.0), dict.fromkeys(alive, 0), dict.fromkeys(alive, 0.0)
+    order = [rng.permutation(per) for _ in range(n_configs)]
+    used = 0
+    for index, (_, per_config) in enumerate(plan):
+        cols = np.concatenate([c * per + order[c][used : used + per_config] for c in range(n_configs)])
+        used += per_config
+        for i in alive:
+            won[i] += success[i, cols].sum()
+            worlds[i] += len(cols)
+            time[i] += seconds[i, cols].sum()
+        keep = plan[index + 1][0] if index + 1 < len(plan) else 1
+        alive = sorted(alive, key=lambda i: (-won[i] / worlds[i], time[i] / worlds[i], i))[:keep]
+    return alive[0]
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    g = sub.add_parser("grid")
+    g.add_argument("--out", type=Path, required=True)
+    m = sub.add_parser("matrix")
+    m.add_argument("run", type=Path)
+    m.add_argument("--out", type=Path, required=True)
+    s = sub.add_parser("simulate")
+    s.add_argument("matrix", type=Path)
+    s.add_argument("--save", type=Path)
+    args = parser.parse_args(argv)
+    if args.command == "grid":
+        grid(args.out)
+    elif args.command == "matrix":
+        matrix(args.run, args.out)
+    else:
+        result = simulate(args.matrix)
+        if args.save:
+            args.save.write_text(json.dumps(result, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
