@@ -3,8 +3,10 @@ real ``python -m`` subprocess (what a user runs), and the shape every bad input 
 
 import importlib
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,6 +27,23 @@ def run_cli(module, *args, timeout=600, cwd=ROOT, **env):
     """``python -m mjxskill.<module> args`` in a subprocess: CompletedProcess (text)."""
     return subprocess.run(command(module, *args), cwd=cwd, capture_output=True, text=True, timeout=timeout,
                           env=subprocess_env(**env))
+
+
+def kill_once_written(module, args, csv: Path, lines: int, timeout: float = 600) -> bool:
+    """Starts ``python -m mjxskill.<module> args`` and kills it with SIGKILL once ``csv`` has
+    ``lines`` lines; whether it was still running then (not ended on its own)."""
+    proc = subprocess.Popen(command(module, *args), cwd=ROOT, env=subprocess_env(), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and not (csv.is_file() and len(csv.read_text().splitlines()) >= lines):
+            assert proc.poll() is None, f"mjxskill.{module} ended before {csv} had {lines} lines"
+            time.sleep(0.1)
+        running = proc.poll() is None
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait()
+    return running
 
 
 def invoke(capsys, module, *args):

@@ -3,14 +3,13 @@ repetitions of 4 evaluations): its directory and report, a kill and a resume tha
 same results, evaluate and select on the experiment, and bad input (one error line, exit 2)."""
 
 import json
-import os
 import signal
 import subprocess
 import time
 
 import pytest
 
-from cli_helpers import ROOT, command, error_line, invoke, run_cli, snapshot, subprocess_env
+from cli_helpers import ROOT, command, error_line, invoke, kill_once_written, run_cli, snapshot, subprocess_env
 from mjxskill.runs.layout import runs_in
 from test_train_cli import QUICK_GP
 
@@ -68,18 +67,9 @@ def test_the_experiment_writes_every_repetition_and_the_report(experiment):
 
 def test_a_killed_experiment_resumes_to_the_same_results(experiment, tmp_path):
     out, _ = experiment
-    cut = tmp_path / "cut"
-    proc = subprocess.Popen(command("experiment", "push", *TINY, "--out", cut), cwd=ROOT, env=subprocess_env(),
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:  # kill it once the first random search has a batch on disk
-        deadline = time.monotonic() + 600
-        target = cut / "random_search" / "seed-0" / "evaluations.csv"
-        while time.monotonic() < deadline and not (target.is_file() and len(target.read_text().splitlines()) >= 3):
-            assert proc.poll() is None, "the experiment ended before it could be killed"
-            time.sleep(0.1)
-        os.kill(proc.pid, signal.SIGKILL)
-    finally:
-        proc.wait()
+    cut = tmp_path / "cut"  # killed once the first random search has a batch on disk
+    assert kill_once_written("experiment", ["push", *TINY, "--out", cut],
+                             cut / "random_search" / "seed-0" / "evaluations.csv", 3)
     assert not (cut / "optimizer" / "seed-1" / "evaluation").exists()
     resumed = run_cli("experiment", "push", "--resume", cut, "--quiet")
     assert resumed.returncode == 0, resumed.stderr[-3000:]

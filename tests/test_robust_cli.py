@@ -4,15 +4,11 @@ with SIGKILL resumes to the same rows and the same race, select names the race's
 the experiment races and confirms every repetition's pick and reports the episodes it spent."""
 
 import json
-import os
-import signal
-import subprocess
-import time
 
 import numpy as np
 import pytest
 
-from cli_helpers import ROOT, command, run_cli, subprocess_env
+from cli_helpers import kill_once_written, run_cli
 from mjxskill.evaluation import racing
 from mjxskill.runs.run_dir import EVALUATIONS, PARETO, Run
 from mjxskill.runs.training_protocol import SUCCESS_OBJECTIVE
@@ -58,21 +54,8 @@ def test_select_names_the_race_winner(robust_run):
 def test_a_robust_run_killed_while_it_trains_resumes_to_the_same_rows_and_race(robust_run, tmp_path):
     out, _ = robust_run
     cut = tmp_path / "cut"
-    proc = subprocess.Popen(command("train", "push", *TINY, "--seed", "1", "--out", cut), cwd=ROOT, env=subprocess_env(),
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 600
-        while time.monotonic() < deadline:  # two batches on disk: the second rolled a set out again
-            csv = cut / EVALUATIONS
-            if csv.is_file() and len(csv.read_text().splitlines()) >= 7:
-                break
-            assert proc.poll() is None, "train exited before its second batch was on disk"
-            time.sleep(0.1)
-        was_running = proc.poll() is None
-        os.kill(proc.pid, signal.SIGKILL)
-    finally:
-        proc.wait()
-    assert was_running
+    # two batches on disk: the second rolled a set out again
+    assert kill_once_written("train", ["push", *TINY, "--seed", "1", "--out", cut], cut / EVALUATIONS, 7)
     resumed = run_cli("train", "push", "--resume", cut, "--quiet")
     assert resumed.returncode == 0, resumed.stderr[-3000:]
     for name in (EVALUATIONS, PARETO, racing.FILE):

@@ -2,17 +2,13 @@
 repeats, a run killed after its first batch and resumed, select's export, and bad input
 (exit code 2, one message line, no traceback)."""
 
-import os
-import signal
-import subprocess
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-from cli_helpers import ROOT, command, invoke, run_cli
+from cli_helpers import invoke, kill_once_written, run_cli
 from mjxskill.runs.run_dir import EVALUATIONS, PARETO, Run
 from mjxskill.task import plan_task
 
@@ -63,21 +59,7 @@ def test_train_prints_the_pipeline_and_writes_the_run_directory(repeated_run):
 def test_killed_run_resumes_to_the_same_results(repeated_run, tmp_path):
     out, _ = repeated_run
     cut = tmp_path / "cut"
-    proc = subprocess.Popen(command("train", "push", *TINY, "--seed", "1", "--out", cut), cwd=ROOT,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 600
-        while time.monotonic() < deadline:  # wait for the first batch on disk
-            csv = cut / EVALUATIONS
-            if csv.is_file() and len(csv.read_text().splitlines()) >= 4:
-                break
-            assert proc.poll() is None, "train exited before its first batch was on disk"
-            time.sleep(0.2)
-        was_running = proc.poll() is None
-        os.kill(proc.pid, signal.SIGKILL)
-    finally:
-        proc.wait()
-    assert was_running
+    assert kill_once_written("train", ["push", *TINY, "--seed", "1", "--out", cut], cut / EVALUATIONS, 4)
     assert 3 <= len(Run(cut).evaluations()) < 6
     resumed = run_cli("train", "push", "--resume", cut, "--quiet")
     assert resumed.returncode == 0, resumed.stderr[-3000:]

@@ -98,21 +98,26 @@ def evaluate_timed(exp: Experiment, run: Run, rollout, task, settings: dict, pro
     return not reused
 
 
+def _timed_step(exp: Experiment, run: Run, field: str, step) -> bool:
+    """Runs ``step(run_config, front)`` (True: it reused what was on disk) under the run's lock,
+    adding its seconds to the state as ``field`` when it rolled something out; True when it did."""
+    run_config = run.config()
+    t0 = time.monotonic()
+    with run.lock():
+        reused = step(run_config, run.front(run_config))
+    if not reused:
+        exp.add_time(time_key(KINDS[run_config.optimizer], run_config.seed), field, time.monotonic() - t0)
+    return not reused
+
+
 def validate_timed(exp: Experiment, run: Run, rollout, config: RunConfig, protocol: Protocol, seed: int) -> bool | None:
     """Validates the pick of one evaluated optimizer run (``mjxskill.evaluation.validation``; reused
     when current). True when it ran now, False when reused, None when the protocol has none."""
     settings = repetition_validation(config, protocol, seed)
     if settings is None:
         return None
-    run_config = run.config()
-    t0 = time.monotonic()
-    with run.lock():
-        front = run.front(run_config)
-        rows = in_contention(front, protocol.max_force, protocol.validation_candidates)
-        _, reused = validate(run, front, rows, rollout, settings)
-    if not reused:
-        exp.add_time(time_key(KINDS[run_config.optimizer], run_config.seed), "validate_seconds", time.monotonic() - t0)
-    return not reused
+    return _timed_step(exp, run, "validate_seconds", lambda _, front: validate(
+        run, front, in_contention(front, protocol.max_force, protocol.validation_candidates), rollout, settings)[1])
 
 
 def race_timed(exp: Experiment, run: Run, rollout, config: RunConfig, protocol: Protocol, seed: int) -> bool | None:
@@ -122,16 +127,14 @@ def race_timed(exp: Experiment, run: Run, rollout, config: RunConfig, protocol: 
     settings = repetition_race(config, protocol, seed, len(rollout.scenario.robot.start_configs))
     if settings is None:
         return None
-    run_config = run.config()
-    t0 = time.monotonic()
-    with run.lock():
-        front = run.front(run_config)
-        done = load_race(run.path, front, settings) is not None
-        if not done:
-            race(run.path, front, rollout, settings, run_config.batch_size)
-    if not done:
-        exp.add_time(time_key(KINDS[run_config.optimizer], run_config.seed), "race_seconds", time.monotonic() - t0)
-    return not done
+
+    def step(run_config, front) -> bool:
+        if load_race(run.path, front, settings) is not None:
+            return True
+        race(run.path, front, rollout, settings, run_config.batch_size)
+        return False
+
+    return _timed_step(exp, run, "race_seconds", step)
 
 
 def confirm_timed(exp: Experiment, run: Run, rollout, task, config: RunConfig, protocol: Protocol, seed: int,
@@ -142,15 +145,9 @@ def confirm_timed(exp: Experiment, run: Run, rollout, task, config: RunConfig, p
     settings = repetition_confirmation(config, protocol, seed)
     if settings is None:
         return None
-    run_config = run.config()
-    t0 = time.monotonic()
-    with run.lock():
-        front = run.front(run_config)
-        picked = None if pick_row is None else front.params[pick_row]
-        _, reused = confirm(run.path, rollout, confirmation_candidates(task, picked), settings, run_config.batch_size)
-    if not reused:
-        exp.add_time(time_key(KINDS[run_config.optimizer], run_config.seed), "confirm_seconds", time.monotonic() - t0)
-    return not reused
+    return _timed_step(exp, run, "confirm_seconds", lambda run_config, front: confirm(
+        run.path, rollout, confirmation_candidates(task, None if pick_row is None else front.params[pick_row]),
+        settings, run_config.batch_size)[1])
 
 
 def share_cluster(cpus: int, pending: int) -> tuple[int, int]:
