@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
+from extras_helpers import require  # noqa: E402
 import mobo_quality as mq  # noqa: E402
 
 from mjxskill.gp import hypervolume  # noqa: E402
@@ -184,8 +185,8 @@ def test_vehicle_safety_front_reaches_and_bounds_the_known_maximum():
 
 
 def test_new_problems_equal_botorch():
-    torch = pytest.importorskip("torch")
-    mo = pytest.importorskip("botorch.test_functions.multi_objective")
+    torch = require("torch")
+    mo = require("botorch.test_functions.multi_objective")
     x = np.random.default_rng(0).random((500, 6))
     for ours, theirs, inputs in [
         (mq.dtlz2, mo.DTLZ2(dim=6, num_objectives=3), x),

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("optuna")
+import optuna  # noqa: E402,F401  (the test extra's; the benchmark imports it)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import task_optimizers as bench  # noqa: E402

@@ -20,6 +20,7 @@ import pytest  # noqa: E402
 
 from explore_runs import make_push_run, make_repeated_run  # noqa: E402
 from explore_server import get_json, request, serving  # noqa: E402
+from render_helpers import no_render  # noqa: E402
 from mjxskill.errors import RunError  # noqa: E402
 from mjxskill.explore.solutions import Solutions  # noqa: E402
 from mjxskill.explore.data import runs_in  # noqa: E402
@@ -294,7 +295,7 @@ def test_a_point_is_rolled_out_on_demand_without_blocking_the_server(tmp_path):
 
         if doc["video"] is None:  # no OpenGL here: the page says so and the rest works
             assert "no video" in doc["job"]["message"] and "MUJOCO_GL" in doc["job"]["message"]
-            pytest.skip(f"rendering: {doc['job']['message']}")
+            no_render(doc["job"]["message"])
         frames = doc["video"]["urls"]
         assert doc["video"]["kind"] in ("png", "mp4") and frames[0].startswith(f"/files/explore/evaluation-{index}/known-1")
         status, body, kind = request(base, frames[0])
@@ -321,7 +322,7 @@ def test_export_copies_the_rendering_the_page_made(tmp_path):
         get_json(base, f"/api/solution/0/{index}", {"config": 0})
         doc = wait_for_job(base, f"/api/solution/0/{index}?config=0")
         if doc["video"] is None:
-            pytest.skip(f"rendering: {doc['job']['message']}")
+            no_render(doc["job"]["message"])
         status, export = get_json(base, "/api/export", {"run": 0, "k": 1})
     assert status == 200
     copied = run.path / "selected-1" / ("frames" if doc["video"]["kind"] == "png" else "episode.mp4")

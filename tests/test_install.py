@@ -4,8 +4,10 @@ onto the checkout's ``assets/`` by pyproject.toml), and installed in a fresh ven
 peg and slide and trains a tiny push run from a directory outside the checkout.
 
 The build is pip's, isolated: it takes setuptools from the package index. The venv sees the
-machine's packages (``--system-site-packages``: no dependency is installed again) and gets the
-wheel with ``--no-deps``; the tests check that its mjxskill is the wheel's, not the
+packages of the interpreter running the tests (``--system-site-packages``, and a ``.pth`` file
+naming that interpreter's site-packages: where the tests run in a virtual environment, its
+packages are not the base interpreter's; no dependency is installed again) and gets the wheel
+with ``--no-deps``; the tests check that its mjxskill is the wheel's, not the
 checkout (an editable install of which the machine may also have). The wheel is built from a
 copy of the checkout's build inputs, so that the build leaves no ``build/`` or ``*.egg-info`` in
 the checkout. About 20 s on 2 cores, most of it the training run and the build.
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import site
 import subprocess
 import sys
 import tomllib
@@ -67,6 +70,11 @@ def venv_python(wheel, tmp_path_factory) -> Path:
     venv = tmp_path_factory.mktemp("venv")
     _run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", venv], cwd=venv)
     python = venv / "bin" / "python"
+    # the running interpreter's packages: a venv's own, which --system-site-packages (the base
+    # interpreter's) does not show; after the new venv's own, so the wheel's mjxskill comes first
+    purelib = Path(_run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], cwd=venv).stdout.strip())
+    purelib.mkdir(parents=True, exist_ok=True)
+    (purelib / "running-interpreter.pth").write_text("\n".join(site.getsitepackages()) + "\n")
     # pip from the machine's packages, installing into the venv; --ignore-installed: the machine's
     # own mjxskill (outside the venv) is neither uninstalled nor taken for this one
     _run([python, "-m", "pip", "install", "--no-deps", "--ignore-installed", "--no-index", wheel], cwd=venv)

@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ray = pytest.importorskip("ray")
-cluster_utils = pytest.importorskip("ray.cluster_utils")
+import ray  # noqa: E402  (the test extra's)
+import ray.cluster_utils as cluster_utils  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 NODE = dict(num_cpus=1, object_store_memory=80 * 1024 * 1024, node_ip_address="127.0.0.1")

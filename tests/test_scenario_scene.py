@@ -1,22 +1,18 @@
 """The world model against the MJCF scene it names (native MuJoCo, no JAX): every MJCF name
-exists, poses agree, and the start postures hold the tool above the table pointing down.
-Skipped while the scene file is not in this checkout."""
+exists, poses agree, and the start postures hold the tool above the table pointing down."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from mjxskill.scenario import load_scenario
+import mujoco
 
-mujoco = pytest.importorskip("mujoco")
+from mjxskill.scenario import load_scenario
 
 
 @pytest.fixture(scope="module", params=["push", "peg", "peg_square", "slide"])
 def scene(request):
     scn = load_scenario(request.param)
-    if not Path(scn.scene).exists():
-        pytest.skip(f"{scn.scene} is not in this checkout")
     return scn, mujoco.MjModel.from_xml_path(scn.scene)
 
 
@@ -55,7 +51,7 @@ def test_start_postures_hold_the_tool_down_above_the_table(scene):
 
 @pytest.mark.parametrize("task", ["push", "peg"])  # the tasks whose postures the sim package holds
 def test_start_postures_are_the_sim_packages(task):
-    postures = pytest.importorskip("mjxskill.sim.postures")
+    from mjxskill.sim import postures
     scn = load_scenario(task)
     name = scn.name.upper()
     np.testing.assert_array_equal(scn.robot.start_configs, getattr(postures, f"{name}_STARTS"))

@@ -10,6 +10,7 @@ import pytest  # noqa: E402
 from mjxskill.errors import RunError  # noqa: E402
 from mjxskill.runs.run_dir import Evaluations  # noqa: E402
 from mjxskill.evaluation.selection import choose, export_document  # noqa: E402
+from render_helpers import no_render  # noqa: E402
 from test_run_dir import make_config  # noqa: E402
 
 FRONT = Evaluations(
@@ -110,17 +111,13 @@ def test_export_names_every_parameter_with_its_unit(tmp_path):
 def frames_or_skip(*args, **kwargs):
     """``frames``, or a skip naming why (no OpenGL backend here); where rendering must work (CI
     sets MJXSKILL_REQUIRE_RENDER=1 after installing Mesa's EGL: .ci/run) a failure."""
-    import os
-
     from mjxskill.evaluation.render import RenderUnavailable, frames
 
     try:
         return frames(*args, **kwargs)
     except RenderUnavailable as err:
         assert "MUJOCO_GL=egl" in str(err) and "--no-render" in str(err)
-        if os.environ.get("MJXSKILL_REQUIRE_RENDER"):
-            pytest.fail(f"rendering must work here (MJXSKILL_REQUIRE_RENDER): {err}")
-        pytest.skip(f"no OpenGL backend here: {err}")
+        no_render(str(err))
 
 
 def test_frames_match_the_scene_or_explain_how_to_get_gl():

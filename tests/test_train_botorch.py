@@ -3,12 +3,15 @@ with a closed-form objective (the shared warm-up, proposals in the bounds that i
 warm-up's hypervolume, resuming to the same rows), its reference point against the closed form,
 and the refusal without the extra (which needs no BoTorch)."""
 
+import importlib.machinery
 import sys
+import types
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from extras_helpers import require  # noqa: E402
 from cli_helpers import error_line, invoke  # noqa: E402
 from mjxskill.gp import hypervolume
 from mjxskill.runs.run_dir import EVALUATIONS
@@ -22,7 +25,12 @@ TOY = replace(CONFIG, budget=14, optimizer="botorch-qlognehvi")
 
 
 def test_missing_extra_says_what_to_install(monkeypatch):
-    monkeypatch.setitem(sys.modules, "torch", None)  # an import of a module set to None fails
+    # find_spec reads sys.modules first: None there is a module that is not installed, a module
+    # object one that is (so the check does not depend on what this machine has)
+    installed = types.ModuleType("botorch")
+    installed.__spec__ = importlib.machinery.ModuleSpec("botorch", None)
+    monkeypatch.setitem(sys.modules, "botorch", installed)
+    monkeypatch.setitem(sys.modules, "torch", None)
     assert missing_extra("botorch-qlognehvi") == \
         "needs PyTorch, which is not installed: pip install 'mjxskill[botorch]'"
     monkeypatch.setitem(sys.modules, "botorch", None)
@@ -45,7 +53,7 @@ def test_without_the_extra_train_says_how_to_install_it(monkeypatch, capsys, tmp
 
 
 def test_it_proposes_after_the_shared_warm_up_improves_and_resumes_to_the_same_rows(tmp_path, monkeypatch):
-    pytest.importorskip("botorch")  # not in the test extra: torch is a multi-GB download
+    require("botorch")  # not in the test extra: torch is a multi-GB download
     # a smaller search than the tutorial's: the same code, a fraction of the time
     for name, value in (("RESTARTS", 2), ("RAW_SAMPLES", 64), ("MAX_ITER", 30), ("MC_SAMPLES", 32)):
         monkeypatch.setattr(botorch_search, name, value)

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 import yaml
 
-optuna = pytest.importorskip("optuna")
+import optuna  # noqa: E402  (the test extra's)
 
+from extras_helpers import require  # noqa: E402
 from cli_helpers import error_line, invoke, run_cli  # noqa: E402
 from mjxskill.runs.run_dir import EVALUATIONS, PARETO, Run  # noqa: E402
 from mjxskill.training import optuna_search  # noqa: E402
@@ -40,7 +41,7 @@ def random_rows(tmp_path_factory):
 @pytest.mark.parametrize("optimizer", ["optuna-nsga2", "optuna-tpe", "optuna-gp"])
 def test_the_sampler_proposes_after_the_shared_warm_up_and_resumes_to_the_same_rows(tmp_path, optimizer, random_rows):
     if optimizer == "optuna-gp":
-        pytest.importorskip("torch")  # not in the test extra: a multi-GB download for one sampler
+        require("torch")  # not in the test extra: a multi-GB download for one sampler
     config = _toy(optimizer)
     full = new_run(tmp_path, "full", config)
     recorder = Recorder()

@@ -179,14 +179,23 @@ def stars_of(p: float) -> str:
     return "*" * n if n else "ns"
 
 
+EXACT_MAX_SAMPLES = 50  # both samples together: the exact null distribution up to this size
+
+
 def significance(a: np.ndarray, b: np.ndarray) -> tuple[float, str]:
-    """Two-sided Mann-Whitney U p-value of samples a vs b and its stars (``STAR_LEVELS``)."""
+    """Two-sided Mann-Whitney U p-value of samples a vs b and its stars (``STAR_LEVELS``): from
+    the exact distribution of U where it holds, small samples without ties (ten hypervolumes a
+    side: the normal approximation said 1.8e-4 where two fronts that separate completely have
+    2 / C(20, 10) = 1.1e-5), else the normal approximation with the tie correction (success
+    rates over a few worlds tie a lot)."""
     from scipy.stats import mannwhitneyu  # lazy: scipy.stats ~0.7 s, as jax in evaluation_worlds
 
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
     if len(a) == 0 or len(b) == 0 or (np.all(a == a[0]) and np.all(b == a[0])):
         return 1.0, "ns"  # identical samples: no evidence of a difference
-    p = float(mannwhitneyu(a, b, alternative="two-sided").pvalue)
+    both = np.concatenate([a, b])
+    exact = len(both) <= EXACT_MAX_SAMPLES and len(np.unique(both)) == len(both)
+    p = float(mannwhitneyu(a, b, alternative="two-sided", method="exact" if exact else "asymptotic").pvalue)
     return p, stars_of(p)
 
 
