@@ -3,7 +3,7 @@
     python benchmarks/compare_runs.py runs/push-native runs/push-mjx            # the first run's reference
     python benchmarks/compare_runs.py runs/a runs/b --reference-of runs/b --at 48,100,200,400
 
-Each run's hypervolume (README, "Walkthrough") uses the reference point its own warm-up fixed
+Each run's hypervolume (docs/walkthrough.md) uses the reference point its own warm-up fixed
 (``run_state.json``), so two runs' curves are not comparable as printed. Here every run is
 measured against one reference point, that of ``--reference-of`` (default: the first run), in
 the optimizer's space (negated objectives), after the first N evaluations in batch order.

@@ -5,7 +5,7 @@
 Rolls out ``sets`` x ``worlds`` push episodes (worlds from key 0) ``repeats`` times in one
 process with the default worker processes, then on the cluster's actors (one per CPU, started
 before the clock runs), checks the results agree bit for bit and prints the median episodes/s
-and control steps/s of each. README, "Running on a Ray cluster", projects from it.
+and control steps/s of each. docs/engines.md, "Running on a Ray cluster", projects from it.
 """
 
 from __future__ import annotations

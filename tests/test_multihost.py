@@ -1,4 +1,4 @@
-"""Beyond one machine: README's multi-host example run as two local processes with
+"""Beyond one machine: docs/engines.md's multi-host example run as two local processes with
 ``jax.distributed`` (CPU, gloo), each evaluating half of a batch; the gathered objectives equal
 what one process computes for the same halves, bit for bit. And batches that fill a large device
 are accepted by both engines."""
@@ -37,7 +37,7 @@ def test_two_processes_gather_what_one_process_computes(tmp_path):
     assert done.returncode == 0, done.stderr[-3000:]
     gathered = json.loads(out.read_text())
 
-    # One process, the same halves with the same keys (as README's snippet splits them).
+    # One process, the same halves with the same keys (as docs/engines.md's snippet splits them).
     rollout = compile_rollout(load_scenario("push"), worlds=2, episode_seconds=0.3)
     lo, hi = rollout.bounds
     params = np.random.default_rng(5).uniform(lo, hi, size=(2, len(lo)))

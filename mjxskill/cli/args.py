@@ -40,7 +40,7 @@ def connect_cluster(args: argparse.Namespace, engine: str):
         return None
     if engine != "native":
         raise CommandError(f"--ray-address runs the native engine's episodes; this run's engine is {engine} "
-                           "(MJX across hosts is jax.distributed's: README, Scaling)")
+                           "(MJX across hosts is jax.distributed's: docs/engines.md, Scaling)")
     from mjxskill.engine.native.ray_pool import connect  # lazy: Ray is an optional extra
 
     return connect(args.ray_address)

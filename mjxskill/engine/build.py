@@ -41,10 +41,10 @@ def build_rollout(scn, task, engine: str, *, worlds: int | None = None, episode_
     """The rollout of ``task`` in ``scn`` on ``engine`` ("mjx" or "native"; resolve "auto" first).
     ``cluster``: a Ray cluster's address ("auto" or HOST:PORT) the native engine's episodes run
     on (``mjxskill.engine.native.ray_pool``), on ``actors`` actors (default one per CPU); MJX on many hosts is ``jax.distributed``'s
-    (README, "Scaling"), so the MJX engine refuses it."""
+    (docs/engines.md, "Scaling"), so the MJX engine refuses it."""
     if engine == "mjx" and cluster is not None:
         raise ClusterError("a Ray cluster runs the native engine's episodes; MJX across hosts is jax.distributed's "
-                           "(README, Scaling): use --engine native with --ray-address")
+                           "(docs/engines.md, Scaling): use --engine native with --ray-address")
     if engine == "mjx":
         # lazy, as the native engine below: a run imports only the engine it runs (MJX ~2 s more than jax)
         from mjxskill.engine.mjx.compiled import compile_rollout

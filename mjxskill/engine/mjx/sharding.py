@@ -8,7 +8,7 @@ axis over a 1-D device mesh with ``jax.shard_map``: every device runs the same p
 On a CPU host, ``XLA_FLAGS=--xla_force_host_platform_device_count=N`` (set before jax starts)
 makes N host devices; each runs its shard on its own thread, so sharding is how a vmapped rollout
 uses more than one core. On GPUs it spreads the batch over all local GPUs. Across hosts, see the
-README's "Scaling" section (each process rolls out its own share with ``jax.distributed``).
+docs/engines.md, "Scaling" (each process rolls out its own share with ``jax.distributed``).
 """
 
 from __future__ import annotations
