@@ -10,8 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from mjxskill.training.front import pareto_mask_of
 from mjxskill.runs.run_dir import Evaluations, Run, RunConfig, batch_sizes
+from mjxskill.scenario import scenario_path
+from mjxskill.training.front import pareto_mask_of
 
 BUDGET, BATCH, N_INIT = 30, 6, 12
 
@@ -45,10 +46,8 @@ def evaluations(config: RunConfig, seed: int) -> Evaluations:
 
 def write_run(run: Run, config: RunConfig, seed: int, create: bool = True) -> Evaluations:
     if create:
-        src = run.path.parent / f"{run.path.name}-scenario.yaml"
-        src.parent.mkdir(parents=True, exist_ok=True)
-        src.write_text("name: push\n")
-        run.create(config, str(src), {"plan.txt": "(GoToLinear) (Push)"})
+        run.path.parent.mkdir(parents=True, exist_ok=True)
+        run.create(config, str(scenario_path("push")), {"plan.txt": "(GoToLinear) (Push)"})
     ev = evaluations(config, seed)
     run.append(ev)
     run.write_pareto(config, ev, pareto_mask_of(ev))
@@ -66,10 +65,8 @@ def make_repeated_run(path: Path, repeats: int = 3) -> Run:
     """A ``train --repeats`` directory: config.yaml with ``repeats`` and one sub-run per seed."""
     root = Run(path)
     config = replace(push_config(), repeats=repeats)
-    src = path.parent / f"{path.name}-scenario.yaml"
     path.parent.mkdir(parents=True, exist_ok=True)
-    src.write_text("name: push\n")
-    root.create(config, str(src), {"plan.txt": "(GoToLinear) (Push)"})  # creates the sub-runs too
+    root.create(config, str(scenario_path("push")), {"plan.txt": "(GoToLinear) (Push)"})  # creates the sub-runs too
     for sub in root.sub_runs(config):
         seed = int(sub.path.name.split("-")[1])
         write_run(sub, config.sub_run(seed), seed, create=False)

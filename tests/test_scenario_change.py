@@ -91,3 +91,23 @@ def test_train_resumes_with_an_accepted_change(tmp_path, capsys):
     assert config.scenario == str(other.resolve()) and len(config.scenario_changes) == 1
     assert len(Run(run.path).evaluations(config)) == config.budget
     print(f"trained in {time.monotonic() - started:.0f} s")
+
+
+def test_a_run_read_for_its_task_after_its_scenario_changed_says_so(tmp_path):
+    """evaluate, select, explore and the experiment's picks read a run's task with
+    load_run_task: where the scenario file no longer holds what the run learned in (here the
+    run's copy says 250 kg, the shipped file 2.5 kg), a Notice names the first difference, and
+    the run's own unchanged copy gives none."""
+    import warnings
+
+    from mjxskill.errors import Notice
+    from mjxskill.runs.run_task import load_run_task
+
+    run = push_run(tmp_path / "run")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Notice)
+        load_run_task(run, run.config())  # the same scenario: no notice
+    (run.path / "scenario.yaml").write_text(heavy_copy(tmp_path).read_text())
+    with pytest.warns(Notice, match=r"objects\.ObjectToBePushed-1\.mass: 250 in the run, 2\.5 in .*push\.yaml"):
+        load_run_task(run, run.config())
+

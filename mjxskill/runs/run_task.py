@@ -11,13 +11,14 @@ new text the run's copy, keeping the previous one as ``scenario.yaml.orig-<n>``.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from mjxskill.errors import RunError, UserError
+from mjxskill.errors import Notice, RunError, UserError
 from mjxskill.runs.atomic_write import write_text
 from mjxskill.runs.run_dir import CONFIG, EVALUATIONS, SCENARIO_COPY, Run, RunConfig
 from mjxskill.runs.training_protocol import objective_names
@@ -52,12 +53,20 @@ def check_same_task(scn, task, config: RunConfig, where: Path) -> None:
 
 def load_run_task(run: Run, config: RunConfig, scenario: str | None = None):
     """``(Scenario, PlannedTask)`` a run was trained on (its scenario, or ``scenario`` given
-    for it), checked to still match the run."""
+    for it), checked to still match the run. Where the run's own scenario file has changed
+    since it trained (its copy, ``scenario.yaml``, holds other data), a ``Notice`` names the
+    first difference: what the caller rolls out runs on the file as it is now, another twin
+    than the one the run learned in (a resume, given ``scenario``, compares and decides itself)."""
     scn = load_scenario(config.scenario if scenario is None else scenario)
     if scn.name != config.task:
         raise RunError(f"{run.path} is a run of task {config.task!r}, not {scn.name!r}")
     task = plan_task(scn, config.goal)
     check_same_task(scn, task, config, run.path)
+    if scenario is None and os.path.lexists(run.path / SCENARIO_COPY):
+        difference = scenario_difference(run, scn, config)
+        if difference is not None:
+            warnings.warn(f"{run.path}: its scenario changed since the run learned ({difference.text()}); "
+                          "these episodes are rolled out with the file as it is now", Notice, stacklevel=2)
     return scn, task
 
 
