@@ -38,7 +38,7 @@ def test_a_creation_killed_with_sigkill_is_cleaned_at_the_next_one(tmp_path):
     left = runs / done.stdout.strip()
     assert left.is_dir() and left.name.startswith(f".push-3.{_this_host()}.")
     make_push_run(runs / "push-4")
-    assert sorted(p.name for p in runs.iterdir()) == ["push-4", "push-4-scenario.yaml"]
+    assert sorted(p.name for p in runs.iterdir()) == ["push-4"]
 
 
 def test_only_staging_folders_of_dead_processes_of_this_host_are_removed(tmp_path):
