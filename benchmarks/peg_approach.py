@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import tempfile
 from pathlib import Path
@@ -41,9 +40,9 @@ def settled_scenario(threshold: float) -> Path:
     text = text.replace("scene: ../peg.xml", f"scene: {asset_path() / 'peg.xml'}")
     text = text.replace("skill_library: ../skills/library.yaml", f"skill_library: {asset_path() / 'skills' / 'library.yaml'}")
     text += f"\nskill_parameters:\n  GoToLinear.threshold: {{default: {threshold}}}\n"
-    fd, name = tempfile.mkstemp(suffix=".yaml")
-    os.write(fd, text.encode()); os.close(fd)
-    return Path(name)
+    with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
+        f.write(text)
+    return Path(f.name)
 
 
 def all_configs(scn) -> np.ndarray:

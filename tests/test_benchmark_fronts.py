@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
-from extras_helpers import require  # noqa: E402
+from capabilities import require  # noqa: E402
 import mobo_quality as mq  # noqa: E402
 
 from mjxskill.gp import hypervolume  # noqa: E402

@@ -20,7 +20,7 @@ import pytest  # noqa: E402
 
 from explore_runs import make_push_run, make_repeated_run  # noqa: E402
 from explore_server import get_json, request, serving  # noqa: E402
-from render_helpers import no_render  # noqa: E402
+from capabilities import no_render  # noqa: E402
 from mjxskill.errors import RunError  # noqa: E402
 from mjxskill.explore.solutions import Solutions  # noqa: E402
 from mjxskill.explore.data import runs_in  # noqa: E402

@@ -18,7 +18,7 @@ import pytest  # noqa: E402
 from explore_runs import make_push_run, make_repeated_run  # noqa: E402
 from explore_server import serving  # noqa: E402
 from mjxskill.explore.solutions import Solutions  # noqa: E402
-from render_helpers import no_render  # noqa: E402
+from capabilities import no_render  # noqa: E402
 from test_explore import NativeStandIn, select_export  # noqa: E402
 
 CHROMIUM = os.environ.get("MJXSKILL_CHROMIUM", "/usr/bin/chromium")

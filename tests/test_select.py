@@ -10,7 +10,7 @@ import pytest  # noqa: E402
 from mjxskill.errors import RunError  # noqa: E402
 from mjxskill.runs.run_dir import Evaluations  # noqa: E402
 from mjxskill.evaluation.selection import choose, export_document  # noqa: E402
-from render_helpers import no_render  # noqa: E402
+from capabilities import no_render  # noqa: E402
 from test_run_dir import make_config  # noqa: E402
 
 FRONT = Evaluations(

@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from extras_helpers import require  # noqa: E402
+from capabilities import require  # noqa: E402
 from cli_helpers import error_line, invoke  # noqa: E402
 from mjxskill.gp import hypervolume
 from mjxskill.runs.run_dir import EVALUATIONS

@@ -13,7 +13,7 @@ import yaml
 
 import optuna  # noqa: E402  (the test extra's)
 
-from extras_helpers import require  # noqa: E402
+from capabilities import require  # noqa: E402
 from cli_helpers import error_line, invoke, run_cli  # noqa: E402
 from mjxskill.runs.run_dir import EVALUATIONS, PARETO, Run  # noqa: E402
 from mjxskill.training import optuna_search  # noqa: E402
