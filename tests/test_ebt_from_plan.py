@@ -143,7 +143,8 @@ def test_push_tree_runs_its_phases_in_order(push):
 def test_peg_tree_keeps_searching_while_not_inserted(peg):
     # The approach is reached on the 2nd tick; the insertion's distance check never succeeds.
     never = 10**9
-    trace = _run(plan_task(peg).tree, lambda leaf: 2 if leaf.args["threshold"] == 0.05 else never, ticks=6)
+    approach = peg.skills["GoToLinear"].parameter("threshold").default
+    trace = _run(plan_task(peg).tree, lambda leaf: 2 if leaf.args["threshold"] == approach else never, ticks=6)
     assert all(status == Status.RUNNING for status, _ in trace)
     insertion = ["set_goal_from_object", "goal_pose", "change_stiffness", "apply_force", "overlay_spiral", "ee_pose_distance"]
     assert [[n.primitive for n in leaves] for _, leaves in trace] == [

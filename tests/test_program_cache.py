@@ -75,15 +75,15 @@ def test_the_key_names_everything_the_program_depends_on():
               _key(load_scenario("peg"))]  # the round peg: another MuJoCo model
     assert len({base, *others}) == 6
     # The scenario's content counts, the skill library it includes too: the same files with
-    # another approach threshold (a tree constant, not in the MuJoCo model) get another key.
-    old = 'threshold: {type: float, unit: m, default: 0.05, description: "done when the tool is this close'
+    # another insertion threshold (a tree constant, not in the MuJoCo model) get another key.
+    old = "threshold: {type: float, unit: m, default: 0.04}"
     library = library_text()
     assert library.count(old) == 1
     folder = Path(os.environ.get("TMPDIR", "/tmp")) / f"peg-key-{os.getpid()}"
     folder.mkdir(exist_ok=True)
     try:
         same = _key(load_scenario(str(write_library_copy(folder, "peg_square", library))))
-        changed = write_library_copy(folder, "peg_square", library.replace(old, old.replace("default: 0.05", "default: 0.06")))
+        changed = write_library_copy(folder, "peg_square", library.replace(old, old.replace("default: 0.04", "default: 0.045")))
         assert _key(load_scenario(str(changed))) != same
     finally:
         shutil.rmtree(folder, ignore_errors=True)

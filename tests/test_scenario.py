@@ -121,7 +121,7 @@ def test_the_square_peg_variant_is_the_same_task_with_square_geometry(peg):
 def test_a_scenario_makes_a_library_constant_learnable(tmp_path):
     # the pitch, a constant of the skill library, learnable with the scenario's bounds, and the
     # operators' sets then name it
-    text = shipped_text("peg").replace("goal: (skiros:at", "skill_parameters:\n  PegInsertion.pitch: {learnable: true, bounds: [0.0, 0.003]}\n\ngoal: (skiros:at")
+    text = shipped_text("peg").replace("skill_parameters:\n", "skill_parameters:\n  PegInsertion.pitch: {learnable: true, bounds: [0.0, 0.003]}\n")
     text = re.sub(r"(operator_\w: \{[^}]*)\}", r"\1, PegInsertion.pitch: 0.002}", text)
     path = tmp_path / "peg.yaml"
     path.write_text(text)
@@ -145,7 +145,7 @@ def test_a_scenario_makes_a_library_constant_learnable(tmp_path):
     ("PegInsertion.stiffness: {learnable: true}", "skill_parameters.PegInsertion.stiffness", "vector parameters cannot be learnable"),
 ])
 def test_a_bad_skill_parameter_entry_is_an_error_naming_it(tmp_path, entry, key, message):
-    text = shipped_text("peg").replace("goal: (skiros:at", f"skill_parameters:\n  {entry}\n\ngoal: (skiros:at")
+    text = shipped_text("peg").replace("skill_parameters:\n", f"skill_parameters:\n  {entry}\n")
     path = tmp_path / "peg.yaml"
     path.write_text(text)
     with pytest.raises(ScenarioError, match=rf"peg.yaml: {re.escape(key)} \(line \d+\): .*{message}") as err:
