@@ -179,7 +179,8 @@ def _watchdog(signals: int, requests: int) -> None:
     received, deadline = 0, None
     while True:
         waiting = not _state["acknowledged"] and deadline is not None
-        timeout = 0.05 if _state["redeliver"] else max(0.0, deadline - time.monotonic()) if waiting else None  # type: ignore[operator]  # waiting: a deadline is set
+        # waiting: a deadline is set
+        timeout = 0.05 if _state["redeliver"] else max(0.0, deadline - time.monotonic()) if waiting else None  # type: ignore[operator]
         readable, _, _ = select.select([signals, requests], [], [], timeout)
         if signals in readable:
             received += sum(1 for b in os.read(signals, 64) if b == signal.SIGINT)
@@ -193,7 +194,8 @@ def _watchdog(signals: int, requests: int) -> None:
         if _state["redeliver"] and not _state["acknowledged"]:
             _state["redelivered"] += 1  # before interrupt_main writes to the wakeup pipe
             _thread.interrupt_main(signal.SIGINT)
-        if waiting and not _state["acknowledged"] and time.monotonic() >= deadline:  # type: ignore[operator]  # waiting: a deadline is set
+        # waiting: a deadline is set
+        if waiting and not _state["acknowledged"] and time.monotonic() >= deadline:  # type: ignore[operator]
             _exit_now(f"the running step did not stop within {GRACE_SECONDS:g} s, so the process ends here")
 
 

@@ -171,7 +171,8 @@ def evaluate_candidates(rollout: Rollout, candidates: Candidates, per_config: in
               for f in CHUNK_FIELDS}
     if joined["success"] is None:
         joined["success"] = np.zeros((0, n_cfg))
-    return Evaluation(candidates, joined.pop("success"), known, names, **joined)  # type: ignore[arg-type]  # success: set above
+    # success: set above
+    return Evaluation(candidates, joined.pop("success"), known, names, **joined)  # type: ignore[arg-type]
 
 
 # The paper's significance levels (its Fig. 4): one more star for each level the p-value is under.

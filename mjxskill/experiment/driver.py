@@ -206,7 +206,8 @@ def run_repetition(exp: Experiment, i: int, rollout: Rollout, task: PlannedTask,
         exp.add_interval(seed, started, time.time())
 
 
-def run_experiment(exp: Experiment, rollout: Rollout | list[Rollout] | tuple[Rollout, ...], task: PlannedTask, *, progress_for, log: Callable[[str], None],
+def run_experiment(exp: Experiment, rollout: Rollout | list[Rollout] | tuple[Rollout, ...], task: PlannedTask, *,
+                   progress_for, log: Callable[[str], None],
                    evaluation_progress=None) -> None:
     """Runs (or continues) every repetition of ``exp`` to its end and writes the report after
     each. ``rollout``: one rollout (the repetitions one after another), or a list of them (as

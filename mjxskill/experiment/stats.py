@@ -342,7 +342,8 @@ def _picked(r: Repetition, config: RunConfig) -> dict:
         won, worlds = r.race.race_success(p.row)
         out.update(race_successes=won, race_worlds=worlds)
         if r.optimizer.pooled:
-            out["training_worlds"] = int(r.front.worlds[p.row])  # type: ignore[index]  # a pooled run's rows have worlds
+            # a pooled run's rows have worlds
+            out["training_worlds"] = int(r.front.worlds[p.row])  # type: ignore[index]
     if r.confirmation is not None and p.row is not None:
         c = r.confirmation
         out.update(confirmed_known=float(c.success[0, c.known].mean()),

@@ -61,7 +61,8 @@ def _options(optimizer_options: Mapping[str, object] | None) -> dict:
         try:
             options[key] = optimizer_option_value(key, value)
         except ValueError as err:
-            raise SettingError(f"optimizer_options: {err}", name="optimizer_options", value=dict(optimizer_options),  # type: ignore[arg-type]  # the loop ran: options were given
+            # the loop ran: options were given
+            raise SettingError(f"optimizer_options: {err}", name="optimizer_options", value=dict(optimizer_options),  # type: ignore[arg-type]
                                given=True, problem=str(err)) from None
     return options
 
