@@ -154,7 +154,8 @@ def enable_compilation_cache(path: Path | None = None) -> Path | None:
     if "jax" in sys.modules:  # jax read its environment already: tell it directly
         import jax  # lazy: only when jax is imported already (plan never imports it; the flags come first)
 
-        if jax.config.jax_compilation_cache_dir != os.environ["JAX_COMPILATION_CACHE_DIR"]:
+        # jax.config's stubs omit its flags
+        if jax.config.jax_compilation_cache_dir != os.environ["JAX_COMPILATION_CACHE_DIR"]:  # type: ignore[attr-defined]
             for name, (_, parse) in settings.items():
                 jax.config.update(name.lower(), parse(os.environ[name]))
             try:  # a compile before this point decided "no cache" once and for all: decide again

@@ -11,6 +11,8 @@ another stage.
 
 from __future__ import annotations
 
+from typing import Any
+
 
 class UserError(Exception):
     """Bad input from the user; the message says what and where."""
@@ -49,7 +51,7 @@ class ResumeConflict(RunError):
     refused, ``name`` being a run setting, ``"optimizer_options"`` or ``"prior"`` (given: the
     run the prior was to come from; the run's own: its stored prior)."""
 
-    def __init__(self, message: str, *, run, conflicts: tuple[tuple[str, object, object], ...]):
+    def __init__(self, message: str, *, run, conflicts: tuple[tuple[str, Any, Any], ...]):
         super().__init__(message)
         self.run, self.conflicts = run, tuple(conflicts)
 

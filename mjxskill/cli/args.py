@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import Callable
+from typing import Any, Callable
 
 from mjxskill.errors import CommandError
 from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_VALIDATION_CANDIDATES
@@ -107,7 +107,7 @@ def nonnegative_float(text: str) -> float:
     return value
 
 
-def setting_type(setting) -> Callable[[str], object]:
+def setting_type(setting) -> Callable[[str], Any]:
     """The argparse type of a run setting (``mjxskill.runs.settings.Setting``): the check
     config.yaml goes through too."""
 

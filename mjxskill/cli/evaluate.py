@@ -22,7 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
@@ -41,6 +41,11 @@ from mjxskill.runs.run_task import load_run_task
 from mjxskill.runs.settings import BY_NAME
 from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_RANDOM_SETS
 from mjxskill.scenario.schema import MAX_BATCH
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.protocol import Rollout
+    from mjxskill.scenario.schema import Scenario
+    from mjxskill.task import PlannedTask
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -72,7 +77,7 @@ def _settings(args, config, seed: int) -> dict:
                                args.batch_size or config.batch_size, engine, args.episode_seconds or config.episode_seconds)
 
 
-def _rollout(args, scn, task, settings: dict, config):
+def _rollout(args, scn: Scenario, task: PlannedTask, settings: dict, config) -> Rollout:
     why = resolve_engine(args.engine)[1] if args.engine else "the run's"
     print(f"engine: {settings['engine']} ({why})", flush=True)
     if args.cluster is not None:
@@ -81,7 +86,7 @@ def _rollout(args, scn, task, settings: dict, config):
                          workers=args.workers, cluster=args.ray_address)
 
 
-def _say(scn, settings: dict, run, config, task) -> None:
+def _say(scn: Scenario, settings: dict, run, config, task: PlannedTask) -> None:
     n = len(run.front(config)) + 1 + settings["random"] + len(task.manual_parameters)
     n_known, n_unseen = len(scn.robot.start_configs), len(scn.robot.eval_configs)
     print(f"{run.path}: evaluating {n} parameter sets x {n_known + n_unseen} start configurations x "
@@ -160,7 +165,7 @@ def _keep_earlier(run, settings: dict) -> None:
                            "it, so it is kept: evaluate with --replace to replace it, or evaluate a copy of the run")
 
 
-def _validate(args, sub, config, bound, rollout, settings: dict):
+def _validate(args, sub, config, bound, rollout: Rollout, settings: dict):
     """The validation of one sub-run's pick within ``bound`` ((N or None, source): ``force_bound``)
     (``mjxskill.evaluation.validation``; None: asked for none)."""
     per = 5 if args.validation_per_config is None else args.validation_per_config
@@ -177,7 +182,7 @@ def _validate(args, sub, config, bound, rollout, settings: dict):
     return validation
 
 
-def _race(sub, config, scn, bound, rollout):
+def _race(sub, config, scn: Scenario, bound, rollout: Rollout):
     """The race of one robust sub-run's front for its pick within ``bound`` ((N or None, source))
     (``mjxskill.evaluation.racing``; finished rounds reused)."""
     settings = dict(racing.run_race_settings(config, scn), max_force=None if bound[0] is None else float(bound[0]))

@@ -17,7 +17,7 @@ import argparse
 import dataclasses
 import time
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
@@ -35,8 +35,12 @@ from mjxskill.runs.run_task import load_run_task, scenario_and_task, scenario_di
 from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_RANDOM_SETS
 from mjxskill.task import describe, planning_texts
 
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.scenario.schema import Scenario
+    from mjxskill.task import PlannedTask
+
 # The evaluation's flags: name -> (default, what the protocol field is called)
-EVALUATION_DEFAULTS = {"per_config": 5, "random": 10, "max_force": None}  # max_force None: the scenario's
+EVALUATION_DEFAULTS: dict[str, Any] = {"per_config": 5, "random": 10, "max_force": None}  # max_force None: the scenario's
 CONFIRM_DEFAULT = 20  # worlds per start configuration of the pick's confirmation (standard error under a point)
 VALIDATION = ("validation_per_config", "validation_candidates")  # the pick's validation: may change on resume
 
@@ -102,7 +106,7 @@ def change_validation(args: argparse.Namespace, exp, protocol):
     return new
 
 
-def settle_bound(exp, scn):
+def settle_bound(exp, scn: Scenario):
     """The scenario's bound for an experiment made before bounds were stated
     (``Experiment.settle_bound``), said when it changes; returns the protocol in force."""
     protocol, said = exp.settle_bound(scn.pick)
@@ -181,7 +185,7 @@ def _main(args: argparse.Namespace) -> int:
         return _run(args, exp, config, scn, task, started)
 
 
-def _run(args: argparse.Namespace, exp, config, scn, task, started: float) -> int:
+def _run(args: argparse.Namespace, exp, config, scn: Scenario, task: PlannedTask, started: float) -> int:
     protocol = exp.protocol()
     print(describe(scn, task))
     print(f"experiment: {config.repeats} repetitions (seeds {config.seed}..{config.seed + config.repeats - 1}) of the "

@@ -41,11 +41,12 @@ import signal
 import sys
 import threading
 import time
+from typing import Any
 
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what shells report for a Ctrl-C
 GRACE_SECONDS = 5.0
 
-_state = {"prog": "mjxskill", "acknowledged": False, "redeliver": False, "redelivered": 0,
+_state: dict[str, Any] = {"prog": "mjxskill", "acknowledged": False, "redeliver": False, "redelivered": 0,
           "message": "interrupted", "previous_hook": None, "previous_excepthook": None, "request_fd": None,
           "pressed": False}
 
@@ -174,10 +175,12 @@ def _request_redelivery() -> None:
 def _watchdog(signals: int, requests: int) -> None:
     """Hears every SIGINT at once, whatever the main thread is doing, and raises swallowed ones
     again."""
+    deadline: float | None  # when the grace period of the first Ctrl-C ends
     received, deadline = 0, None
     while True:
         waiting = not _state["acknowledged"] and deadline is not None
-        timeout = 0.05 if _state["redeliver"] else max(0.0, deadline - time.monotonic()) if waiting else None
+        # waiting: a deadline is set
+        timeout = 0.05 if _state["redeliver"] else max(0.0, deadline - time.monotonic()) if waiting else None  # type: ignore[operator]
         readable, _, _ = select.select([signals, requests], [], [], timeout)
         if signals in readable:
             received += sum(1 for b in os.read(signals, 64) if b == signal.SIGINT)
@@ -191,7 +194,8 @@ def _watchdog(signals: int, requests: int) -> None:
         if _state["redeliver"] and not _state["acknowledged"]:
             _state["redelivered"] += 1  # before interrupt_main writes to the wakeup pipe
             _thread.interrupt_main(signal.SIGINT)
-        if waiting and not _state["acknowledged"] and time.monotonic() >= deadline:
+        # waiting: a deadline is set
+        if waiting and not _state["acknowledged"] and time.monotonic() >= deadline:  # type: ignore[operator]
             _exit_now(f"the running step did not stop within {GRACE_SECONDS:g} s, so the process ends here")
 
 

@@ -12,14 +12,17 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 from mjxskill import cli
 from mjxskill.cli.args import add_task_argument
 from mjxskill.errors import CommandError
 
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.task import PlannedTask
 
-def export(task, folder: Path) -> tuple[Path, Path]:
+
+def export(task: PlannedTask, folder: Path) -> tuple[Path, Path]:
     """Writes ``domain.pddl`` and ``problem.pddl`` of ``task`` into ``folder`` (created if needed)."""
     try:
         folder.mkdir(parents=True, exist_ok=True)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -19,7 +20,7 @@ class Progress:
 
     def __init__(self, total: int, quiet: bool, label: str = ""):
         self.total, self.quiet, self.label = total, quiet, label
-        self.bar = None
+        self.bar: Any = None  # the tqdm bar, once started
         self.t0 = time.monotonic()
 
     def _fields(self, ev: Evaluations, ref) -> dict:

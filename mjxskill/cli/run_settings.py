@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from mjxskill.cli import args as cli_args
 from mjxskill.errors import CommandError, ResumeConflict, SettingError
@@ -16,6 +17,10 @@ from mjxskill.runs.run_task import record_scenario_change, scenario_difference
 from mjxskill.runs.settings import BY_NAME, SETTINGS, optimizer_option_value
 from mjxskill.training.configure import new_run_config, resumed_run_config
 from mjxskill.training.priors import describe_prior
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.scenario.schema import Scenario
+    from mjxskill.task import PlannedTask
 
 
 def add_setting_arguments(parser: argparse.ArgumentParser, skip: tuple[str, ...] = (), defaults: dict | None = None) -> None:
@@ -54,7 +59,7 @@ def _settings(args: argparse.Namespace) -> dict:
     return {s.name: getattr(args, s.name) for s in SETTINGS}
 
 
-def new_config(args: argparse.Namespace, scn, task) -> RunConfig:
+def new_config(args: argparse.Namespace, scn: Scenario, task: PlannedTask) -> RunConfig:
     """The configuration of a new run of ``task``: the flags over the scenario's defaults."""
     try:
         return new_run_config(scn, task, args.task, _settings(args), dict(args.optimizer_option or []),
@@ -94,7 +99,7 @@ def add_accept_scenario_change(parser: argparse.ArgumentParser) -> None:
                              "(scenario.yaml); the change is recorded in config.yaml and the old copy kept")
 
 
-def accept_scenario(args: argparse.Namespace, run: Run, scn) -> bool:
+def accept_scenario(args: argparse.Namespace, run: Run, scn: Scenario) -> bool:
     """Refuses a resume whose scenario differs from the run's copy, naming the first difference,
     unless --accept-scenario-change; with it, records the change under ``args.resume``. Returns
     whether the run's files changed (its configuration must be read again)."""

@@ -130,7 +130,7 @@ def _main(args: argparse.Namespace) -> int:
         raise CommandError(f"--min-success is a rate between 0 and 1, got {args.min_success}")
     _, run, config, _ = fronts[0]
     union = concat_all([f for *_, f in fronts], len(config.parameter_names), len(config.objective_names), config.pooled)
-    seconds = []  # the validation's mean times to success, for the tie-break between equal validations
+    seconds: list[float] = []  # the validation's mean times to success, for the tie-break between equal validations
     validated, worlds = validated_union(((run, front) for _, run, _, front in fronts),
                                         damaged=lambda message: print(f"{build_parser().prog}: warning: {message}; "
                                                                       "listed without its validation", file=sys.stderr),
@@ -148,7 +148,8 @@ def _main(args: argparse.Namespace) -> int:
         print(front_table(config, union, validated))
     _say_race_winners(fronts, several)
     if validated is not None:
-        print(f"validated: the success rate of the picks' contenders in fresh worlds ({' or '.join(map(str, sorted(set(worlds[worlds > 0]))))} per solution; "
+        # validated_union gives both arrays or neither
+        print(f"validated: the success rate of the picks' contenders in fresh worlds ({' or '.join(map(str, sorted(set(worlds[worlds > 0]))))} per solution; "  # type: ignore[index, operator]
               "evaluation/validation.json); a pick by constraint takes a validated solution first")
     if args.pick is None and args.max_force is None and args.min_success is None:
         print("pick one with --pick K or a constraint (--max-force N, --min-success RATE)")

@@ -22,7 +22,7 @@ import contextlib
 import dataclasses
 import time
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
@@ -39,6 +39,10 @@ from mjxskill.training.priors import describe_prior
 from mjxskill.runs.atomic_write import refuse_links_out
 from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.run_task import load_run_task, scenario_and_task
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.scenario.schema import Scenario
+    from mjxskill.task import PlannedTask
 
 
 # what proposes the batches after the warm-up, when it is not the Bayesian optimizer
@@ -94,7 +98,7 @@ def _main(args: argparse.Namespace) -> int:
         return _train(args, run, config, scn, task)
 
 
-def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn, task) -> int:
+def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn: Scenario, task: PlannedTask) -> int:
     print(describe(scn, task))
     print(f"objectives (larger is better): {', '.join(config.objective_names)}")
     print(f"budget {config.budget} evaluations, batches of {config.batch_size}, {config.n_init} random warm-up, "

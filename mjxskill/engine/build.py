@@ -14,7 +14,17 @@ same key, ``run_worlds``, ``sample_worlds``, ``worlds_per_config``, ``trace``,
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from mjxskill.errors import ClusterError
+
+if TYPE_CHECKING:  # pragma: no cover
+    import mujoco
+    import numpy as np
+
+    from mjxskill.engine.protocol import Rollout
+    from mjxskill.scenario.schema import Scenario
+    from mjxskill.task import PlannedTask
 
 ENGINES = ("mjx", "native")
 CHOICES = (*ENGINES, "auto")
@@ -35,9 +45,10 @@ def resolve_engine(name: str, backend: str | None = None) -> tuple[str, str]:
     return "native", f"auto: the native engine on the {backend.upper()} (faster than MJX there, benchmarks/RESULTS.md)"
 
 
-def build_rollout(scn, task, engine: str, *, worlds: int | None = None, episode_seconds: float | None = None,
-                  start_configs=None, mj_model=None, workers: int | None = None, cluster: str | None = None,
-                  actors: int | None = None):
+def build_rollout(scn: Scenario, task: PlannedTask, engine: str, *, worlds: int | None = None,
+                  episode_seconds: float | None = None, start_configs: np.ndarray | None = None,
+                  mj_model: mujoco.MjModel | None = None, workers: int | None = None, cluster: str | None = None,
+                  actors: int | None = None) -> Rollout:
     """The rollout of ``task`` in ``scn`` on ``engine`` ("mjx" or "native"; resolve "auto" first).
     ``cluster``: a Ray cluster's address ("auto" or HOST:PORT) the native engine's episodes run
     on (``mjxskill.engine.native.ray_pool``), on ``actors`` actors (default one per CPU); MJX on many hosts is ``jax.distributed``'s

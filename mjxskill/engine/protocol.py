@@ -15,7 +15,7 @@ The same key gives the same worlds on both engines (one sampler, ``mjxskill.engi
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, Self, runtime_checkable
 
 import mujoco
 import numpy as np
@@ -23,6 +23,11 @@ import numpy as np
 from mjxskill.engine.common.types import EpisodeResult, EpisodeSetup, RolloutOutput, TickRecord
 from mjxskill.engine.common.worlds import Worlds
 from mjxskill.scenario.schema import Scenario
+
+if TYPE_CHECKING:  # pragma: no cover
+    import jax
+
+    from mjxskill.task import PlannedTask
 
 
 @runtime_checkable
@@ -34,11 +39,21 @@ class Rollout(Protocol):
     model simulated (``mjxskill.sim.model.build_model``).
     """
 
-    scenario: Scenario
-    task: object
-    worlds: int
-    setup: EpisodeSetup
-    mj_model: mujoco.MjModel
+    # Read-only properties here: an attribute, a frozen dataclass's field and a property all satisfy one.
+    @property
+    def scenario(self) -> Scenario: ...
+
+    @property
+    def task(self) -> PlannedTask: ...
+
+    @property
+    def worlds(self) -> int: ...
+
+    @property
+    def setup(self) -> EpisodeSetup: ...
+
+    @property
+    def mj_model(self) -> mujoco.MjModel: ...
 
     @property
     def parameter_names(self) -> tuple[str, ...]: ...
@@ -58,16 +73,16 @@ class Rollout(Protocol):
     @property
     def control_steps_per_episode(self) -> int: ...
 
-    def __call__(self, params, key) -> RolloutOutput:
+    def __call__(self, params, key: jax.Array) -> RolloutOutput:
         """(B, P) ``params``, W worlds each drawn from ``key``."""
 
     def run_worlds(self, params, worlds: Worlds) -> RolloutOutput:
         """(B, P) ``params`` in ``worlds`` of leading shape (B, W) or (W,) (the same for all)."""
 
-    def sample_worlds(self, key, batch: int) -> Worlds:
+    def sample_worlds(self, key: jax.Array, batch: int) -> Worlds:
         """The (batch, W) worlds a call with ``key`` uses."""
 
-    def worlds_per_config(self, key, per_config: int, configs: np.ndarray | None = None) -> Worlds:
+    def worlds_per_config(self, key: jax.Array, per_config: int, configs: np.ndarray | None = None) -> Worlds:
         """``per_config`` worlds from each start configuration (default: the training ones)."""
 
     def trace(self, params, world: Worlds) -> tuple[EpisodeResult, TickRecord]:
@@ -82,7 +97,20 @@ class RolloutBase:
     attributes of ``Rollout``), and ``with rollout:`` closing it; ``PARAMS_DTYPE`` is the
     engine's float type for parameters."""
 
-    PARAMS_DTYPE = np.float64
+    PARAMS_DTYPE: type[np.floating] = np.float64
+
+    if TYPE_CHECKING:  # pragma: no cover
+        # What the engines provide (attributes, fields or properties), as ``Rollout`` names them.
+        @property
+        def scenario(self) -> Scenario: ...
+
+        @property
+        def task(self) -> PlannedTask: ...
+
+        @property
+        def setup(self) -> EpisodeSetup: ...
+
+        def close(self) -> None: ...
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -109,7 +137,7 @@ class RolloutBase:
     def control_steps_per_episode(self) -> int:
         return self.setup.ticks * self.setup.steps_per_tick
 
-    def __enter__(self):
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc) -> None:

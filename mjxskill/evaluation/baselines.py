@@ -19,12 +19,16 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
-from typing import NamedTuple, Sequence
+from typing import TYPE_CHECKING, NamedTuple, Sequence
 
 import numpy as np
 
 from mjxskill.training.report import pyplot
 from mjxskill.runs.atomic_write import replace_whole, save_figure
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.protocol import Rollout
+    from mjxskill.task import PlannedTask
 
 
 GROUPS = ("pareto", "planner", "random", "manual")
@@ -77,7 +81,7 @@ class Evaluation(NamedTuple):
         return self.success[:, cols].mean(axis=1) if cols.any() else np.full(len(self.success), np.nan)
 
 
-def build_candidates(task, pareto_params: np.ndarray, n_random: int, seed: int) -> Candidates:
+def build_candidates(task: PlannedTask, pareto_params: np.ndarray, n_random: int, seed: int) -> Candidates:
     """Pareto rows, the planner-only defaults, ``n_random`` uniform sets, the manual sets of
     ``task`` (a ``mjxskill.task.PlannedTask``)."""
     lo, hi = np.asarray(task.bounds, np.float64)
@@ -101,7 +105,7 @@ CHUNK_FIELDS = ("success", *METRICS, "peak_commanded_force", "success_seconds", 
 EVALUATION_STREAM = 0xE7A1  # the evaluation worlds' PRNG stream (training 0x0ED0)
 
 
-def evaluation_worlds(rollout, per_config: int, seed: int, stream: int = EVALUATION_STREAM):
+def evaluation_worlds(rollout: Rollout, per_config: int, seed: int, stream: int = EVALUATION_STREAM):
     """The worlds every candidate runs in: ``per_config`` from each known, then each unseen
     start configuration (configuration-major, leading shape (C * per_config,)), drawn from
     ``seed``'s ``stream``. Returns (worlds, config_names (C,), known (C,) bool)."""
@@ -119,7 +123,7 @@ def evaluation_worlds(rollout, per_config: int, seed: int, stream: int = EVALUAT
     return worlds, names, known
 
 
-def evaluate_chunk(rollout, chunk: np.ndarray, worlds, n_cfg: int, per_config: int, batch_size: int) -> dict:
+def evaluate_chunk(rollout: Rollout, chunk: np.ndarray, worlds, n_cfg: int, per_config: int, batch_size: int) -> dict:
     """One call: ``chunk`` (b <= batch_size, P) padded to ``batch_size`` (one compiled shape),
     in ``worlds``. Returns CHUNK_FIELDS -> arrays of b rows (a field the rollout lacks: absent)."""
     padded = np.concatenate([chunk, np.repeat(chunk[:1], batch_size - len(chunk), axis=0)])
@@ -146,7 +150,7 @@ def evaluate_chunk(rollout, chunk: np.ndarray, worlds, n_cfg: int, per_config: i
     return result
 
 
-def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: int, batch_size: int,
+def evaluate_candidates(rollout: Rollout, candidates: Candidates, per_config: int, seed: int, batch_size: int,
                         done: dict | None = None, on_chunk=None, stream: int = EVALUATION_STREAM) -> Evaluation:
     """Runs every candidate in the same per-configuration worlds (known + unseen configs, from
     ``seed``'s ``stream``), in chunks of ``batch_size`` candidates. ``done``: chunk start -> a
@@ -167,7 +171,8 @@ def evaluate_candidates(rollout, candidates: Candidates, per_config: int, seed: 
               for f in CHUNK_FIELDS}
     if joined["success"] is None:
         joined["success"] = np.zeros((0, n_cfg))
-    return Evaluation(candidates, joined.pop("success"), known, names, **joined)
+    # success: set above
+    return Evaluation(candidates, joined.pop("success"), known, names, **joined)  # type: ignore[arg-type]
 
 
 # The paper's significance levels (its Fig. 4): one more star for each level the p-value is under.

@@ -13,11 +13,17 @@ reused while its settings and candidates are the same; a killed confirmation is 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from mjxskill.evaluation.baselines import Candidates, Evaluation, evaluate_candidates
 from mjxskill.evaluation.evaluate_run import FOLDER, evaluation_document, read_evaluation
 from mjxskill.runs.atomic_write import write_json
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.protocol import Rollout
+    from mjxskill.task import PlannedTask
 
 FILE = "confirmation.json"
 FORMAT = "mjxskill.confirmation/1"
@@ -31,7 +37,7 @@ def confirmation_settings(per_config: int, seed: int, engine: str, episode_secon
             "episode_seconds": float(episode_seconds)}
 
 
-def confirmation_candidates(task, picked: np.ndarray | None) -> Candidates:
+def confirmation_candidates(task: PlannedTask, picked: np.ndarray | None) -> Candidates:
     """The picked parameters (None: no pick) and the operator sets of ``task``."""
     manual = dict(task.manual_parameters)
     names = ([PICKED] if picked is not None else []) + list(manual)
@@ -41,7 +47,7 @@ def confirmation_candidates(task, picked: np.ndarray | None) -> Candidates:
     return Candidates(tuple(names), tuple(groups), np.reshape(np.array(rows, np.float64), (len(names), -1)))
 
 
-def confirm(run_path, rollout, candidates: Candidates, settings: dict, batch_size: int) -> tuple[Evaluation, bool]:
+def confirm(run_path, rollout: Rollout, candidates: Candidates, settings: dict, batch_size: int) -> tuple[Evaluation, bool]:
     """The confirmation of ``candidates`` (reused when current, else rolled out and written).
     Returns (it, whether it was reused)."""
     old = load_confirmation(run_path, candidates, settings)

@@ -29,6 +29,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -45,6 +46,10 @@ from mjxskill.evaluation.baselines import (
     write_csv,
 )
 from mjxskill.runs.run_dir import Run, RunConfig
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.protocol import Rollout
+    from mjxskill.task import PlannedTask
 
 FOLDER = "evaluation"
 RESULT = "evaluation.json"
@@ -96,7 +101,7 @@ def evaluation_current(run: Run, config: RunConfig, settings: dict) -> bool:
     return _same(own, settings) and np.array_equal(ev.candidates.params[pareto], front.params)
 
 
-def evaluate_run(run: Run, config: RunConfig, rollout, task, settings: dict, progress=None) -> tuple[Evaluation, dict, bool]:
+def evaluate_run(run: Run, config: RunConfig, rollout: Rollout, task: PlannedTask, settings: dict, progress=None) -> tuple[Evaluation, dict, bool]:
     """Evaluates ``run``'s Pareto front against the baselines with ``rollout`` (either engine)
     and writes ``RUN_DIR/evaluation/``; reuses a current evaluation. ``progress(done, total)``
     after each chunk. Returns (evaluation, tests of the box plot, whether it was reused)."""
@@ -201,7 +206,7 @@ def evaluation_document(ev: Evaluation) -> dict:
 
 def _read_chunks(path: Path, settings: dict, candidates: Candidates) -> dict:
     """Chunk start -> results of the usable lines of ``chunks.jsonl`` (see the module docstring)."""
-    done = {}
+    done: dict[int, dict] = {}
     if not path.is_file():
         return done
     for text in path.read_text().splitlines():

@@ -146,8 +146,9 @@ def pooled_samples(evals: list[Evaluation], picks: list[Pick]) -> dict[str, tupl
         known, unseen = [], []
         for ev, p in zip(evals, picks):
             rows = group_rows(ev, group, p)
-            known.append(ev.success[np.ix_(rows, ev.known)].ravel())
-            unseen.append(ev.success[np.ix_(rows, ~ev.known)].ravel())
+            # numpy's stubs take arrays for np.ix_; a list of row indices is one
+            known.append(ev.success[np.ix_(rows, ev.known)].ravel())  # type: ignore[arg-type]
+            unseen.append(ev.success[np.ix_(rows, ~ev.known)].ravel())  # type: ignore[arg-type]
         if any(len(k) or len(u) for k, u in zip(known, unseen)):
             out[group] = (np.concatenate(known), np.concatenate(unseen))
     return out
@@ -156,7 +157,7 @@ def pooled_samples(evals: list[Evaluation], picks: list[Pick]) -> dict[str, tupl
 def pooled_tests(samples: dict) -> dict[str, dict[str, float | None]]:
     """group -> {"known": p, "unseen": p}: two-sided Mann-Whitney U of the picked samples
     against each baseline's and the whole Pareto group's (None where a side has no samples)."""
-    tests = {}
+    tests: dict[str, dict[str, float | None]] = {}
     if "picked" not in samples:
         return tests
     for baseline in TESTED:
@@ -177,6 +178,7 @@ def group_means(samples: dict) -> dict[str, dict[str, float | None]]:
 def group_force_and_time(evals: list[Evaluation], picks: list[Pick], group: str) -> tuple[float, float]:
     """(mean commanded force N over the group's candidates, mean time to success s over their
     successful worlds) pooled over the runs; NaN where not measured."""
+    forces: list[float]
     forces, weighted, weights = [], 0.0, 0.0
     for ev, p in zip(evals, picks):
         rows = group_rows(ev, group, p)
@@ -195,7 +197,7 @@ def full_episode_seconds(evals: list[Evaluation], picks: list[Pick], group: str,
     world that did not succeed (or whose tree never returned SUCCESS) counted as the full episode
     ``episode_seconds``: a group that fails more is slower, where the mean over its successes
     alone would count only the fast ones. NaN: no run has per-world times."""
-    times = [np.where(np.isfinite(t), t, episode_seconds).ravel()
+    times: list[np.ndarray] | np.ndarray = [np.where(np.isfinite(t), t, episode_seconds).ravel()
              for ev, p in zip(evals, picks) if ev.world_seconds is not None
              for t in [ev.world_seconds[group_rows(ev, group, p)]]]
     times = np.concatenate(times) if times else np.zeros(0)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import json
 import math
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -32,6 +32,10 @@ from mjxskill.runs.atomic_write import write_json
 from mjxskill.runs.evaluations_csv import Evaluations
 from mjxskill.runs.training_protocol import race_episodes, success_upper_bound
 from mjxskill.scenario.fields import read_text
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.protocol import Rollout
+    from mjxskill.scenario.schema import Scenario
 
 FILE = "race.json"
 FORMAT = "mjxskill.race/1"
@@ -74,7 +78,7 @@ def race_settings(seed: int, engine: str, episode_seconds: float, episodes: int,
             "known_configs": int(n_configs)}
 
 
-def run_race_settings(config, scenario) -> dict:
+def run_race_settings(config, scenario: Scenario) -> dict:
     """The race settings of a run (its ``RunConfig``) of ``scenario``: its seed, engine and
     episodes, the race's share of its budget (``training_protocol.race_episodes``), the
     scenario's pick bound (``pick.max_force``; none: unbounded)."""
@@ -133,7 +137,7 @@ def schedule(n_contenders: int, n_configs: int, episodes: int) -> tuple[int, lis
     return 0, []
 
 
-def race(run_path, front: Evaluations, rollout, settings: dict, batch_size: int) -> Race:
+def race(run_path, front: Evaluations, rollout: Rollout, settings: dict, batch_size: int) -> Race:
     """Races the contenders of ``front`` (reusing the finished rounds of a current race.json,
     writing it after each round) and returns the race. ``batch_size``: the contenders of one
     call (the compiled shape on MJX)."""
@@ -170,7 +174,7 @@ def _survivors(rounds: list[Round], front: Evaluations, alive, done: int, plan) 
     return order[:keep]
 
 
-def _roll(rollout, params: np.ndarray, per_config: int, settings: dict, index: int, batch_size: int):
+def _roll(rollout: Rollout, params: np.ndarray, per_config: int, settings: dict, index: int, batch_size: int):
     """(worlds succeeded, summed seconds to success with failures as whole episodes) per row of
     ``params``, in round ``index``'s worlds."""
     import jax  # lazy: ~1 s; train's --help imports this module

@@ -13,11 +13,14 @@ from __future__ import annotations
 import os
 import shutil
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from mjxskill.errors import UserError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.protocol import Rollout
 
 GL_HELP = (
     "MuJoCo's offscreen renderer found no OpenGL backend (MUJOCO_GL={gl!r}: {err}). "
@@ -121,10 +124,10 @@ def write_mp4(images: np.ndarray, path: Path, fps: float) -> Path:
 
     h, w = images.shape[1:3]
     fig = plt.figure(figsize=(w / 100, h / 100), dpi=100)
-    ax = fig.add_axes([0, 0, 1, 1])
+    ax = fig.add_axes([0, 0, 1, 1])  # type: ignore[call-overload]  # matplotlib's stubs want a tuple; a list is one too
     ax.axis("off")
     shown = ax.imshow(images[0])
-    writer = FFMpegWriter(fps=fps)
+    writer = FFMpegWriter(fps=fps)  # type: ignore[arg-type]  # ffmpeg takes a fractional frame rate
     with writer.saving(fig, str(path), dpi=100):
         for image in images:
             shown.set_data(image)
@@ -133,7 +136,7 @@ def write_mp4(images: np.ndarray, path: Path, fps: float) -> Path:
     return path
 
 
-def render_world(rollout, config_index: int, seed: int = 0):
+def render_world(rollout: Rollout, config_index: int, seed: int = 0):
     """The one world an episode is rendered in: start configuration ``config_index`` (a known
     one) with the objects randomized from ``seed`` (unbatched fields)."""
     import jax  # lazy: ~1 s; only a render needs it, and select's --help and --no-render do not
@@ -142,7 +145,7 @@ def render_world(rollout, config_index: int, seed: int = 0):
     return jax.tree.map(lambda x: x[config_index], worlds)
 
 
-def render_episode(rollout, params: np.ndarray, world, out: Path, fmt: str = "png", width: int = 640, height: int = 480,
+def render_episode(rollout: Rollout, params: np.ndarray, world, out: Path, fmt: str = "png", width: int = 640, height: int = 480,
                    progress: FrameProgress | None = None) -> list[Path]:
     """Traces ``params`` (P,) in ``world`` (one unbatched world; either engine's rollout) and
     writes PNG frames into ``out/`` or ``out.mp4``, the world's randomized poses shown. Returns

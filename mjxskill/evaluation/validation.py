@@ -27,7 +27,7 @@ whole. With no solution within the bound there is nothing to validate and no fil
 from __future__ import annotations
 
 import json
-from typing import NamedTuple, Sequence
+from typing import TYPE_CHECKING, NamedTuple, Sequence
 
 import numpy as np
 
@@ -38,6 +38,9 @@ from mjxskill.evaluation.evaluate_run import FOLDER
 from mjxskill.evaluation.baselines import evaluate_chunk
 from mjxskill.evaluation.pooled import contenders
 from mjxskill.runs.run_dir import Evaluations, Run
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.protocol import Rollout
 
 FILE = "validation.json"
 FORMAT = "mjxskill.validation/1"
@@ -80,7 +83,7 @@ def in_contention(front: Evaluations, max_force: float | None, n: int) -> list[i
     return contenders(front, max_force, n)
 
 
-def validation_worlds(rollout, per_config: int, seed: int):
+def validation_worlds(rollout: Rollout, per_config: int, seed: int):
     """``per_config`` worlds from each known start configuration, from ``seed``'s own stream."""
     import jax  # lazy: ~1 s; evaluate's and select's --help and bad-input errors import this module
 
@@ -88,7 +91,7 @@ def validation_worlds(rollout, per_config: int, seed: int):
     return rollout.worlds_per_config(jax.random.fold_in(jax.random.PRNGKey(seed), STREAM), per_config, known), len(known)
 
 
-def validate_rows(rollout, params: np.ndarray, per_config: int, seed: int, pad_to: int = 0,
+def validate_rows(rollout: Rollout, params: np.ndarray, per_config: int, seed: int, pad_to: int = 0,
                   episode_seconds: float | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """(success rate, mean time to success with a failure counted as the ``episode_seconds``
     episode; None when the rollout reports no times) of each row of ``params`` over the
@@ -107,7 +110,7 @@ def validate_rows(rollout, params: np.ndarray, per_config: int, seed: int, pad_t
     return success, np.where(np.isfinite(times), times, episode_seconds).reshape(len(params), -1).mean(axis=1)
 
 
-def validate(run: Run, front: Evaluations, rows: Sequence[int], rollout, settings: dict) -> tuple[Validation, bool]:
+def validate(run: Run, front: Evaluations, rows: Sequence[int], rollout: Rollout, settings: dict) -> tuple[Validation, bool]:
     """Validates Pareto ``rows`` of ``run``'s ``front`` (reuses a current validation.json, else
     rolls them out and writes it). Returns (validation, whether nothing was rolled out)."""
     rows = tuple(int(r) for r in rows)
@@ -213,7 +216,7 @@ def row_validation(rates: np.ndarray | None, worlds: np.ndarray | None, i: int) 
     export records), or None when that row was not validated."""
     if rates is None or np.isnan(rates[i]):
         return None
-    return float(rates[i]), int(worlds[i])
+    return float(rates[i]), int(worlds[i])  # type: ignore[index]  # validated_union gives both arrays or neither
 
 
 def _read(run: Run):

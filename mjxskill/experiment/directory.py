@@ -87,6 +87,7 @@ class Protocol:
         if f["format"].is_null() or f["format"].scalar() != FORMAT:
             f["format"].fail(f"not an mjxskill experiment (format {FORMAT!r} expected)")
         max_force = None if f["max_force"].is_null() else f["max_force"].number(nonnegative=True)
+        source: str | None
         if "max_force_source" in f and not f["max_force_source"].is_null():
             source = f["max_force_source"].string()
         else:  # written before the source was kept: a number was --max-force's; null is unsettled

@@ -31,7 +31,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence, TypedDict
 
 from mjxskill.evaluation.evaluate_run import evaluate_run
 from mjxskill.evaluation.confirmation import confirm, confirmation_candidates
@@ -54,8 +54,17 @@ from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.layout import KINDS
 from mjxskill.evaluation.validation import in_contention, validate
 
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.protocol import Rollout
+    from mjxskill.task import PlannedTask
 
-def _timed(evaluate, clock: dict) -> Callable[[object, int], BatchResult]:
+
+class _Clock(TypedDict):
+    simulation: float  # seconds in the rollout
+    rows: int  # parameter sets evaluated
+
+
+def _timed(evaluate, clock: _Clock) -> Callable[[object, int], BatchResult]:
     """``evaluate`` that adds its seconds and rows to ``clock`` (the physics' share of a run)."""
 
     def wrapped(params, iteration):
@@ -68,12 +77,12 @@ def _timed(evaluate, clock: dict) -> Callable[[object, int], BatchResult]:
     return wrapped
 
 
-def train_timed(exp: Experiment, run: Run, rollout, progress_for) -> bool:
+def train_timed(exp: Experiment, run: Run, rollout: Rollout, progress_for) -> bool:
     """Trains (or finishes) one run, adding its wall and simulation time to the state; True
     when it evaluated something now."""
     config = run.config()
     key = time_key(KINDS[config.optimizer], config.seed)
-    clock = {"simulation": 0.0, "rows": 0}
+    clock: _Clock = {"simulation": 0.0, "rows": 0}
     t0 = time.monotonic()
     try:
         with run.lock():
@@ -87,7 +96,7 @@ def train_timed(exp: Experiment, run: Run, rollout, progress_for) -> bool:
     return bool(clock["rows"])
 
 
-def evaluate_timed(exp: Experiment, run: Run, rollout, task, settings: dict, progress=None) -> bool:
+def evaluate_timed(exp: Experiment, run: Run, rollout: Rollout, task: PlannedTask, settings: dict, progress=None) -> bool:
     """Evaluates one optimizer run (reused when current); True when it ran now."""
     config = run.config()
     t0 = time.monotonic()
@@ -110,7 +119,7 @@ def _timed_step(exp: Experiment, run: Run, field: str, step) -> bool:
     return not reused
 
 
-def validate_timed(exp: Experiment, run: Run, rollout, config: RunConfig, protocol: Protocol, seed: int) -> bool | None:
+def validate_timed(exp: Experiment, run: Run, rollout: Rollout, config: RunConfig, protocol: Protocol, seed: int) -> bool | None:
     """Validates the pick of one evaluated optimizer run (``mjxskill.evaluation.validation``; reused
     when current). True when it ran now, False when reused, None when the protocol has none."""
     settings = repetition_validation(config, protocol, seed)
@@ -120,7 +129,7 @@ def validate_timed(exp: Experiment, run: Run, rollout, config: RunConfig, protoc
         run, front, in_contention(front, protocol.max_force, protocol.validation_candidates), rollout, settings)[1])
 
 
-def race_timed(exp: Experiment, run: Run, rollout, config: RunConfig, protocol: Protocol, seed: int) -> bool | None:
+def race_timed(exp: Experiment, run: Run, rollout: Rollout, config: RunConfig, protocol: Protocol, seed: int) -> bool | None:
     """Races the front of one optimizer run of the robust protocol for its pick
     (``mjxskill.evaluation.racing``; finished rounds reused). True when a round ran now, False
     when all were done, None when the run picks by validation instead."""
@@ -137,7 +146,7 @@ def race_timed(exp: Experiment, run: Run, rollout, config: RunConfig, protocol: 
     return _timed_step(exp, run, "race_seconds", step)
 
 
-def confirm_timed(exp: Experiment, run: Run, rollout, task, config: RunConfig, protocol: Protocol, seed: int,
+def confirm_timed(exp: Experiment, run: Run, rollout: Rollout, task: PlannedTask, config: RunConfig, protocol: Protocol, seed: int,
                   pick_row: int | None) -> bool | None:
     """Rolls the pick (``pick_row`` of the front; None: no pick) and the operators' sets out in
     the protocol's confirmation worlds (``mjxskill.evaluation.confirmation``; reused when
@@ -163,7 +172,7 @@ def pending_repetitions(exp: Experiment) -> int:
     return len(exp.runs(config)) - len(finished_repetitions(exp, config, exp.protocol()))
 
 
-def run_repetition(exp: Experiment, i: int, rollout, task, *, progress_for, log: Callable[[str], None],
+def run_repetition(exp: Experiment, i: int, rollout: Rollout, task: PlannedTask, *, progress_for, log: Callable[[str], None],
                    evaluation_progress=None) -> None:
     """Runs (or finishes) repetition ``i``: its optimizer run, its random search, the optimizer
     run's evaluation and the validation of its pick, recording the wall-clock interval it
@@ -197,7 +206,8 @@ def run_repetition(exp: Experiment, i: int, rollout, task, *, progress_for, log:
         exp.add_interval(seed, started, time.time())
 
 
-def run_experiment(exp: Experiment, rollout, task, *, progress_for, log: Callable[[str], None],
+def run_experiment(exp: Experiment, rollout: Rollout | list[Rollout] | tuple[Rollout, ...], task: PlannedTask, *,
+                   progress_for, log: Callable[[str], None],
                    evaluation_progress=None) -> None:
     """Runs (or continues) every repetition of ``exp`` to its end and writes the report after
     each. ``rollout``: one rollout (the repetitions one after another), or a list of them (as
@@ -225,7 +235,7 @@ class _Turns:
     this process one thread at a time (the module docstring). The calls the training loop and
     the evaluations make: ``__call__``, ``run_worlds``; the rest is the rollout's own."""
 
-    def __init__(self, rollout, lock: threading.Lock):
+    def __init__(self, rollout: Rollout, lock: threading.Lock):
         self._rollout, self._lock = rollout, lock
 
     def __getattr__(self, name):
@@ -243,7 +253,7 @@ class _Turns:
             self._lock.acquire()
 
 
-def _concurrently(exp: Experiment, rollouts: Sequence, count: int, task, steps: dict) -> None:
+def _concurrently(exp: Experiment, rollouts: Sequence[Rollout], count: int, task: PlannedTask, steps: dict) -> None:
     """Repetitions 0..count-1 on one thread per rollout, taking turns but for their episodes;
     the report after each (here, in turn too)."""
     turn = threading.Lock()
@@ -253,7 +263,7 @@ def _concurrently(exp: Experiment, rollouts: Sequence, count: int, task, steps: 
     finished: queue.SimpleQueue = queue.SimpleQueue()  # (i, None or the exception that stopped it)
     stop = threading.Event()
 
-    def work(rollout) -> None:
+    def work(rollout: Rollout) -> None:
         while not stop.is_set():
             try:
                 i = todo.get_nowait()

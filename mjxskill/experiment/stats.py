@@ -13,7 +13,7 @@ hypervolume is 1.1 ** O. Front sizes: the sample standard deviation (ddof 1) ove
 from __future__ import annotations
 
 from dataclasses import asdict
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -197,7 +197,7 @@ def summarize(exp: Experiment) -> dict:
     front = front_sizes(reps)
     state = exp.state()
     n_known = int(reps[0].evaluation.known.sum()) if reps else None
-    robust = {}  # only where there is something to say: a paper-protocol report stays as it was
+    robust: dict[str, object] = {}  # only where there is something to say: a paper-protocol report stays as it was
     if any(r.race is not None for r in reps):
         robust["race"] = race_summary(reps)
     if config.protocol == "robust":
@@ -316,10 +316,11 @@ def training_pick(reps: list[Repetition]) -> dict:
     the success rates of those picks pooled (the validation's effect, measured)."""
     if not reps or all(r.validation is None for r in reps):
         return {"validated": False}
+    # repetitions() gives every repetition its training pick
     evals, picks = [r.evaluation for r in reps], [r.training_pick for r in reps]
-    means = group_means(pooled_samples(evals, picks)).get("picked", {"known": None, "unseen": None})
-    changed = [{"seed": r.seed, "validated_row": r.pick.row, "training_row": r.training_pick.row}
-               for r in reps if r.pick.row != r.training_pick.row]
+    means = group_means(pooled_samples(evals, picks)).get("picked", {"known": None, "unseen": None})  # type: ignore[arg-type]
+    changed = [{"seed": r.seed, "validated_row": r.pick.row, "training_row": r.training_pick.row}  # type: ignore[union-attr]
+               for r in reps if r.pick.row != r.training_pick.row]  # type: ignore[union-attr]
     return {"validated": True, "changed": changed, "groups": means}
 
 
@@ -329,7 +330,7 @@ def _finite(v) -> float | None:
 
 def _picked(r: Repetition, config: RunConfig) -> dict:
     p = r.pick
-    out = {"seed": r.seed, "pareto_row": p.row, "bound_N": p.bound, "bound_source": p.source}
+    out: dict[str, Any] = {"seed": r.seed, "pareto_row": p.row, "bound_N": p.bound, "bound_source": p.source}
     if p.row is not None:
         ev = r.evaluation
         row = ev.candidates.names.index(f"pareto-{p.row}")
@@ -341,7 +342,8 @@ def _picked(r: Repetition, config: RunConfig) -> dict:
         won, worlds = r.race.race_success(p.row)
         out.update(race_successes=won, race_worlds=worlds)
         if r.optimizer.pooled:
-            out["training_worlds"] = int(r.front.worlds[p.row])
+            # a pooled run's rows have worlds
+            out["training_worlds"] = int(r.front.worlds[p.row])  # type: ignore[index]
     if r.confirmation is not None and p.row is not None:
         c = r.confirmation
         out.update(confirmed_known=float(c.success[0, c.known].mean()),

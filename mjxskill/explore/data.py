@@ -167,7 +167,7 @@ def choose_document(entries: list[RunEntry], max_force: float | None, min_succes
         union = union.concat(f)
     if len(union) == 0:
         raise RunError("the Pareto front is empty (no evaluations yet)")
-    seconds = []
+    seconds: list[float] = []
     rates, _ = validated_union(((e.run, f) for e, f in zip(entries, fronts)), seconds=seconds)  # as select reads them
     j = choose(union, max_force, min_success, rates, seconds or None)
     run = int(owners[j])

@@ -31,7 +31,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -44,16 +44,20 @@ from mjxskill.runs.run_task import load_run_task
 from mjxskill.scenario import load_scenario
 from mjxskill.explore.data import RunEntry, number, numbers
 
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.protocol import Rollout
+
 FORMAT = "mjxskill.explore/1"
 CACHE = "explore"
 MAX_WAITING_JOBS = 4  # a rollout with rendering takes a minute or more on a CPU
 ACTIVE = ("queued", "running")
 
-# (run entry) -> a rollout with scenario, worlds_per_config, run_worlds, trace, mj_model and close
-RolloutFactory = Callable[[RunEntry], object]
+# (run entry) -> its Rollout, of which the explorer uses scenario, worlds_per_config, run_worlds,
+# trace, mj_model and close
+RolloutFactory = Callable[[RunEntry], "Rollout"]
 
 
-def build_for(entry: RunEntry):
+def build_for(entry: RunEntry) -> Rollout:
     """The run's rollout on the run's own engine (one world per parameter set; worlds are passed
     explicitly)."""
     scn, task = load_run_task(entry.run, entry.config)
@@ -104,8 +108,8 @@ class Solutions:
         self.per_config, self.seed, self.size = per_config, seed, size
         self._lock = threading.Lock()
         self._jobs: dict[tuple, Job] = {}
-        self._queue: queue.Queue[Job] = queue.Queue()
-        self._rollouts: dict[tuple, object] = {}
+        self._queue: queue.Queue[Job | None] = queue.Queue()  # None: the worker ends
+        self._rollouts: dict[tuple, Rollout] = {}
         self._worker: threading.Thread | None = None
         self._closed = False
         self._known_configs: dict[str, int] = {}  # scenario -> its number of known start configurations
@@ -220,7 +224,7 @@ class Solutions:
                 job.state, job.message = state, message
                 job.fraction = 1.0 if state == "done" else job.fraction
 
-    def _rollout(self, job: Job):
+    def _rollout(self, job: Job) -> Rollout:
         config = job.entry.config
         key = (config.scenario, config.goal, config.episode_seconds, config.engine)
         with self._lock:
@@ -244,7 +248,7 @@ class Solutions:
             return self._render(job, rollout, folder)
         return ""
 
-    def _worlds(self, job: Job, rollout) -> dict:
+    def _worlds(self, job: Job, rollout: Rollout) -> dict:
         worlds, names, known = evaluation_worlds(rollout, self.per_config, self.seed)
         self._set(job, f"rolling out {len(names) * self.per_config} worlds ({self.per_config} per start configuration; "
                        "the first call compiles: a minute or two on a CPU)", 0.1)
@@ -263,7 +267,7 @@ class Solutions:
                 "peak_contact_force": number(np.nanmean(force)) if np.isfinite(force).any() else None,
                 "configs": configs}
 
-    def _render(self, job: Job, rollout, folder: Path) -> str:
+    def _render(self, job: Job, rollout: Rollout, folder: Path) -> str:
         n_known = len(rollout.scenario.robot.start_configs)
         if not 0 <= job.config_index < n_known:
             raise RunError(f"start configuration {job.config_index}: the task has known ones 0-{n_known - 1}")

@@ -58,7 +58,7 @@ def refuse_links_out(root: Path) -> None:
                                "to, or remove it")
 
 
-def replace_whole(path: Path, write: Callable[[Path], None]) -> None:
+def replace_whole(path: Path, write: Callable[[Path], object]) -> None:
     """``write(tmp)`` fills ``NAME.tmp`` beside ``path``, which then replaces ``path``; RunError
     when ``path`` is a symbolic link. When writing fails (a full disk) ``path`` is unchanged and
     ``NAME.tmp`` removed."""

@@ -78,7 +78,7 @@ class Evaluations(NamedTuple):
         """Whether the rows carry the pooling fields (a run of the robust protocol)."""
         return self.worlds is not None
 
-    def current(self, upto: int | None = None) -> np.ndarray:
+    def current(self, upto: int | np.integer | None = None) -> np.ndarray:
         """(n,) bool: the rows no later row among the first ``upto`` (None: all) replaces,
         one per parameter set (every row when the rows do not pool)."""
         mask = np.ones(len(self), bool)

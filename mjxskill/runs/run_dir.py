@@ -203,7 +203,7 @@ def remove_stale_staging(parent: Path) -> list[Path]:
     """Removes the staging folders in ``parent`` of processes of this host that no longer run
     (killed while creating a run or an experiment); returns them. A folder of another host, of a
     running process or that is a link is left alone."""
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(os.scandir(parent))
     except OSError:

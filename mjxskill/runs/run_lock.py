@@ -35,6 +35,8 @@ class RunLock:
     """A held lock; ``release()`` (or leaving the ``with`` block) lets the next writer in."""
 
     def __init__(self, path: Path, fd: int, dir_fd: int):
+        self._fd: int | None
+        self._dir_fd: int | None  # None once released
         self.path, self._fd, self._dir_fd = path, fd, dir_fd
 
     def release(self) -> None:

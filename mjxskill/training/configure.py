@@ -14,7 +14,7 @@ the message its own way (the command line names the flag the value came from).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 from mjxskill.engine.build import resolve_engine
 from mjxskill.errors import PlanError, ResumeConflict, RunError, SettingError
@@ -24,6 +24,10 @@ from mjxskill.runs.settings import BY_NAME, SETTINGS, cross_problems, optimizer_
 from mjxskill.runs.training_protocol import objective_names
 from mjxskill.training.extras import missing_extra
 from mjxskill.training.priors import describe_prior, prior_from_run, run_prior
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.scenario.schema import Scenario
+    from mjxskill.task import PlannedTask
 
 
 def stored_scenario(scenario: str) -> str:
@@ -57,12 +61,13 @@ def _options(optimizer_options: Mapping[str, object] | None) -> dict:
         try:
             options[key] = optimizer_option_value(key, value)
         except ValueError as err:
-            raise SettingError(f"optimizer_options: {err}", name="optimizer_options", value=dict(optimizer_options),
+            # the loop ran: options were given
+            raise SettingError(f"optimizer_options: {err}", name="optimizer_options", value=dict(optimizer_options),  # type: ignore[arg-type]
                                given=True, problem=str(err)) from None
     return options
 
 
-def new_run_config(scn, task, scenario: str, settings: Mapping[str, object] | None = None,
+def new_run_config(scn: Scenario, task: PlannedTask, scenario: str, settings: Mapping[str, object] | None = None,
                    optimizer_options: Mapping[str, object] | None = None,
                    prior_from: Path | str | None = None) -> RunConfig:
     """The configuration of a new run of ``task`` (planned in ``scn``, loaded from ``scenario``,
@@ -75,6 +80,7 @@ def new_run_config(scn, task, scenario: str, settings: Mapping[str, object] | No
     values = {s.name: given[s.name] if s.name in given else s.default_for(scn) for s in SETTINGS}
     values["goal"] = task.goal
     values["engine"] = resolve_engine(values["engine"])[0]
+    problem: str | None
     for name, problem in cross_problems(values):
         origin = f"{name} {values[name]}" + ("" if name in given else " (the scenario's default)")
         raise SettingError(f"{origin} {problem}", name=name, value=values[name], given=name in given, problem=problem)

@@ -9,7 +9,7 @@ same budget and ends with the results of an uninterrupted one.
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple, Protocol
+from typing import TYPE_CHECKING, Callable, NamedTuple, Protocol
 
 import numpy as np
 
@@ -22,6 +22,9 @@ from mjxskill.runs.run_dir import EVALUATIONS, OPTIMIZER_STATE, Evaluations, Run
 from mjxskill.runs.settings import BOTORCH_OPTIMIZERS, OPTUNA_OPTIMIZERS
 from mjxskill.runs.training_protocol import REPLICATIONS_PER_BATCH
 from mjxskill.training import botorch_search, optuna_search, replication
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.protocol import Rollout
 
 
 class BatchResult(NamedTuple):
@@ -64,7 +67,7 @@ def rollout_key(seed: int, iteration: int):
     return jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), 0x0ED0), iteration)
 
 
-def rollout_evaluator(rollout, batch_size: int, seed: int) -> BatchEvaluator:
+def rollout_evaluator(rollout: Rollout, batch_size: int, seed: int) -> BatchEvaluator:
     """Evaluates batches with a compiled rollout, always at ``batch_size`` parameter sets (short
     batches are padded with copies of their first row) so that a run compiles once."""
 
@@ -82,7 +85,7 @@ def rollout_evaluator(rollout, batch_size: int, seed: int) -> BatchEvaluator:
     return evaluate
 
 
-def world_objectives(rollout, out) -> np.ndarray:
+def world_objectives(rollout: Rollout, out) -> np.ndarray:
     """(B, W, O) each world's objectives (the sums of their weighted rewards; ``out.objectives``
     is their mean over the W worlds), from the per-world reward totals of ``out``."""
     names = tuple(rollout.objective_names)

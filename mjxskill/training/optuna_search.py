@@ -67,9 +67,11 @@ def ask(config: RunConfig, params: np.ndarray, objectives: np.ndarray, size: int
         generations = _generations(config, objectives) if config.optimizer == "optuna-nsga2" else None
         key = sampler._get_generation_key() if generations is not None else None
         study.add_trials([_trial(optuna, dict(zip(names, np.clip(x, lo, hi).tolist())), y, distributions,
-                                 {key: generations[i]} if key else {})
+                                 # key: NSGA-II's, with generations
+                                 {key: generations[i]} if key else {})  # type: ignore[index]
                           for i, (x, y) in enumerate(zip(params, objectives))])
-        trials = [study.ask(distributions) for _ in range(size)]
+        # optuna annotates dict, not Mapping
+        trials = [study.ask(distributions) for _ in range(size)]  # type: ignore[arg-type]
     return np.array([[t.params[name] for name in names] for t in trials], np.float64).reshape(size, len(names))
 
 

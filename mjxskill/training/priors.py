@@ -18,11 +18,16 @@ parameter-vector order and where it came from. Two sources:
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mjxskill.errors import RunError
 from mjxskill.runs.run_dir import Run
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.scenario.schema import Scenario
+    from mjxskill.task import PlannedTask
 
 FLAT_STD_FACTOR = 10.0
 PRIOR_FROM_STD_FRACTION = 0.1
@@ -31,7 +36,7 @@ PRIOR_FROM_STD_FRACTION = 0.1
 MAX_COMPONENTS = 32
 
 
-def scenario_prior(scn, task) -> dict | None:
+def scenario_prior(scn: Scenario, task: PlannedTask) -> dict | None:
     """The prior the scenario's ``parameter_priors`` give the plan's learnable parameters (None:
     the scenario gives none of them a prior)."""
     given = {name: scn.parameter_priors[name] for name in task.parameter_names if name in scn.parameter_priors}
@@ -73,7 +78,7 @@ def prior_from_run(path: Path | str, parameter_names, bounds) -> dict:
             "mean": mean.tolist(), "std": std.tolist(), "weights": [1.0 / k] * k}
 
 
-def run_prior(scn, task, prior_from: Path | str | None = None) -> dict | None:
+def run_prior(scn: Scenario, task: PlannedTask, prior_from: Path | str | None = None) -> dict | None:
     """The prior of a new run of ``task``: the one of the run in ``prior_from`` (over the
     scenario's, and saying so) or, without it, the scenario's (None: none)."""
     own = scenario_prior(scn, task)

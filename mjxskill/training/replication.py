@@ -58,11 +58,13 @@ def check_pointers(ev: Evaluations, where: str) -> None:
     if not ev.pooled:
         return
     seen = set()
-    for i, r in enumerate(ev.replaces):
+    # a pooled run's rows have worlds, replaces and spread
+    for i, r in enumerate(ev.replaces):  # type: ignore[arg-type]
         r = int(r)
         if r < 0:
             continue
-        if r >= i or r in seen or not np.array_equal(ev.params[r], ev.params[i]) or ev.worlds[r] >= ev.worlds[i]:
+        # a pooled run's rows have worlds, replaces and spread
+        if r >= i or r in seen or not np.array_equal(ev.params[r], ev.params[i]) or ev.worlds[r] >= ev.worlds[i]:  # type: ignore[index]
             raise RunError(f"{where}: row {i} (batch {int(ev.iteration[i])}) says it replaces row {r}, which is not an "
                            f"earlier row of its parameter set with fewer worlds; the file was edited or damaged")
         seen.add(r)
@@ -77,7 +79,8 @@ def new_rows(batch: int, params: np.ndarray, result: PooledResult) -> Evaluation
     return Evaluations(np.full(n, batch), np.asarray(params, np.float64),
                        np.concatenate([result.objectives, bound[:, None]], axis=1), rate,
                        *(np.asarray(f, np.float64) for f in result.forces),
-                       worlds=np.full(n, result.worlds), replaces=np.full(n, -1), spread=spread)
+                       # forces: the three force columns
+                       worlds=np.full(n, result.worlds), replaces=np.full(n, -1), spread=spread)  # type: ignore[misc]
 
 
 def pooled_rows(batch: int, earlier: Evaluations, rows: np.ndarray, result: PooledResult) -> Evaluations:
@@ -85,7 +88,8 @@ def pooled_rows(batch: int, earlier: Evaluations, rows: np.ndarray, result: Pool
     new worlds of ``result`` (the same parameter sets, in that order)."""
     old = earlier.take(rows)
     k = old.objectives.shape[1] - 1  # the scenario's objectives; the last is the success bound
-    n, means, spreads = pooled_moments(old.worlds[:, None], old.objectives[:, :k], old.spread[:, :k],
+    # a pooled run's rows have worlds, replaces and spread
+    n, means, spreads = pooled_moments(old.worlds[:, None], old.objectives[:, :k], old.spread[:, :k],  # type: ignore[index]
                                        result.worlds, result.objectives, result.spread)
     worlds = n[:, 0]
     rate = (old.success_rate * old.worlds + result.success_rate * result.worlds) / worlds
@@ -94,7 +98,8 @@ def pooled_rows(batch: int, earlier: Evaluations, rows: np.ndarray, result: Pool
     bound = success_lower_bound(rate * worlds, worlds)
     spread = np.concatenate([spreads, _success_spread(rate, worlds)[:, None]], axis=1)
     return Evaluations(np.full(len(rows), batch), old.params, np.concatenate([means, bound[:, None]], axis=1), rate,
-                       *forces, worlds=worlds.astype(int), replaces=np.asarray(rows, int), spread=spread)
+                       # forces: the three force columns
+                       *forces, worlds=worlds.astype(int), replaces=np.asarray(rows, int), spread=spread)  # type: ignore[misc]
 
 
 def _success_spread(rate: np.ndarray, worlds: np.ndarray) -> np.ndarray:
@@ -110,7 +115,8 @@ def model_view(ev: Evaluations) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     docstring), each value's noise its shrunk spread squared over its worlds."""
     current = ev.take(ev.current())
     values = np.concatenate([current.objectives[:, :-1], current.success_rate[:, None]], axis=1)
-    return current.params, values, noise_variances(current.spread, current.worlds, values)
+    # a pooled run's rows have worlds, replaces and spread
+    return current.params, values, noise_variances(current.spread, current.worlds, values)  # type: ignore[arg-type]
 
 
 def noise_variances(spread: np.ndarray, worlds: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -133,7 +139,8 @@ def choose(ev: Evaluations, count: int, worlds: int, bounds, key) -> np.ndarray:
     objective, then the earlier row. Fewer (maybe none) when fewer are eligible."""
     current = np.flatnonzero(ev.current())
     rows = ev.take(current)
-    eligible = (rows.worlds < MAX_WORLDS_FACTOR * worlds) & np.all(np.isfinite(rows.objectives), axis=1)
+    # a pooled run's rows have worlds, replaces and spread
+    eligible = (rows.worlds < MAX_WORLDS_FACTOR * worlds) & np.all(np.isfinite(rows.objectives), axis=1)  # type: ignore[operator]
     if count < 1 or not eligible.any():
         return np.zeros(0, int)
     _, values, noise = model_view(ev)
@@ -168,7 +175,7 @@ def _posterior_mean_at_rows(x, y, mask, obs, key):
     return _compiled_posterior_mean()(x, y, mask, obs, key)
 
 
-_COMPILED = {}
+_COMPILED: dict = {}
 
 
 def _compiled_posterior_mean():

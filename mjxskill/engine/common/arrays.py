@@ -18,9 +18,9 @@ import jax.numpy as jnp
 import numpy as np
 
 try:  # the ufunc ``np.clip`` calls (numpy 2; numpy 1 names its package ``core``)
-    from numpy._core.umath import clip as _CLIP
+    from numpy._core.umath import clip as _CLIP  # type: ignore[attr-defined]  # numpy's stubs omit the ufunc
 except ImportError:  # pragma: no cover
-    from numpy.core.umath import clip as _CLIP
+    from numpy.core.umath import clip as _CLIP  # type: ignore[no-redef]  # the same ufunc under numpy 1
 
 
 def _per_value(scalar, ufunc):

@@ -41,8 +41,8 @@ class ObjectSlot:
     body_id: int
     qpos_adr: int
     mocap_id: int
-    position: tuple[float, float, float]
-    quat: tuple[float, float, float, float]
+    position: tuple[float, ...]  # (3,)
+    quat: tuple[float, ...]  # (4,)
 
 
 @dataclass(frozen=True)

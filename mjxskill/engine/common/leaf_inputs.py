@@ -15,7 +15,7 @@ class LeafInput(NamedTuple):
     """index: the input's position in the parameter vector (None: a fixed argument); value: the
     fixed argument's value (unused when ``index`` is set)."""
 
-    index: int | None
+    index: int | None  # type: ignore[assignment]  # a field named like tuple.index, which it shadows
     value: float
 
 
@@ -40,7 +40,7 @@ def force_inputs(leaf, parameter_index: dict) -> tuple[np.ndarray, list[tuple[in
     return base, overrides
 
 
-def spiral_inputs(leaf, parameter_index: dict) -> tuple[LeafInput, LeafInput, LeafInput]:
+def spiral_inputs(leaf, parameter_index: dict) -> tuple[LeafInput, ...]:
     """``overlay_spiral``'s radius cap (m), path velocity (m/s) and pitch (m per turn)."""
     return tuple(leaf_input(leaf, name, parameter_index) for name in ("radius", "path_velocity", "pitch"))
 

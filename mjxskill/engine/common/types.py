@@ -10,7 +10,7 @@ here imports MJX.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -20,6 +20,10 @@ from mjxskill.engine.common.bindings import SceneBindings, bind_scene, reference
 from mjxskill.sim.controller_config import ControllerConfig
 from mjxskill.sim.model import held_item
 from mjxskill.sim.shapes import hole_half_widths, hole_radius
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.scenario.schema import Scenario
+    from mjxskill.task import PlannedTask
 
 # Divergence containment (both engines): a world whose joints spin faster than MAX_QVEL or whose
 # free objects sink below MIN_OBJECT_Z is marked diverged and frozen at its last good state.
@@ -41,10 +45,10 @@ class SuccessTest(NamedTuple):
     orientation_tolerance: float
     depth: float
     hole_top: tuple[float, float, float]
-    hole_half_width: tuple[float, float]
+    hole_half_width: tuple[float, ...]
     hole_round: bool
-    region_center: tuple[float, float, float]
-    region_half: tuple[float, float, float]
+    region_center: tuple[float, ...]
+    region_half: tuple[float, ...]
 
 
 class EpisodeSetup(NamedTuple):
@@ -72,10 +76,11 @@ def _floats(values, n: int) -> tuple[float, ...]:
     return tuple(float(v) for v in (np.zeros(n) if values is None else values))
 
 
-def success_test(scn, bindings: SceneBindings) -> SuccessTest:
+def success_test(scn: Scenario, bindings: SceneBindings) -> SuccessTest:
     """The scenario's success test over ``bindings``' slots."""
     s = scn.success
     target = scn.objects[s.target]
+    hole_half: tuple[float, ...]
     hole_top, hole_half = (0.0, 0.0, 0.0), (0.0, 0.0)
     hole_round = target.shape == "box_with_round_hole"
     if s.kind == "inserted":  # the loader checked the target is a box with a hole
@@ -100,7 +105,7 @@ def success_test(scn, bindings: SceneBindings) -> SuccessTest:
     )
 
 
-def episode_setup(scn, task, mj_model: mujoco.MjModel, episode_seconds: float) -> EpisodeSetup:
+def episode_setup(scn: Scenario, task: PlannedTask, mj_model: mujoco.MjModel, episode_seconds: float) -> EpisodeSetup:
     """The engine-independent facts of ``task``'s episodes in ``scn`` on ``mj_model``."""
     bindings = bind_scene(scn, mj_model, referenced_objects(scn, leaf_objects(task.tree)))
     return EpisodeSetup(
@@ -111,6 +116,11 @@ def episode_setup(scn, task, mj_model: mujoco.MjModel, episode_seconds: float) -
         steps_per_tick=scn.steps_per_tick,
         success=success_test(scn, bindings),
     )
+
+
+# The values of an episode's result and record: numpy arrays or Python scalars on the native engine
+# (one episode each), jax arrays inside MJX's traced programs (a batch of episodes).
+Values = Any
 
 
 class EpisodeResult(NamedTuple):
@@ -127,17 +137,17 @@ class EpisodeResult(NamedTuple):
     held item) and everything else (``mjxskill.sim.tool_force``).
     """
 
-    reward_totals: np.ndarray
-    success: np.ndarray
-    diverged: np.ndarray
-    bt_status: np.ndarray
-    bt_done_tick: np.ndarray
-    position_error: np.ndarray
-    orientation_error: np.ndarray
-    insertion_depth: np.ndarray
-    peak_commanded_force: np.ndarray
-    peak_contact_force: np.ndarray
-    mean_contact_force: np.ndarray
+    reward_totals: Values
+    success: Values
+    diverged: Values
+    bt_status: Values
+    bt_done_tick: Values
+    position_error: Values
+    orientation_error: Values
+    insertion_depth: Values
+    peak_commanded_force: Values
+    peak_contact_force: Values
+    mean_contact_force: Values
 
 
 class TickRecord(NamedTuple):
@@ -149,14 +159,14 @@ class TickRecord(NamedTuple):
     this tick. active (L,) bool: the leaves ticked. rewards (R,): raw reward values of the tick.
     """
 
-    qpos: np.ndarray
-    mocap_pos: np.ndarray
-    mocap_quat: np.ndarray
-    tool_pos: np.ndarray
-    ref_pos: np.ndarray
-    root: np.ndarray
-    active: np.ndarray
-    rewards: np.ndarray
+    qpos: Values
+    mocap_pos: Values
+    mocap_quat: Values
+    tool_pos: Values
+    ref_pos: Values
+    root: Values
+    active: Values
+    rewards: Values
 
 
 class RolloutOutput(NamedTuple):

@@ -42,7 +42,7 @@ from mjxskill.engine.mjx.sharding import shard_batch
 from mjxskill.engine.protocol import RolloutBase
 from mjxskill.scenario.schema import Scenario
 from mjxskill.sim.model import build_model
-from mjxskill.task import plan_task
+from mjxskill.task import PlannedTask, plan_task
 
 
 # On the CPU a call runs at most this many episodes (whole parameter sets; more when one set has
@@ -61,7 +61,7 @@ class MJXRollout(RolloutBase):
     """
 
     scenario: Scenario
-    task: object
+    task: PlannedTask
     worlds: int
     episode_spec: EpisodeSpec
     sampler: WorldSampler
@@ -96,7 +96,7 @@ class MJXRollout(RolloutBase):
             raise ValueError(f"worlds must have leading shape (W,) or ({len(params)}, W), got {lead}")
         return self._run(params, worlds)
 
-    def _run(self, params: np.ndarray, worlds: Worlds) -> RolloutOutput:
+    def _run(self, params: np.ndarray | jax.Array, worlds: Worlds) -> RolloutOutput:
         params = jnp.asarray(params)
         b, w = worlds.config_index.shape
         per_call = max(1, CPU_EPISODES_PER_CALL // w)
@@ -152,7 +152,7 @@ class MJXRollout(RolloutBase):
 
 def compile_rollout(
     scn: Scenario,
-    task=None,
+    task: PlannedTask | None = None,
     *,
     worlds: int | None = None,
     episode_seconds: float | None = None,
@@ -213,7 +213,7 @@ def _checked_settings(scn: Scenario, worlds: int | None, episode_seconds: float 
     return worlds, seconds, strategy
 
 
-def _episode_spec(scn: Scenario, task, mj_model: mujoco.MjModel, seconds: float) -> EpisodeSpec:
+def _episode_spec(scn: Scenario, task: PlannedTask, mj_model: mujoco.MjModel, seconds: float) -> EpisodeSpec:
     """The traced episode's static description: the compiled tree, its leaf programs, the reward
     terms and the engine-independent setup."""
     setup = episode_setup(scn, task, mj_model, seconds)

@@ -14,7 +14,7 @@ and it counts as a failure, so one exploding world never poisons its batch or th
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -39,6 +39,9 @@ from mjxskill.engine.mjx.controller import (
     tool_pose,
 )
 
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.bt_compiled.tick import BTState
+
 
 class EpisodeSpec(NamedTuple):
     """Everything static about a compiled episode (host values, closed over by the traced
@@ -55,7 +58,7 @@ class _Carry(NamedTuple):
     data: mjx.Data
     ctrl: ControllerState
     bb: Blackboard
-    bt: object
+    bt: BTState
     done: jax.Array  # the root finished
     status: jax.Array  # the root's last status
     done_tick: jax.Array

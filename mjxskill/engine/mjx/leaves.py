@@ -196,7 +196,8 @@ def build_leaf_programs(
         status_fns.append(status)
         effect_fns.append(effect)
 
-    def status(bb: Blackboard, world: LeafWorld, params, live: jax.Array) -> jax.Array:
+    # the loop's status is not used after it
+    def status(bb: Blackboard, world: LeafWorld, params, live: jax.Array) -> jax.Array:  # type: ignore[no-redef]
         return jnp.stack([jnp.asarray(f(bb, world, params, live), jnp.int32) for f in status_fns])
 
     def effects(bb: Blackboard, active: jax.Array, started: jax.Array, world: LeafWorld, params) -> Blackboard:
@@ -218,7 +219,7 @@ class _Context(NamedTuple):
     """What leaf programs are built from: parameter name -> index in the parameter vector, the
     scene bindings and the BT tick period (s)."""
 
-    index: dict
+    index: dict  # type: ignore[assignment]  # a field named like tuple.index, which it shadows
     bindings: SceneBindings
     tick_seconds: float
 

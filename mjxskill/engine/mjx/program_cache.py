@@ -104,7 +104,7 @@ def program_key(identity: str, mj_model: mujoco.MjModel, args) -> str:
         device.platform,
         str(device.device_kind),
         os.environ.get("XLA_FLAGS", ""),
-        str(jax.config.jax_enable_x64),
+        str(jax.config.jax_enable_x64),  # type: ignore[attr-defined]  # jax.config's stubs omit its flags
     )
     for part in parts:
         h.update(part.encode())
@@ -148,7 +148,7 @@ def load_or_trace(identity: str, mj_model: mujoco.MjModel, body: Callable, param
     return Program(jax.jit(exported.call), origin, key)
 
 
-def _digest(key: str, payload: bytes) -> str:
+def _digest(key: str, payload: bytes | bytearray) -> str:
     return hashlib.sha256(key.encode() + b"\0" + bytes(payload)).hexdigest()
 
 

@@ -119,7 +119,7 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
         frame = {name: fields[name].copy() for name in SNAPSHOT_FIELDS}
         for i in alive:
             episodes[i].begin_tick(None if bad[i] else _RowSnapshot(frame, i))
-        rows = [i for i in alive if not bad[i]]
+        rows: list[int] | np.ndarray = [i for i in alive if not bad[i]]
         if rows:
             rows = np.array(rows, dtype=np.int64)
             reset = stepper.tick([episodes[i] for i in rows], rows)

@@ -11,6 +11,7 @@ divergence check and the tick's rewards.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -111,8 +112,10 @@ class NativeEpisode:
         self.default_stiffness = np.asarray(spec.default_stiffness, float)
         self.records: list[TickRecord] = []
         self.root, self.active = Status.RUNNING, [False] * self.n_leaves
-        self._before = None
-        self._tool = None  # the tool pose ``end_tick`` read, for the next ``begin_tick``
+        # the tick's starting state, (MjData snapshot, controller state, blackboard): set by
+        # begin_tick, restored by end_tick when the tick diverged
+        self._before: tuple[Any, NativeControllerState, NativeBlackboard] | None = None
+        self._tool: tuple[np.ndarray, np.ndarray] | None = None  # the tool pose ``end_tick`` read, for the next ``begin_tick``
 
     # -- observation ------------------------------------------------------------------------
     def tool_pose(self) -> tuple[np.ndarray, np.ndarray]:
@@ -194,7 +197,7 @@ class NativeEpisode:
         or None to check here."""
         if not (self.healthy() if healthy is None else healthy):
             # The compiled rollout keeps ticking a frozen world, which changes nothing.
-            snapshot, self.cstate, self.bb = self._before
+            snapshot, self.cstate, self.bb = self._before  # type: ignore[misc]  # begin_tick set it
             self.data = snapshot.restore(self.data)
             self.diverged = True
             return False

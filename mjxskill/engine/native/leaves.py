@@ -147,7 +147,7 @@ class _Context(NamedTuple):
     """What leaf programs are built from: parameter name -> index, object name -> slot, the
     world model's slot poses (K, 3), (K, 4) and the BT tick period (s)."""
 
-    index: dict
+    index: dict  # type: ignore[assignment]  # a field named like tuple.index, which it shadows
     slot_of: dict
     nominal_pos: np.ndarray
     nominal_quat: np.ndarray

@@ -76,10 +76,12 @@ class LinearMotion:
         self.speed_rot = cruise_speed(self.angle, self.duration, limits.rotation)
         # the reference at and after ``duration``, by ``at``'s scalar and ``at_times``'s array
         # arithmetic (which may differ in the last bit), once asked for
+        self._end_scalar: tuple[np.ndarray, np.ndarray] | None = None
+        self._end: tuple[np.ndarray, np.ndarray] | None = None
         self._end_scalar = self._end = None
         # ``at``'s last time inside the motion and its reference: a tick's end (the rewards) and
         # the next tick's start (a goal set from the reference) ask for the same time
-        self._last = (None, None)
+        self._last: tuple[float | None, tuple[np.ndarray, np.ndarray] | None] = (None, None)
 
     def at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference position (3,) and quaternion (4,) at time t (s) since the start."""
@@ -91,7 +93,7 @@ class LinearMotion:
         if t != last_t:
             last = self._at(t)
             self._last = (t, last)
-        return last[0].copy(), last[1].copy()
+        return last[0].copy(), last[1].copy()  # type: ignore[index]  # set: t is the time stored with it
 
     def _at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         lim = self.limits

@@ -102,7 +102,7 @@ class WorkerPool:
 
     def __init__(self, engine, n: int):
         self.n = n
-        self.procs = []
+        self.procs: list[subprocess.Popen] = []
         self._stop = weakref.finalize(self, _stop_workers, self.procs)
         message, model = json.dumps(recipe(engine)).encode(), model_bytes(engine.mj_model)
         env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")

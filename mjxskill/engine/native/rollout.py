@@ -37,12 +37,13 @@ from mjxskill.engine.native.lockstep import run_lockstep
 from mjxskill.engine.native.pool import WorkerPool
 from mjxskill.sim.model import build_model
 from mjxskill.scenario import load_scenario
-from mjxskill.task import plan_task
+from mjxskill.scenario.schema import Scenario
+from mjxskill.task import PlannedTask, plan_task
 from mjxskill.engine.native.leaves import build_native_leaves
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import nominal_poses
 from mjxskill.engine.common.rewards import build_terms
-from mjxskill.engine.common.types import EpisodeResult, RolloutOutput, episode_setup, objective_matrix, summarize
+from mjxskill.engine.common.types import EpisodeResult, EpisodeSetup, RolloutOutput, episode_setup, objective_matrix, summarize
 from mjxskill.engine.protocol import RolloutBase
 from mjxskill.engine.common.worlds import Worlds, make_sampler, sample_worlds, worlds_per_config
 
@@ -65,7 +66,7 @@ def engine_from_recipe(spec: dict, model: bytes) -> "NativeRollout":
                          mj_model=mujoco.MjModel.from_binary_path("model.mjb", {"model.mjb": model}), workers=1)
 
 
-def sources_sha256(scn) -> str:
+def sources_sha256(scn: Scenario) -> str:
     """sha256 over the bytes of the scenario file and of the skill libraries it includes."""
     digest = hashlib.sha256()
     for path in (scn.source, *scn.libraries):
@@ -91,7 +92,11 @@ class NativeRollout(RolloutBase):
     cluster's CPUs; ``pip install 'mjxskill[ray]'``); connected at once, ClusterError if it
     cannot be. Results depend on none of these."""
 
-    def __init__(self, scn, task=None, *, worlds: int | None = None, episode_seconds: float | None = None,
+    scenario: Scenario
+    task: PlannedTask
+    setup: EpisodeSetup
+
+    def __init__(self, scn: Scenario, task: PlannedTask | None = None, *, worlds: int | None = None, episode_seconds: float | None = None,
                  start_configs: np.ndarray | None = None, mj_model: mujoco.MjModel | None = None,
                  workers: int | None = None, threads: int = 1, cluster: str | None = None,
                  actors: int | None = None):
