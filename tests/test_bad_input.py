@@ -1,4 +1,4 @@
-"""Issue 14: bad input a careful user tried, each one ``error:`` line naming the value and where
+"""Bad input a careful user would try: each one ``error:`` line naming the value and where
 it came from, exit code 2, no traceback, and nothing the user wrote or computed changed.
 
 The commands run in this process through their entry points (a subprocess costs seconds of

@@ -77,7 +77,7 @@ def test_front_hypervolume_about_the_problem_reference_is_max_hv(name):
     assert problem["front_hv"](problem["ref"]) == pytest.approx(problem["max_hv"], abs=1e-4)
 
 
-# --- 3-objective problems (issue 35): DTLZ5, DTLZ7, VehicleSafety ---------------------------
+# --- 3-objective problems: DTLZ5, DTLZ7, VehicleSafety ---------------------------
 
 
 @settings(max_examples=30, deadline=None)

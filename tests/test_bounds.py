@@ -1,4 +1,4 @@
-"""Issue 33, must-hold 4: what would exhaust the machine is bounded and refused with one located
+"""What would exhaust the machine is bounded and refused with one located
 ``error:`` line (exit 2) before anything is written: YAML nesting in every file read as YAML,
 and every numeric flag and file value that sizes the work."""
 

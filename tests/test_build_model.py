@@ -1,5 +1,5 @@
-"""build_model: the simulated model is the MJCF scene with the world model's physics written in
-(issue 15, point 1). References: the hand-written MJCF (the shipped YAMLs must not change the
+"""build_model: the simulated model is the MJCF scene with the world model's physics written
+in. References: the hand-written MJCF (the shipped YAMLs must not change the
 physics), MuJoCo's own inertia of uniform geoms, closed forms, and rollouts of edited copies on
 the native engine (no compile)."""
 

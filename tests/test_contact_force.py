@@ -1,4 +1,4 @@
-"""The measured interaction force (issue 15, point 4): the normal contact force between the tool
+"""The measured interaction force: the normal contact force between the tool
 and everything else, from MuJoCo's touch sensors that build_model puts around the tool
 (mjxskill.sim.tool_force). References: MuJoCo's mj_contactForce, a resting weight (m g) and the
 episode's own bookkeeping (the reward's total is the mean force times the ticks)."""

@@ -1,4 +1,4 @@
-"""The JAX impedance controller against its numpy/native-MuJoCo twin (issue 4, item 4), the
+"""The JAX impedance controller against its numpy/native-MuJoCo twin, the
 quaternion helpers against MuJoCo's mju_* functions, and the rate limits against their closed
 forms."""
 

@@ -1,4 +1,4 @@
-"""Issue 33, must-hold 6: damaged run directories, generated. A run directory with links out of
+"""Damaged run directories, generated. A run directory with links out of
 it, truncated or garbled files, values of the wrong type and huge values is handed to
 ``evaluate``, ``select`` and ``train --resume`` (in this process, through their entry points):
 each either works (exit 0) or ends with exactly one ``error:`` line, exit code 2, no traceback,

@@ -1,4 +1,4 @@
-"""A full disk mid-run (issue 33, must-hold 4): one ``error:`` line, exit code 1, nothing
+"""A full disk mid-run: one ``error:`` line, exit code 1, nothing
 finished lost, no temporary file left, and the command run again goes on. The disk is made
 "full" by making the file system calls the run directory's writers use fail with ENOSPC (a real
 full file system needs a mount the test machine does not allow)."""

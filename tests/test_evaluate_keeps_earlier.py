@@ -1,4 +1,4 @@
-"""evaluate keeps an earlier evaluation made with other settings (issue 33, must-hold 3): it
+"""evaluate keeps an earlier evaluation made with other settings: it
 refuses, naming the settings and the flag that would replace it, and with --replace replaces it."""
 
 from mjxskill.evaluation.render import default_gl

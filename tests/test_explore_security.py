@@ -1,4 +1,4 @@
-"""The explore page answers only its own origin (issue 33, must-hold 1): requests sent with
+"""The explore page answers only its own origin: requests sent with
 http.client and raw sockets to a real server on loopback, so that Host, Origin, Content-Type
 and Content-Length are what a hostile page or client would send."""
 

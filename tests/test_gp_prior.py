@@ -132,7 +132,7 @@ MAIN_PROPOSALS = np.array([
 
 
 def test_without_prior_the_proposals_are_mains():
-    # With the acquisition defaults of that commit (generation 1; issue 19 changed them): the
+    # With generation 1's acquisition defaults (the prior's code path was written on them): the
     # comparison is of the prior's code path, so it keeps main's settings.
     cfg = MOBOConfig(bounds=BOUNDS, n_objectives=2, batch_size=3, n_init=5, seed=11,
                      acquisition=acquisition_settings(CHEAP, acquisition_defaults(1)))

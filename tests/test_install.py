@@ -1,4 +1,4 @@
-"""``pip install .`` gives a working mjxskill (issue 30): a wheel built from the checkout carries
+"""``pip install .`` gives a working mjxskill: a wheel built from the checkout carries
 the scenarios, the skill library and the MJCF scenes (the package ``mjxskill.assets``, mapped
 onto the checkout's ``assets/`` by pyproject.toml), and installed in a fresh venv it plans push,
 peg and slide and trains a tiny push run from a directory outside the checkout.

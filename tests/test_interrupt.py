@@ -1,4 +1,4 @@
-"""Issue 14, point 8: Ctrl-C works at any moment. SIGINT sent to real processes: small scripts
+"""Ctrl-C works at any moment. SIGINT sent to real processes: small scripts
 over ``mjxskill.cli.interrupt`` for the two ways an interrupt got lost (swallowed by a
 garbage-collector callback, held up by a step that does not return), with Python's own handling
 as the reference, and ``python -m mjxskill.train`` during start-up, compilation and the loop:

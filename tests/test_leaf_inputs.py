@@ -1,4 +1,4 @@
-"""The primitives' new inputs (issue 15, point 3) in both engines' leaf programs, without physics:
+"""The primitives' new inputs in both engines' leaf programs, without physics:
 the tool's orientation (tilt about the turned frame's axes, a yaw offset; learnable) and the
 plane of the search spiral. References: the closed-form rotation Rz Ry Rx of the tool pointing
 down, and the other engine."""

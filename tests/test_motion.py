@@ -1,4 +1,4 @@
-"""Motion generator against closed forms (issue 4, item 5): trapezoid duration and peak speed,
+"""Motion generator against closed forms: trapezoid duration and peak speed,
 synchronisation of translation and rotation, spiral radius growth per revolution and path
 speed, ramps."""
 

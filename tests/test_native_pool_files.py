@@ -1,4 +1,4 @@
-"""The native engine's worker pool leaves nothing on disk (issue 33, must-hold 5): the workers
+"""The native engine's worker pool leaves nothing on disk: the workers
 get the MuJoCo model as bytes through their pipe, so a parent killed with SIGKILL mid-call
 leaves no model file in the temporary folder, and the workers' results still equal one
 process's."""

@@ -1,4 +1,4 @@
-"""The native engine on a Ray cluster (issue 34): a local two-node cluster on loopback (head and
+"""The native engine on a Ray cluster: a local two-node cluster on loopback (head and
 one node, 1 CPU each, no dashboard, a small object store).
 
 - the library: ``NativeRollout(cluster=...)`` gives the results one process gives, bit for bit,

@@ -1,4 +1,4 @@
-"""Issue 14, point 2: a resume never drops rows silently. Damaged or reordered evaluations.csv
+"""A resume never drops rows silently. Damaged or reordered evaluations.csv
 files, resumed with the training loop and a closed-form objective (no physics): what can be
 used is used, what cannot is set aside beside the file with its reason, the original is kept
 byte for byte, only the missing batches are evaluated, and the run ends with the results of an

@@ -204,7 +204,7 @@ def test_config_bounds_that_leave_nothing_to_learn_are_named_not_blamed_on_optio
 
 
 def test_a_run_resumes_with_the_optimizer_defaults_it_began_with(tmp_path):
-    # A config.yaml written before issue 19 has no optimizer_defaults: its options were
+    # A config.yaml without optimizer_defaults (written by generation 1's code): its options were
     # relative to generation 1 (Chebyshev, hybrid), which it keeps; a new run records today's.
     from mjxskill.gp.settings import GENERATION, acquisition_defaults
     from mjxskill.runs.run_config import optimizer_config

@@ -1,6 +1,6 @@
-"""A run directory's files are never written through a symbolic link (issue 33, must-hold 2, in
-part): the lock, evaluations.csv (appended), files replaced whole (pareto.csv, ...) and the
-export folder refuse a link with one error naming it, and the file it points to is unchanged."""
+"""A run directory's files are never written through a symbolic link: the lock,
+evaluations.csv (appended), files replaced whole (pareto.csv, ...) and the export folder refuse
+a link with one error naming it, and the file it points to is unchanged."""
 
 from mjxskill.evaluation.render import default_gl
 

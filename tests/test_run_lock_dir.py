@@ -1,4 +1,4 @@
-"""The writer's lock cannot be sidestepped by deleting ``.lock`` (issue 33, must-hold 2): the
+"""The writer's lock cannot be sidestepped by deleting ``.lock``: the
 run directory itself is locked, so a second resume is refused while the first holds the run,
 whether the holder is another process or this one, and whether ``.lock`` is there or not."""
 

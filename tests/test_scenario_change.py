@@ -1,4 +1,4 @@
-"""A resume with a scenario whose content differs from the run's copy (issue 33, must-hold 2):
+"""A resume with a scenario whose content differs from the run's copy:
 ``train other.yaml --resume R`` with the same task but a 250 kg object resumed silently and
 mixed two physics in one run. It is refused naming the first difference (key path and both
 values) and writes nothing; with ``--accept-scenario-change`` the change is recorded in

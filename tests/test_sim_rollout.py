@@ -1,6 +1,6 @@
-"""Closed-loop behaviour of scenes + controller + motion generator under MJX (issue 4, items 2, 3
-and 6). Two compiled rollouts in all (one per scene), each batching every case into one vmapped
-call; the assertions are physical facts checked against native MuJoCo or closed-form targets."""
+"""Closed-loop behaviour of scenes + controller + motion generator under MJX. Two compiled
+rollouts in all (one per scene), each batching every case into one vmapped call; the assertions are physical facts
+checked against native MuJoCo or closed-form targets."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Static facts of the MJCF scenes and start postures (issue 4, items 1-3), checked in native
+"""Static facts of the MJCF scenes and start postures, checked in native
 MuJoCo against the published iiwa figures and the task geometry."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The third task (issue 15, point 5): sliding a block along a fence into a slot, declared in
+"""The third task: sliding a block along a fence into a slot, declared in
 assets/scenarios/slide.yaml and drawn in assets/slide.xml, with no Python of its own. References:
 the MJCF read by MuJoCo itself, MJX's own model check, and native MuJoCo rollouts."""
 

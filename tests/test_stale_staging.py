@@ -1,6 +1,6 @@
 """A run or experiment directory killed while it was being created leaves a staging folder
 ``.<name>.<host>.<pid>.<hex>.creating``; the next creation beside it removes those of processes
-of this host that no longer run, and nothing else (issue 33, must-hold 5)."""
+of this host that no longer run, and nothing else."""
 
 import os
 import signal

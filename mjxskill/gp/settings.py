@@ -38,132 +38,62 @@ CHOICES = {
 class AcquisitionSettings:
     """Settings of the model-based proposal (hashable: part of the compile cache key).
 
-    The defaults were chosen by measurement against BoTorch's qLogNEHVI and uniform random
-    search: benchmarks/RESULTS.md, "Multi-objective BO quality" (the sections named below).
+    One line each: what the setting is and why its default (the measurements behind the
+    defaults: benchmarks/RESULTS.md, "Multi-objective BO quality"; what every value does:
+    docs/optimizers.md, "The optimizer's settings").
     """
 
-    # The random scalarization of each batch element: "chebyshev" (augmented Chebyshev of
-    # objectives normalized by their observed range, flat Dirichlet weights; ParEGO) or
-    # "hypervolume" (Golovin and Zhang's hypervolume scalarization about a reference point,
-    # uniform directions; hypervolume_scalarization.py). RESULTS.md, "Hypervolume
-    # scalarizations, per-objective GPs".
+    # Each batch element's scalarization: the hypervolume's (Golovin and Zhang) about a reference point;
+    # measured above ParEGO's augmented Chebyshev (RESULTS.md, "Hypervolume scalarizations, per-objective GPs").
     scalarization: str = "hypervolume"
-    alpha: float = 0.05  # augmented Chebyshev coefficient
-    # Where the reference point comes from when MOBOConfig.ref_point is None: "warmup" (the
-    # worst of the n_init warm-up values plus ref_margin times their range, fixed for the run:
-    # the reference mjxskill.train reports the hypervolume against) or "front" (the observed
-    # front's nadir plus ref_margin times its extent at each proposal, as BoTorch's
-    # infer_reference_point).
+    alpha: float = 0.05  # the augmented Chebyshev coefficient (ParEGO's), used with scalarization "chebyshev"
+    # The reference point when none is given: the warm-up's worst plus ref_margin, fixed: the one a run reports against.
     reference: str = "warmup"
-    ref_margin: float = 0.1
-    # Directions per batch element of the hypervolume scalarization (1: one random
-    # scalarization per element; k > 1: their average, a k-direction Monte Carlo estimate of
-    # the expected hypervolume improvement; the scalarized model uses the first only). Late in
-    # a run the improvement left lies in the gaps between front points, each crossed only by
-    # the directions that pass through it. More directions pay off when the reference point is
-    # the one the run is judged by (given: GIVEN_REFERENCE_DEFAULTS below), not about one
-    # inferred from the warm-up (RESULTS.md, "A given reference point: 2048 directions, a
-    # posterior draw each" and "What a run reports").
+    ref_margin: float = 0.1  # that margin, in units of the warm-up's range (BoTorch's infer_reference_point's 0.1)
+    # Directions averaged per element: a Monte Carlo estimate of the expected hypervolume improvement.
     n_directions: int = 64
-    # How an element's n_directions are drawn: "independent" (uniform, independently) or
-    # "quasi_random" (a randomized Sobol set per element: the same expectation, far less
-    # variance; hypervolume_scalarization.quasi_random_directions).
+    # A randomized Sobol set of directions per element: the same expectation, less variance than independent ones.
     directions: str = "quasi_random"
-    # The share of the batch's elements (the last ones) that follow a single random direction
-    # each rather than averaging n_directions (only when n_directions > 1): they refine where
-    # one direction points, the averaging elements chase the hypervolume.
+    # The batch's last quarter follows one direction each: they refine where one direction points.
     single_direction_share: float = 0.25
-    # How the other elements of the per-objective model estimate the expected hypervolume
-    # improvement: "directions" (the n_directions Monte Carlo estimate above) or "exact" (in
-    # closed form over a grid of the non-dominated region, expected_hypervolume.py: no
-    # sampling error; two or three objectives, more keep the directions).
+    # The improvement estimated by the directions; "exact" (closed form) pays with a given reference only.
     hypervolume_improvement: str = "directions"
-    # With three objectives the closed form costs (k + 1)^2 cells per candidate for k points:
-    # its grid keeps at most this many of the non-dominated points (the rest, if any, are
-    # left out and the improvement near them overestimated; expected_hypervolume.grid).
-    exact_max_points: int = 64
-    # Their reference point: the run's ("global") or the observed front's nadir plus
-    # ref_margin of its extent ("front"; hypervolume_scalarization.front_reference), which
-    # spreads their directions over the front's trade-off (RESULTS.md, "Hypervolume
-    # scalarizations, per-objective GPs", table "What moved it").
+    exact_max_points: int = 64  # front points the closed form's grid keeps: bounds its (k + 1)^2 cells per candidate
+    # The single-direction elements' reference: the front's nadir, which spreads them over the front's trade-off.
     single_direction_reference: str = "front"
-    # Objective values beyond the reference point: "log" compressed (1 + log u in reference
-    # units; a heavy tail of bad values no longer sets the GP's mean and scale) or "linear".
+    # Values beyond the reference log-compressed: a heavy tail of bad values does not set the GP's mean and scale.
     beyond_reference: str = "log"
-    bucket: int = 64  # training sets are padded to a multiple of this many rows (one compile per bucket)
-    n_raw: int = 1024  # random candidates scored per batch element
-    # The share of them with their coordinates on the bounds half the time (proposal._raw_candidates).
-    raw_bounds_share: float = 0.0
-    n_restarts: int = 10  # best candidates refined by projected Adam
+    bucket: int = 64  # training rows padded to a multiple of this: one compile per bucket, not per row count
+    n_raw: int = 1024  # random candidates scored per batch element, the Adam restarts' pool
+    raw_bounds_share: float = 0.0  # candidates with coordinates on the bounds: pays with three objectives and a given reference only
+    n_restarts: int = 10  # best candidates refined by projected Adam (as BoTorch's tutorial)
     n_opt_steps: int = 100  # Adam steps per restart
-    learning_rate: float = 0.02  # unit-cube coordinates per Adam step
-    final_learning_rate: float = 2e-4  # cosine-decayed to this by the last step (equal: constant)
-    fit_starts: int = 2  # L-BFGS starts per GP fit (gp.fit)
-    # GP hyperparameter prior (gp.log_prior): "gamma" (Matern 5/2 with BoTorch's former Gamma
-    # priors) or "lognormal" (the dimension-scaled LogNormal lengthscale prior).
+    learning_rate: float = 0.02  # unit-cube coordinates per Adam step at the start
+    final_learning_rate: float = 2e-4  # cosine-decayed to this by the last step: restarts settle on what they found
+    fit_starts: int = 2  # L-BFGS starts per GP fit: a second start escapes a poor optimum of the marginal likelihood
+    # The GP's hyperparameter prior: the dimension-scaled LogNormal lengthscale prior, not BoTorch's former Gamma priors.
     prior: str = "lognormal"
     fit_steps: int = 50  # L-BFGS steps per start
-    # One GP fit per batch element while the padded training set has at most this many
-    # rows, one shared fit above (a fit costs O(n^3), q of them dominate the proposal time;
-    # per-element fits: RESULTS.md, 'Previous defaults (model = "scalarized")').
+    # One fit per batch element up to this many padded rows, one shared fit above: q fits of O(n^3) dominate the ask.
     per_element_fit_max_rows: int = 128
-    # Hyperparameters are fitted on a random subset of at most this many real rows (the
-    # posterior still conditions on all of them): a fit's L-BFGS steps each factorize the
-    # n x n covariance, and on every row of a long run they dominate the proposal
-    # (RESULTS.md, "Optimizer overhead").
+    # Hyperparameters fit on a random subset of at most this many rows (the posterior conditions on all):
+    # on every row of a long run the fits dominate the ask (RESULTS.md, "Optimizer overhead").
     fit_max_rows: int = 128
-    # Which model each batch element uses (see proposal.py): "scalarized" (a GP on the
-    # element's scalarization), "per_objective" (a GP per objective, scalarized draws),
-    # "hybrid" (the first ceil(q/2) elements scalarized, the rest per-objective).
+    # A GP per objective with scalarized posterior draws (not one GP per element's scalarization);
+    # measured above it (RESULTS.md, "Hypervolume scalarizations, per-objective GPs").
     model: str = "per_objective"
-    # Quasi-random posterior draws per point and direction (per-objective model): with 64
-    # directions 16 are 1024 samples of the element's expected improvement.
-    n_draws: int = 16
-    # How the hypervolume scalarization's directions meet the posterior draws: "shared" (every
-    # direction scalarizes the same n_draws draws: n_directions x n_draws samples per point)
-    # or "per_direction" (each direction its own n_draws: as many samples, but as many
-    # distinct draws as samples; with quasi-random directions the first draw of each comes
-    # from the same Sobol set as the direction, one joint quasi-Monte Carlo estimate over
-    # directions and posterior draws: hypervolume_scalarization.paired_normal_draws). Shared draws
-    # need several per direction (64 x 16) and so leave few directions for the same cost.
-    # The Chebyshev scalarization, one weight per element, then uses all those draws.
-    draw_pairing: str = "shared"
-    # What the points already chosen for the batch change for the later elements of the
-    # per-objective model (Kriging believer): "variance" (only the posterior variance shrinks
-    # around them) or "values" (also the incumbent counts them at their believed values, so
-    # a gap in the front that an earlier element fills offers no improvement again).
+    n_draws: int = 16  # quasi-random posterior draws per point: with 64 directions, 1024 samples of the improvement
+    draw_pairing: str = "shared"  # every direction scalarizes the same draws: several draws per direction for one set's cost
+    # Earlier points of the batch count at their believed values: a gap one element fills offers nothing to the next.
     pending: str = "values"
-    # The per-objective model's incumbent: the best scalarized "observed" value, or the best
-    # of the model's "posterior_mean" at the observed points (where a fitted noise lets the
-    # mean pass below an observed optimum, the observed incumbent makes re-evaluating that
-    # point look like an improvement).
+    # The incumbent is the posterior mean's best at observed points: re-evaluating a noisy best is no improvement.
     incumbent: str = "posterior_mean"
-    # The per-objective posterior variance the acquisition sees: "latent" (noise excluded)
-    # or "deflated" (minus the fitted noise variance as well: ~0 at observed points of a
-    # noiseless objective, where the latent variance stays ~noise and gives a re-evaluation
-    # of the incumbent a spurious EI).
+    # The acquisition sees the posterior variance less the fitted noise: no spurious EI at observed points.
     variance: str = "deflated"
-    # Per-objective acquisition: "draws" (quasi-MC log-EI) or "moments" (log-EI of the
-    # moment-matched Gaussian); tau is the softplus width of "draws", in the units of the
-    # scalarized values.
-    ei: str = "draws"
-    tau: float = 1e-3
-    # With a parameter prior (MOBOConfig.prior, gp/prior.py; without one these two change
-    # nothing): the optimizer's belief is the prior with weight prior_share beside the uniform
-    # density with weight 1 - prior_share. That share of the n_init warm-up points is drawn
-    # from the prior, the rest uniformly (0.5 keeps half the warm-up exploring wherever the
-    # prior is wrong), and the acquisition is weighted by that mixture to the power
-    # pibo_beta / n after n observations (piBO; 0: the prior shapes the warm-up only). The
-    # uniform part bounds how far a wrong prior can push the acquisition down: a product
-    # prior's log-density falls without bound away from its mean and grows with the
-    # dimension, the mixture's never below log(1 - prior_share) (RESULTS.md, "Parameter
-    # priors (piBO)").
-    # Settings, not Prior fields: they say how the optimizer uses a prior (a search policy,
-    # typed and checked like every acquisition setting and set by --optimizer-option), where
-    # the Prior says only where the operator believes good values lie. pibo_beta never enters
-    # the jitted proposal (beta / n is passed as a traced scalar); its hash only keys the cache.
-    pibo_beta: float = 2.0
-    prior_share: float = 0.5
+    ei: str = "draws"  # quasi-Monte Carlo log-EI over the draws: the hypervolume scalarization's only estimate
+    tau: float = 1e-3  # the softplus width of that log-EI, in scalarized units: a smooth max for Adam
+    pibo_beta: float = 2.0  # a parameter prior's weight in the acquisition decays as pibo_beta / n (piBO)
+    prior_share: float = 0.5  # the belief: this share of the prior beside the uniform density, which bounds a wrong prior's pull
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
@@ -182,13 +112,11 @@ class AcquisitionSettings:
         return dataclasses.asdict(self)
 
 
-# The defaults of each generation, as changes from AcquisitionSettings() (the newest
-# generation, GENERATION, changes nothing). A run stores the generation it began with
-# (``optimizer_defaults`` in its config.yaml, mjxskill.runs.run_config; a config.yaml without
-# it means 1) and resumes with it, so a later change of the defaults never changes the
-# optimizer of a run in progress. Generation 1: log-EI on augmented Chebyshev scalarizations
-# (ParEGO) with the hybrid model (RESULTS.md, "Generation 1 defaults"). Generation 3 changes
-# only what a given reference point changes, for three objectives (below), and so does 4.
+# The defaults of each generation, as changes from AcquisitionSettings() (the newest, GENERATION, changes
+# nothing). A run stores the generation it began with (``optimizer_defaults`` in its config.yaml; absent: 1) and
+# resumes with it, so a change of the defaults never changes a run in progress. What each generation is:
+# 1, ParEGO's log-EI with the hybrid model; 2, the hypervolume scalarization on per-objective GPs; 3 and 4 change
+# only what a given reference point with three objectives changes (below). RESULTS.md has how each was chosen.
 DEFAULTS_BY_GENERATION = {
     1: {"scalarization": "chebyshev", "n_directions": 1, "directions": "independent", "single_direction_share": 0.0,
         "single_direction_reference": "global", "final_learning_rate": 0.02, "prior": "gamma", "model": "hybrid",
@@ -199,28 +127,11 @@ DEFAULTS_BY_GENERATION = {
 }
 GENERATION = max(DEFAULTS_BY_GENERATION)
 
-# What a given reference point (MOBOConfig.ref_point) changes from generation 2 on (each
-# generation's plain defaults above are the same from 2 on). With the reference given, the
-# hypervolume the acquisition estimates is the one the run is judged by; about a reference
-# inferred from the warm-up (every robot run) these do worse or cost more than they gain, so
-# the plain defaults stay there.
-# Generation 2: 2048 directions, each with its own posterior draw, paired by one joint Sobol
-# set, which resolve the gaps between front points better than 64 x 16 (RESULTS.md, "A given
-# reference point: 2048 directions, a posterior draw each").
-# Generation 3, three objectives: the expected hypervolume improvement in closed form (the
-# single-direction element keeps its direction) and four times the random candidates and three
-# times the Adam steps per element: late in a run the improvement left is in narrow gaps, where
-# the directions' sampling error and a short search both miss it. With two objectives neither
-# pays: the closed form lost on BraninCurrin, the longer search on ZDT1, so generation 2's
-# given-reference settings stay there (RESULTS.md, "Three objectives: the expected hypervolume
-# improvement in closed form").
+# With a given reference point (MOBOConfig.ref_point) from generation 2 on: 2048 directions, one posterior draw each,
+# paired in one Sobol set; about a reference inferred from the warm-up (every robot run) they cost more than they gain.
 GIVEN_REFERENCE_DEFAULTS = {"n_directions": 2048, "n_draws": 1, "draw_pairing": "per_direction"}
-# What three objectives change beyond those, by generation.
-# Generation 4, three objectives: half the random candidates on the cube's bounds
-# (raw_bounds_share). On VehicleSafety the improvement left lies on the cube's faces and
-# edges, where no uniform candidate, and so no Adam start, came near it. With two objectives
-# it raised both medians, but one BraninCurrin run of ten lost a stretch of the front, so two
-# objectives keep generation 2's settings (RESULTS.md, "Candidates on the bounds").
+# With a given reference and three objectives: the closed-form improvement with 4x the candidates and 3x the Adam
+# steps (generation 3), and half the candidates on the bounds (generation 4); two objectives lost with both.
 _CLOSED_FORM = {"hypervolume_improvement": "exact", "n_raw": 4096, "n_opt_steps": 300}
 GIVEN_REFERENCE_THREE_OBJECTIVES_BY_GENERATION = {3: _CLOSED_FORM, 4: {**_CLOSED_FORM, "raw_bounds_share": 0.5}}
 

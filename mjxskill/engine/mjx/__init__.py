@@ -1,10 +1,13 @@
-"""Rollouts: the compiled BT driving the impedance controller in domain-randomized MJX worlds,
-rewards grouped into objectives. ``compile_rollout`` is the entry point.
+"""The compiled engine: the BT compiled into a state machine driving the impedance controller in
+domain-randomized MJX worlds, every parameter set in every world in one jitted call.
+``compile_rollout`` is the entry point.
 
-Engine-independent modules (``types``, ``bindings``, ``worlds``) import no MJX and are shared with
-the native engine (``mjxskill.engine.native``); the compiled engine is ``episode``, ``leaves``,
-``rewards``, ``compiled``, ``program_cache`` and ``sharding``. The names below load lazily, so
-importing a shared module does not import MJX.
+Modules: ``compiled`` (``MJXRollout``, ``compile_rollout``), ``episode`` (one world's episode as
+nested scans), ``batching`` (over a leading world axis), ``leaves`` (each primitive's effect),
+``controller`` and ``motion`` (the impedance law and motion generator in JAX),
+``program_cache`` (the compiled program on disk) and ``sharding`` (over local devices). What it
+shares with the native engine is in ``mjxskill.engine.common``. The names below load lazily,
+so importing this package does not import MJX.
 """
 
 import importlib
