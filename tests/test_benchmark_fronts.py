@@ -71,7 +71,7 @@ def test_branin_currin_front_reaches_and_bounds_the_known_maximum():
         assert hypervolume(mq.branin_currin(x), r) < mq.PROBLEMS["BraninCurrin"]["front_hv"](r)
 
 
-@pytest.mark.parametrize("name", list(mq.PROBLEMS))
+@pytest.mark.parametrize("name", [name for name, problem in mq.PROBLEMS.items() if problem["front_hv"]])
 def test_front_hypervolume_about_the_problem_reference_is_max_hv(name):
     problem = mq.PROBLEMS[name]
     assert problem["front_hv"](problem["ref"]) == pytest.approx(problem["max_hv"], abs=1e-4)
@@ -201,3 +201,66 @@ def test_new_problems_equal_botorch():
     for name, cls in [("DTLZ5 (d=6, m=3)", mo.DTLZ5), ("DTLZ7 (d=6, m=3)", mo.DTLZ7)]:
         assert mq.PROBLEMS[name]["ref"] == cls(dim=6, num_objectives=3).ref_point.tolist()
     assert mq.PROBLEMS["VehicleSafety"]["ref"] == pytest.approx(mo.VehicleSafety().ref_point.tolist(), rel=1e-12)
+
+
+# --- the held-out problems: ZDT2, ZDT3 (noisy), DTLZ2 with four objectives, CarSideImpact ------
+
+
+@settings(max_examples=25, deadline=None)
+@given(ref=refs_2d)
+def test_zdt2_closed_form_against_a_dense_front(ref):
+    f1 = np.linspace(0.0, 1.0, 20001)
+    front = np.stack([f1, 1.0 - f1**2], axis=1)
+    sampled = mq._staircase_hypervolume(front, np.asarray(ref))
+    exact = mq.zdt2_front_hypervolume(ref)
+    assert sampled <= exact + 1e-12
+    assert exact - sampled < 1e-3 * max(ref[1], 1.0)
+
+
+def test_zdt2_and_zdt3_inputs_never_pass_their_fronts():
+    x = np.random.default_rng(2).random((20_000, 6))
+    for f, front_hv in ((mq.zdt2, mq.zdt2_front_hypervolume), (mq.zdt3, mq.zdt3_front_hypervolume)):
+        for ref in ([11.0, 11.0], [0.9, 1.2], [0.5, 0.5]):
+            assert mq._staircase_hypervolume(f(x), np.asarray(ref)) <= front_hv(ref) + 1e-9
+    # on g = 1 (last inputs 0) ZDT3 is its front's curve
+    f1 = np.linspace(0.0, 1.0, 101)
+    np.testing.assert_allclose(mq.zdt3(np.c_[f1, np.zeros((101, 5))])[:, 1], 1 - np.sqrt(f1) - f1 * np.sin(10 * np.pi * f1))
+
+
+def test_dtlz2_with_four_objectives_lies_beyond_the_unit_sphere_and_its_maximum_is_closed_form():
+    y = mq.dtlz2(np.random.default_rng(4).random((5000, 6)), m=4)
+    assert y.shape == (5000, 4) and np.all(np.linalg.norm(y, axis=1) >= 1.0 - 1e-12)
+    on_front = mq.dtlz2(np.c_[np.random.default_rng(5).random((50, 3)), np.full((50, 3), 0.5)], m=4)
+    np.testing.assert_allclose(np.linalg.norm(on_front, axis=1), 1.0, atol=1e-12)
+    # the unit 4-ball's volume is pi^2 / 2, its positive orthant a sixteenth: against Monte Carlo
+    u = np.random.default_rng(6).random((400_000, 4)) * 1.1
+    outside = np.linalg.norm(u, axis=1) >= 1.0
+    mc, se = 1.1**4 * outside.mean(), 1.1**4 * outside.std() / np.sqrt(len(u))
+    assert abs(mq.dtlz2_m4_front_hypervolume([1.1] * 4) - mc) < 4 * se
+
+
+def test_the_noisy_problem_sees_7_world_means_and_repeats_them_per_seed():
+    problem = mq.PROBLEMS["ZDT3 (d=6), noisy"]
+    x = np.random.default_rng(7).random((20_000, 6))
+    noise = mq.observer(problem, 0)(x) - mq.zdt3(x)
+    np.testing.assert_allclose(noise.std(axis=0), np.array([0.0852, 0.1773]) / np.sqrt(7), rtol=0.03)
+    np.testing.assert_array_equal(mq.observer(problem, 3)(x[:10]), mq.observer(problem, 3)(x[:10]))
+    assert mq.observer(mq.PROBLEMS["ZDT2 (d=6)"], 0) is mq.zdt2
+
+
+def test_held_out_problems_equal_botorch():
+    torch = require("torch")
+    mo = require("botorch.test_functions.multi_objective")
+    x = np.random.default_rng(0).random((500, 7))
+    for ours, theirs, inputs in [
+        (mq.zdt2, mo.ZDT2(dim=6), x[:, :6]),
+        (mq.zdt3, mo.ZDT3(dim=6), x[:, :6]),
+        (lambda v: mq.dtlz2(v, m=4), mo.DTLZ2(dim=6, num_objectives=4), x[:, :6]),
+        (mq.car_side_impact, mo.CarSideImpact(), x),
+    ]:
+        lo, hi = theirs.bounds.numpy()
+        expected = theirs(torch.from_numpy(lo + (hi - lo) * inputs)).numpy()
+        np.testing.assert_allclose(ours(inputs), expected, rtol=1e-12, atol=1e-12)
+    for name, cls in (("ZDT2 (d=6)", mo.ZDT2(dim=6)), ("CarSideImpact", mo.CarSideImpact()),
+                      ("DTLZ2 (d=6, m=4)", mo.DTLZ2(dim=6, num_objectives=4))):
+        assert mq.PROBLEMS[name]["ref"] == pytest.approx(cls.ref_point.tolist(), rel=1e-12)
