@@ -30,6 +30,15 @@ def quote(value, limit: int = QUOTE_CHARS) -> str:
     return f"{text[:limit]}... ({len(text)} characters)"
 
 
+def listing(names, limit: int = 20, chars: int = 40) -> str:
+    """``a, b, c`` for a message listing names (the objects, types, skills a value could have
+    been): each cut to ``chars`` characters, at most ``limit`` of them and how many more; ""
+    when there are none."""
+    names = [str(n) if len(str(n)) <= chars else f"{str(n)[:chars]}..." for n in names]
+    more = f" and {len(names) - limit} more" if len(names) > limit else ""
+    return ", ".join(names[:limit]) + more
+
+
 def bounded(message: str, limit: int = MAX_MESSAGE_CHARS) -> str:
     """``message`` cut to ``limit`` characters (a mark says so); short messages unchanged."""
     if len(message) <= limit:
@@ -116,5 +125,5 @@ class Notice(UserWarning):
     ``prog: warning: message`` line."""
 
 
-__all__ = ["MAX_MESSAGE_CHARS", "QUOTE_CHARS", "bounded", "quote", "ClusterError", "CommandError", "GoalError", "Notice", "PlanError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
+__all__ = ["MAX_MESSAGE_CHARS", "QUOTE_CHARS", "bounded", "listing", "quote", "ClusterError", "CommandError", "GoalError", "Notice", "PlanError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
            "ServerBusy", "SettingError", "UserError"]

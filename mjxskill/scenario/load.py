@@ -13,11 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from mjxskill.errors import GoalError, ScenarioError
+from mjxskill.errors import GoalError, ScenarioError, listing, quote
 from mjxskill.planner.world_pddl import check_atom, goal_literals, parse_literal
 from mjxskill.scenario.fields import Field, compose_file
 from mjxskill.scenario.scene_refs import check_scene
-from mjxskill.errors import quote
 from mjxskill.scenario.domain import Domain
 from mjxskill.scenario.schema import (
     ANGLE_DEG, EXTRA, FRICTION, JOINT_LIMIT_DEG, MASS, MAX_EPISODE_SECONDS, POSITION, SIZE, STIFFNESS, Pose, Robot,
@@ -50,7 +49,7 @@ def scenario_path(name_or_path: str | Path) -> Path:
     if not path.exists():
         raise ScenarioError(
             f"unknown task {quote(text)}: no {path.name} in {SCENARIO_DIR} "
-            f"(available: {', '.join(available_scenarios()) or 'none'}); pass a YAML path for your own"
+            f"(available: {listing(available_scenarios()) or 'none'}); pass a YAML path for your own"
         )
     return path
 
@@ -159,7 +158,11 @@ def _skill_libraries(top, path: Path) -> list[tuple[Path, Field]]:
     libraries = []
     for item in items:
         library = (path.parent / item.string()).resolve()
-        if not library.is_file():
+        try:
+            regular = library.is_file()
+        except OSError as err:  # a name too long, a loop of links
+            item.fail(f"the skill library {quote(str(library), 300)} cannot be read ({err.strerror})")
+        if not regular:
             item.fail(f"the skill library {quote(str(library), 300)} is not a file (paths are relative to the scenario "
                       "file)")
         if library.suffix.lower() not in (".yaml", ".yml"):
@@ -218,7 +221,7 @@ def _types(field: Field):
         parents[key] = None if parent.is_null() else parent.string().lower()
     for (name, parent), (_, parent_field) in zip(parents.items(), field.items()):
         if parent is not None and parent not in parents:
-            parent_field.fail(f"unknown parent type {quote(parent)} (types: {', '.join(parents)})")
+            parent_field.fail(f"unknown parent type {quote(parent)} (types: {listing(parents)})")
         seen = {name}
         while parent is not None:  # a cycle would make every type its own ancestor
             if parent in seen:
@@ -237,7 +240,7 @@ def _predicates(field: Field, types):
         arg_types = tuple(t.lower() for t in args.strings())
         for item, type_ in zip(args.seq(), arg_types):
             if type_ not in types:
-                item.fail(f"unknown type {quote(type_)} (types: {', '.join(types)})")
+                item.fail(f"unknown type {quote(type_)} (types: {listing(types)})")
         predicates[key] = arg_types
     return frozen_mapping(predicates)
 
@@ -256,7 +259,7 @@ def _object_names(robot: Field, objects: Field, types) -> dict[str, str]:
             where.fail(f"duplicate name {quote(name)}: object names must differ in more than case")
         type_ = type_field.string().lower()
         if type_ not in types:
-            type_field.fail(f"unknown type {quote(type_)} (types: {', '.join(types)})")
+            type_field.fail(f"unknown type {quote(type_)} (types: {listing(types)})")
         names[key] = type_
     return names
 
@@ -348,7 +351,7 @@ def _object(name: str, field: Field, types, predicates, names) -> WorldObject:
         f["friction"].fail(f"friction needs a body or geom to simulate it (mjcf_body or mjcf_geom); {name} has neither")
     extra = f["extra"].mapping(required=kind.extra) if "extra" in f else {}
     if kind.extra and "extra" not in f:
-        f["shape"].fail(f"a {shape} needs extra: {{{', '.join(f'{k}: ...' for k in kind.extra)}}}")
+        f["shape"].fail(f"a {shape} needs extra: {{{listing(f'{k}: ...' for k in kind.extra)}}}")
     return WorldObject(
         name=name,
         type=f["type"].string().lower(),

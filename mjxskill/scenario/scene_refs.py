@@ -17,7 +17,7 @@ from pathlib import Path
 
 import mujoco
 
-from mjxskill.errors import quote
+from mjxskill.errors import listing, quote
 from mjxskill.planner.world_pddl import close_matches
 from mjxskill.scenario.fields import Field
 
@@ -27,7 +27,11 @@ def check_scene(scene: Path, scene_field: Field, tool_site: Field, bodies: dict[
     """Raises ScenarioError unless ``scene`` is an MJCF file with the site ``tool_site`` names,
     every body ``bodies`` (key path -> an ``mjcf_body`` field) names and every geom of the world
     body ``geoms`` (key path -> an ``mjcf_geom`` field) names."""
-    if not scene.exists():
+    try:
+        exists = scene.exists()
+    except OSError as err:  # a name too long, a loop of links
+        scene_field.fail(f"the MJCF scene {quote(str(scene), 300)} cannot be read ({err.strerror})")
+    if not exists:
         scene_field.fail(f"the MJCF scene {quote(str(scene), 300)} does not exist (paths are relative to the scenario file)")
     if not scene.is_file():
         scene_field.fail(f"the MJCF scene {quote(str(scene), 300)} is {'a directory' if scene.is_dir() else 'not a regular file'}, not an MJCF file")
@@ -40,7 +44,7 @@ def check_scene(scene: Path, scene_field: Field, tool_site: Field, bodies: dict[
     if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site_name) < 0:
         sites = _names(mujoco, model, mujoco.mjtObj.mjOBJ_SITE, model.nsite)
         tool_site.fail(f"the scene {scene.name} has no site {quote(site_name)}{close_matches(site_name, sites)} "
-                       f"(sites: {', '.join(sites) or 'none'})")
+                       f"(sites: {listing(sites) or 'none'})")
     known = None
     for field in bodies.values():
         if field.is_null():
@@ -49,7 +53,7 @@ def check_scene(scene: Path, scene_field: Field, tool_site: Field, bodies: dict[
         if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) < 0:
             known = known or _names(mujoco, model, mujoco.mjtObj.mjOBJ_BODY, model.nbody)
             field.fail(f"the scene {scene.name} has no body {quote(name)}{close_matches(name, known)} "
-                       f"(bodies: {', '.join(known)}; null for an object without a body)")
+                       f"(bodies: {listing(known)}; null for an object without a body)")
     for field in (geoms or {}).values():
         if field.is_null():
             continue
@@ -59,7 +63,7 @@ def check_scene(scene: Path, scene_field: Field, tool_site: Field, bodies: dict[
             world = [n for n in _names(mujoco, model, mujoco.mjtObj.mjOBJ_GEOM, model.ngeom)
                      if model.geom_bodyid[model.geom(n).id] == 0]
             field.fail(f"the scene {scene.name} has no geom {quote(name)} in its world body{close_matches(name, world)} "
-                       f"(world geoms: {', '.join(world) or 'none'})")
+                       f"(world geoms: {listing(world) or 'none'})")
 
 
 def _names(mujoco, model, kind, count: int) -> list[str]:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from mjxskill.scenario.fields import Field
-from mjxskill.errors import quote
+from mjxskill.errors import listing, quote
 from mjxskill.scenario.schema import (
     ANGLE_TOLERANCE_DEG,
     CLIP_SIGMAS,
@@ -47,20 +47,20 @@ def rewards(field: Field, objectives, object_names) -> tuple[Reward, ...]:
         spec = REWARD_KINDS[kind]
         objective = f["objective"].string()
         if objective not in objectives:
-            f["objective"].fail(f"unknown objective {quote(objective)} (objectives: {', '.join(objectives)})")
+            f["objective"].fail(f"unknown objective {quote(objective)} (objectives: {listing(objectives)})")
         used.add(objective)
         required = tuple(k for k, default in spec.constants.items() if default is REQUIRED)
         optional = tuple(k for k, default in spec.constants.items() if default is not REQUIRED)
         if "constants" in f:
             given = f["constants"].mapping(required=required, optional=optional)
         elif required:
-            item.fail(f"missing key 'constants' ({kind} needs {', '.join(required)})")
+            item.fail(f"missing key 'constants' ({kind} needs {listing(required)})")
         else:
             given = {}
         constants = {k: spec.constants[k] for k in optional} | {k: v.number(spec.domain(k)) for k, v in given.items()}
         for key in ("object", "target"):
             if key in f and f[key].string() not in object_names:
-                f[key].fail(f"unknown object {quote(f[key].string())} (objects: {', '.join(sorted(object_names))})")
+                f[key].fail(f"unknown object {quote(f[key].string())} (objects: {listing(sorted(object_names))})")
         missing = [key for key in spec.needs if key not in f]
         if missing:
             item.fail(f"{kind} needs {' and '.join(repr(k) for k in missing)} (an object name)")
@@ -91,7 +91,7 @@ def success(field: Field, objects) -> Success:
     f = field.mapping(required=("kind", "object", "target", *required), optional=optional)
     for key in ("object", "target"):
         if f[key].string() not in objects:
-            f[key].fail(f"unknown object {quote(f[key].string())} (objects: {', '.join(sorted(objects))})")
+            f[key].fail(f"unknown object {quote(f[key].string())} (objects: {listing(sorted(objects))})")
     values = {}
     for key in (*required, *optional):
         if key not in f:
@@ -112,7 +112,7 @@ def randomization(field: Field, object_names) -> Randomization:
     sigma = {}
     for name, value in f["xy_sigma"].items():
         if name not in object_names:
-            value.fail(f"unknown object {quote(name)} (objects: {', '.join(sorted(object_names))})")
+            value.fail(f"unknown object {quote(name)} (objects: {listing(sorted(object_names))})")
         sigma[name] = value.number(SIGMA)
     clip = None if "clip_sigmas" not in f or f["clip_sigmas"].is_null() else f["clip_sigmas"].number(CLIP_SIGMAS)
     friction = None

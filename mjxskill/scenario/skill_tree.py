@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import re
 
-from mjxskill.errors import quote
+from mjxskill.errors import listing, quote
 from mjxskill.ebt.nodes import Kind
 from mjxskill.ebt.primitives import INPUTS, PRIMITIVES, REQUIRED
 from mjxskill.ebt.template import COMPONENTS, OBJECT_ATTRIBUTES, LeafTemplate, NodeTemplate, Ref, Sum, references
@@ -55,12 +55,12 @@ def read_tree(field: Field, parameters) -> NodeTemplate | LeafTemplate:
 
 def _node(field: Field, parameters):
     if not field.node.tag.endswith(":map"):
-        field.fail(f"a tree node is a mapping with one of {', '.join(NODE_KINDS)}")
+        field.fail(f"a tree node is a mapping with one of {listing(NODE_KINDS)}")
     keys = [key for key, _ in field.items()]
     kinds = [key for key in keys if key in NODE_KINDS]
     if len(kinds) != 1:
-        what = f"both {quote(kinds[0])} and {quote(kinds[1])}" if kinds else f"none of them (keys: {', '.join(keys)})"
-        field.fail(f"a tree node has exactly one of {', '.join(NODE_KINDS)}; this one has {what}")
+        what = f"both {quote(kinds[0])} and {quote(kinds[1])}" if kinds else f"none of them (keys: {listing(keys)})"
+        field.fail(f"a tree node has exactly one of {listing(NODE_KINDS)}; this one has {what}")
     kind = kinds[0]
     if kind == "action":
         return _leaf(field, parameters)
@@ -88,13 +88,13 @@ def _leaf(field: Field, parameters) -> LeafTemplate:
     f = field.mapping(required=("action", "primitive"), optional=("args",))
     primitive = f["primitive"].string()
     if primitive not in PRIMITIVES:
-        f["primitive"].fail(f"unknown primitive {quote(primitive)} (primitives: {', '.join(PRIMITIVES)})")
+        f["primitive"].fail(f"unknown primitive {quote(primitive)} (primitives: {listing(PRIMITIVES)})")
     signature = INPUTS[primitive]
     given = f["args"].items() if "args" in f else []
     inputs = []
     for name, value in given:
         if name not in signature:
-            value.fail(f"{primitive} has no input {quote(name)} (inputs: {', '.join(signature) or 'none'})")
+            value.fail(f"{primitive} has no input {quote(name)} (inputs: {listing(signature) or 'none'})")
         inputs.append((name, _input(value, signature[name], parameters)))
     for name, spec in signature.items():
         if spec.default is REQUIRED and name not in dict(given):
@@ -113,7 +113,7 @@ def _input(field: Field, spec, parameters):
     if kind == "choice":
         value = field.string()
         if value not in spec.choices:
-            field.fail(f"{quote(value)} is not one of {', '.join(spec.choices)}")
+            field.fail(f"{quote(value)} is not one of {listing(spec.choices)}")
         return value
     if kind == "number":
         value = _number(field, parameters, learnable_ok=spec.learnable)
@@ -142,13 +142,13 @@ def _ref_text(field: Field, parameters) -> Ref:
 def _reference(match, parameters, field: Field) -> Ref:
     name, path = match.group(1), tuple(p for p in match.group(2).split(".") if p)
     if name not in parameters:
-        field.fail(f"${name} names no parameter of the skill (parameters: {', '.join(parameters)})")
+        field.fail(f"${name} names no parameter of the skill (parameters: {listing(parameters)})")
     p = parameters[name]
     if path and not p.plan:
         field.fail(f"${name} is a {p.type}: only a plan argument (an object) has attributes like .position")
     if path:
         if path[0] not in OBJECT_ATTRIBUTES:
-            field.fail(f"an object has no attribute {quote(path[0])} (attributes: {', '.join(OBJECT_ATTRIBUTES)})")
+            field.fail(f"an object has no attribute {quote(path[0])} (attributes: {listing(OBJECT_ATTRIBUTES)})")
         if len(path) > 2 or (len(path) == 2 and path[1] not in COMPONENTS):
             field.fail(f"after .{path[0]} comes at most one of .x .y .z; got {'$' + match.group(0)[1:]}")
     return Ref(name, path)

@@ -10,7 +10,7 @@ default or bounds of its own.
 
 from __future__ import annotations
 
-from mjxskill.errors import quote
+from mjxskill.errors import listing, quote
 from mjxskill.planner.world_pddl import check_atom, parse_literal
 from mjxskill.scenario.fields import Field
 from mjxskill.scenario.schema import (MIN_PRIOR_STD_SHARE, PARAMETER, ManualSet, ParameterPrior, Skill, SkillParameter,
@@ -40,7 +40,7 @@ def skill(name: str, field: Field, types, predicates, overrides: dict | None = N
                 item.fail(f"{quote(text)} is not a PDDL literal like (at ?peg ?box) or (not (at ?peg ?box))")
             problem = check_atom(literal[1], literal[2], predicates, types, variables, what="parameter")
             if problem:
-                item.fail(f"{problem} (plan parameters: {', '.join(variables) or 'none'})")
+                item.fail(f"{problem} (plan parameters: {listing(variables) or 'none'})")
             texts.append(text)
         conditions[key] = tuple(texts)
     if not conditions["postconditions"]:
@@ -83,13 +83,13 @@ def skill_parameter_overrides(field: Field | None, entries: list[tuple[str, Fiel
         skill_name, dot, name = key.partition(".")
         if not dot or skill_name not in skills:
             item.fail(f"{quote(key)} names no skill parameter: expected <Skill>.<parameter> with a skill of the library "
-                      f"(skills: {', '.join(skills)})")
+                      f"(skills: {listing(skills)})")
         declared = [p for p, _ in skills[skill_name].mapping(optional=("parameters",) + _SKILL_KEYS)["parameters"].items()]
         if name not in declared:
-            item.fail(f"skill {skill_name} has no parameter {quote(name)} (parameters: {', '.join(declared)})")
+            item.fail(f"skill {skill_name} has no parameter {quote(name)} (parameters: {listing(declared)})")
         entry = item.mapping(optional=OVERRIDABLE)
         if not entry:
-            item.fail(f"give at least one of {', '.join(OVERRIDABLE)}")
+            item.fail(f"give at least one of {listing(OVERRIDABLE)}")
         out.setdefault(skill_name, {})[name] = item
     return out
 
@@ -111,7 +111,7 @@ def _skill_parameter(name: str, field: Field, types, override: Field | None = No
     if plan:
         type_ = f["type"].string().lower()
         if type_ not in types:
-            f["type"].fail(f"unknown type {quote(type_)} for a plan parameter (types: {', '.join(types)})")
+            f["type"].fail(f"unknown type {quote(type_)} for a plan parameter (types: {listing(types)})")
         for key in ("default", "bounds", "learnable"):
             if key in f:
                 f[key].fail(f"a plan parameter (set by the planner) has no {key}")
@@ -197,7 +197,7 @@ def _learnable_named(key: str, item: Field, skills) -> SkillParameter:
     parameter = _learnable(key, skills)
     if parameter is None:
         learnable = [f"{s.name}.{p.name}" for s in skills.values() for p in s.parameters if p.learnable]
-        item.fail(f"{quote(key)} is not a learnable parameter of the skill library (learnable: {', '.join(learnable)})")
+        item.fail(f"{quote(key)} is not a learnable parameter of the skill library (learnable: {listing(learnable)})")
     return parameter
 
 
