@@ -5,7 +5,8 @@ directory), never "mjxskill is broken": its message names the bad value and wher
 and the command line turns it into one ``error:`` line with exit code 2 (``mjxskill.cli``).
 Everything else is a bug and keeps its traceback.
 
-This module imports nothing of mjxskill, so every stage can raise these without depending on
+``quote`` is how every message shows a value the user gave: a short prefix, never a whole
+file. This module imports nothing of mjxskill, so every stage can raise these without depending on
 another stage.
 """
 
@@ -14,8 +15,47 @@ from __future__ import annotations
 from typing import Any
 
 
+# How much of a value an error message shows (``quote``) and how long one message may be at most
+# (``UserError``): a scenario of one 900 KB scalar made a 900 KB error line, and a value read from
+# a file that is not what it should be (a skill library naming /etc/passwd) printed the file.
+QUOTE_CHARS = 60
+MAX_MESSAGE_CHARS = 2000
+
+
+def quote(value, limit: int = QUOTE_CHARS) -> str:
+    """``repr(value)`` for an error message, cut to its first ``limit`` characters (followed by
+    ``...`` and the full length) so that no value, however long, makes a long message. Every
+    message that shows a value the user gave shows it through this."""
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}... ({len(text)} characters)"
+
+
+def listing(names, limit: int = 20, chars: int = 40) -> str:
+    """``a, b, c`` for a message listing names (the objects, types, skills a value could have
+    been): each cut to ``chars`` characters, at most ``limit`` of them and how many more; ""
+    when there are none."""
+    names = [str(n) if len(str(n)) <= chars else f"{str(n)[:chars]}..." for n in names]
+    more = f" and {len(names) - limit} more" if len(names) > limit else ""
+    return ", ".join(names[:limit]) + more
+
+
+def bounded(message: str, limit: int = MAX_MESSAGE_CHARS) -> str:
+    """``message`` cut to ``limit`` characters (a mark says so); short messages unchanged."""
+    if len(message) <= limit:
+        return message
+    return f"{message[:limit]}... (message cut at {limit} of {len(message)} characters)"
+
+
 class UserError(Exception):
-    """Bad input from the user; the message says what and where."""
+    """Bad input from the user; the message says what and where, at most ``MAX_MESSAGE_CHARS``
+    long (a longer one is cut: the place comes first, so it survives)."""
+
+    def __init__(self, *args):
+        if args and isinstance(args[0], str):
+            args = (bounded(args[0]), *args[1:])
+        super().__init__(*args)
 
 
 class ScenarioError(UserError, ValueError):
@@ -87,5 +127,5 @@ class Notice(UserWarning):
     ``prog: warning: message`` line."""
 
 
-__all__ = ["ClusterError", "CommandError", "GoalError", "Notice", "PlanError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
+__all__ = ["MAX_MESSAGE_CHARS", "QUOTE_CHARS", "bounded", "listing", "quote", "ClusterError", "CommandError", "GoalError", "Notice", "PlanError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
            "ServerBusy", "SettingError", "UserError"]

@@ -7,7 +7,7 @@ import argparse
 import math
 from typing import Any, Callable
 
-from mjxskill.errors import CommandError
+from mjxskill.errors import QUOTE_CHARS, CommandError, quote
 from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_VALIDATION_CANDIDATES
 
 
@@ -72,9 +72,9 @@ def int_at_least(minimum: int) -> Callable[[str], int]:
         try:
             value = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+            raise argparse.ArgumentTypeError(f"expected an integer, got {quote(text)}") from None
         if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {quote(value)}")
         return value
 
     parse.__name__ = f"integer >= {minimum}"
@@ -90,7 +90,7 @@ def int_in(minimum: int, maximum: int) -> Callable[[str], int]:
     def parse(text: str) -> int:
         value = at_least(text)
         if value > maximum:
-            raise argparse.ArgumentTypeError(f"must be at most {maximum}, got {value}")
+            raise argparse.ArgumentTypeError(f"must be at most {maximum}, got {quote(value)}")
         return value
 
     parse.__name__ = f"integer in [{minimum}, {maximum}]"
@@ -101,9 +101,9 @@ def nonnegative_float(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected a number, got {quote(text)}") from None
     if not (value >= 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text if len(text) <= QUOTE_CHARS else quote(text)}")
     return value
 
 
@@ -134,5 +134,5 @@ def port(text: str) -> int:
     """A TCP port, 0 (any free one) to 65535."""
     value = int_at_least(0)(text)
     if value > 65535:
-        raise argparse.ArgumentTypeError(f"must be a port number 0-65535, got {value}")
+        raise argparse.ArgumentTypeError(f"must be a port number 0-65535, got {quote(value)}")
     return value

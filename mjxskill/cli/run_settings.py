@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from mjxskill.cli import args as cli_args
-from mjxskill.errors import CommandError, ResumeConflict, SettingError
+from mjxskill.errors import CommandError, ResumeConflict, SettingError, quote
 from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.run_task import record_scenario_change, scenario_difference
 from mjxskill.runs.settings import BY_NAME, SETTINGS, optimizer_option_value
@@ -47,7 +47,7 @@ def optimizer_option(text: str) -> tuple[str, int | float | str]:
     together is checked when the run's configuration is made (``new_config``)."""
     key, sep, value = text.partition("=")
     if not sep or not key:
-        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {quote(text)}")
     try:
         return key, optimizer_option_value(key, value)
     except ValueError as err:

@@ -16,6 +16,8 @@ import dataclasses
 import math
 from typing import Mapping
 
+from mjxskill.errors import quote
+
 # Allowed values of the string settings (what each means: the field comments below).
 CHOICES = {
     "scalarization": ("chebyshev", "hypervolume"),
@@ -158,6 +160,15 @@ _KINDS = {f.name: f.type for f in dataclasses.fields(AcquisitionSettings)}
 _NONNEGATIVE = ("alpha", "ref_margin", "pibo_beta", "prior_share", "single_direction_share", "raw_bounds_share")
 _AT_MOST_ONE = ("prior_share", "single_direction_share", "raw_bounds_share")
 _POSITIVE = ("tau", "learning_rate", "final_learning_rate")
+# The largest value of each numeric setting: what a setting sizes (candidates, directions, draws,
+# steps, rows) is allocated or run per batch element, so a typo (n_raw=99999999999) exhausted the
+# machine in every proposal, and stored with the run it did so on every --resume. Each bound lies
+# far beyond the defaults of every generation (n_raw 4096, n_directions 2048, n_draws 128).
+MAXIMUM = {"n_raw": 1 << 16, "n_restarts": 1024, "n_opt_steps": 100_000, "n_directions": 1 << 16, "n_draws": 4096,
+           "exact_max_points": 256, "bucket": 4096, "fit_starts": 64, "fit_steps": 10_000,
+           "per_element_fit_max_rows": 100_000, "fit_max_rows": 100_000,
+           "alpha": 1e3, "ref_margin": 1e3, "tau": 1e6, "learning_rate": 10.0, "final_learning_rate": 10.0,
+           "pibo_beta": 1e6}
 
 
 def _field_problem(name: str, kind: str, v) -> str | None:
@@ -165,20 +176,24 @@ def _field_problem(name: str, kind: str, v) -> str | None:
     involve several settings are ``AcquisitionSettings.__post_init__``'s."""
     if kind == "int":
         if not isinstance(v, int) or isinstance(v, bool):
-            return f"expected an integer, got {v!r}"
+            return f"expected an integer, got {quote(v)}"
         if v < 1:
-            return f"expected a positive integer, got {v!r}"
+            return f"expected a positive integer, got {quote(v)}"
+        if v > MAXIMUM.get(name, v):
+            return f"must be at most {MAXIMUM[name]}, got {quote(v)}"
     elif kind == "float":
         if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
-            return f"expected a finite number, got {v!r}"
+            return f"expected a finite number, got {quote(v)}"
         if name in _NONNEGATIVE and v < 0.0:
             return f"must be >= 0, got {v!r}"
         if name in _AT_MOST_ONE and v > 1.0:
             return f"must be <= 1 (a fraction), got {v!r}"
         if name in _POSITIVE and not v > 0.0:
             return f"must be > 0, got {v!r}"
+        if v > MAXIMUM.get(name, v):
+            return f"must be at most {MAXIMUM[name]:g}, got {v!r}"
     elif name in CHOICES and v not in CHOICES[name]:
-        return f"expected one of {', '.join(map(repr, CHOICES[name]))}, got {v!r}"
+        return f"expected one of {', '.join(map(repr, CHOICES[name]))}, got {quote(v)}"
     return None
 
 
@@ -190,7 +205,7 @@ def _coerce(name: str, kind: str, value):
             return int(text) if kind == "int" else float(text)
         except ValueError:
             raise ValueError(f"acquisition setting {name}: expected {'an integer' if kind == 'int' else 'a number'}, "
-                             f"got {value!r}") from None
+                             f"got {quote(value)}") from None
     if kind == "float" and isinstance(value, int) and not isinstance(value, bool):
         return float(value)
     if kind == "int" and isinstance(value, float) and value.is_integer():
@@ -204,7 +219,7 @@ def setting_value(name: str, value):
     ValueError naming an unknown key (with the valid ones) or the setting and its bad value.
     What several settings must satisfy together is checked by :func:`acquisition_settings`."""
     if name not in _KINDS:
-        raise ValueError(f"unknown acquisition setting {name!r}; valid settings: {', '.join(NAMES)}")
+        raise ValueError(f"unknown acquisition setting {quote(name)}; valid settings: {', '.join(NAMES)}")
     value = _coerce(name, _KINDS[name], value)
     problem = _field_problem(name, _KINDS[name], value)
     if problem:

@@ -19,7 +19,7 @@ from pddl.logic.predicates import Predicate
 from pddl.parser.domain import DomainParser
 from pddl.parser.problem import ProblemParser
 
-from mjxskill.errors import GoalError
+from mjxskill.errors import GoalError, listing, quote
 
 if TYPE_CHECKING:  # pragma: no cover
     from mjxskill.scenario.schema import Scenario
@@ -72,7 +72,7 @@ def is_subtype(types: Mapping[str, str | None], child: str, ancestor: str) -> bo
 
 def close_matches(name: str, choices) -> str:
     matches = difflib.get_close_matches(name, list(choices), n=3, cutoff=0.5)
-    return f"; did you mean {', '.join(matches)}?" if matches else ""
+    return f"; did you mean {listing(matches)}?" if matches else ""
 
 
 def check_atom(
@@ -88,15 +88,15 @@ def check_atom(
     arg_types: argument name (object or ?variable, lower case) -> its PDDL type.
     """
     if predicate not in predicates:
-        return f"unknown predicate {predicate!r}{close_matches(predicate, predicates)} (known: {', '.join(predicates)})"
+        return f"unknown predicate {quote(predicate)}{close_matches(predicate, predicates)} (known: {listing(predicates)})"
     expected = predicates[predicate]
     if len(args) != len(expected):
-        return f"predicate {predicate!r} takes {len(expected)} arguments ({', '.join(expected)}), got {len(args)}"
+        return f"predicate {quote(predicate)} takes {len(expected)} arguments ({listing(expected)}), got {len(args)}"
     for arg, expected_type in zip(args, expected):
         if arg not in arg_types:
-            return f"unknown {what} {arg!r} in ({predicate} {' '.join(args)}){close_matches(arg, arg_types)}"
+            return f"unknown {what} {quote(arg)} in ({predicate} {' '.join(args)}){close_matches(arg, arg_types)}"
         if not is_subtype(types, arg_types[arg], expected_type):
-            return f"{arg!r} is a {arg_types[arg]}, but ({predicate} ...) wants a {expected_type} there"
+            return f"{quote(arg)} is a {arg_types[arg]}, but ({predicate} ...) wants a {expected_type} there"
     return None
 
 
@@ -116,9 +116,9 @@ def _check_parentheses(goal: str) -> None:
         elif char == ")":
             depth -= 1
             if depth < 0:
-                raise GoalError(f"goal {goal!r}: unbalanced parentheses: unexpected ')' at column {column}")
+                raise GoalError(f"goal {quote(goal)}: unbalanced parentheses: unexpected ')' at column {column}")
     if depth > 0:
-        raise GoalError(f"goal {goal!r}: unbalanced parentheses: {depth} '(' not closed")
+        raise GoalError(f"goal {quote(goal)}: unbalanced parentheses: {depth} '(' not closed")
 
 
 def goal_literals(scn: "Scenario", goal: str) -> tuple[tuple[bool, str, tuple[str, ...]], ...]:
@@ -129,16 +129,16 @@ def goal_literals(scn: "Scenario", goal: str) -> tuple[tuple[bool, str, tuple[st
     matches).
     """
     if not isinstance(goal, str) or not goal.strip():
-        raise GoalError(f"empty goal {goal!r}: write one like (at peg-1 boxwithhole-1)")
+        raise GoalError(f"empty goal {quote(goal)}: write one like (at peg-1 boxwithhole-1)")
     _check_parentheses(goal)
     plain = _NAMESPACE.sub("", goal.strip()).lower()
     if not plain.startswith("("):
-        raise GoalError(f"goal {goal!r}: a goal is a parenthesised PDDL formula, e.g. (at peg-1 boxwithhole-1)")
+        raise GoalError(f"goal {quote(goal)}: a goal is a parenthesised PDDL formula, e.g. (at peg-1 boxwithhole-1)")
     try:
         problem = _parse(ProblemParser, f"(define (problem goal) (:domain {scn.name}) (:init) (:goal {plain}))")
     except Exception as err:  # lark's errors: report the first line, which names the token
         first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise GoalError(f"goal {goal!r} is not valid PDDL: {first}") from None
+        raise GoalError(f"goal {quote(goal)} is not valid PDDL: {first}") from None
 
     literals = []
 
@@ -152,17 +152,17 @@ def goal_literals(scn: "Scenario", goal: str) -> tuple[tuple[bool, str, tuple[st
             literals.append((positive, formula.name.lower(), tuple(t.name.lower() for t in formula.terms)))
         else:
             raise GoalError(
-                f"goal {goal!r}: only conjunctions of atoms and negated atoms are supported, got {formula}"
+                f"goal {quote(goal)}: only conjunctions of atoms and negated atoms are supported, got {formula}"
             )
 
     visit(problem.goal)
     if not literals:
-        raise GoalError(f"goal {goal!r} is empty")
+        raise GoalError(f"goal {quote(goal)} is empty")
     types = object_types(scn)
     for _, predicate, args in literals:
         problem_text = check_atom(predicate, args, scn.predicates, scn.types, types)
         if problem_text:
-            raise GoalError(f"goal {goal!r}: {problem_text}")
+            raise GoalError(f"goal {quote(goal)}: {problem_text}")
     return tuple(literals)
 
 

@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from mjxskill.errors import QUOTE_CHARS, quote
 from mjxskill.scenario.schema import (MAX_BATCH, MAX_BATCH_EPISODES, MAX_BUDGET, MAX_EPISODE_SECONDS, MAX_REPEATS,
                                      MAX_SEED, MAX_WORLDS, MIN_N_INIT)
 
@@ -55,15 +56,15 @@ class Setting:
         """The checked value of a flag's text or a config.yaml scalar; ValueError says why not."""
         if self.kind == "text":
             if not isinstance(value, str) or not value.strip():
-                raise ValueError(f"expected a text, got {value!r}")
+                raise ValueError(f"expected a text, got {quote(value)}")
             if self.choices is not None and value not in self.choices:
-                raise ValueError(f"expected one of {', '.join(self.choices)}, got {value!r}")
+                raise ValueError(f"expected one of {', '.join(self.choices)}, got {quote(value)}")
             return value
         number = _int(value) if self.kind == "int" else _float(value)
-        show = (lambda v: str(int(v))) if self.kind == "int" else (lambda v: f"{v:g}")  # noqa: E731
+        show = (lambda v: _text(int(v))) if self.kind == "int" else (lambda v: f"{v:g}")  # noqa: E731
         unit = f" {self.unit}" if self.unit else ""
         if self.kind == "float" and not number > 0:
-            raise ValueError(f"must be a positive finite number, got {value}")
+            raise ValueError(f"must be a positive finite number, got {_text(value)}")
         if self.minimum is not None and number < self.minimum:
             raise ValueError(f"must be at least {show(self.minimum)}{unit}, got {show(number)}")
         if self.maximum is not None and number > self.maximum:
@@ -74,24 +75,30 @@ class Setting:
         return self.scenario(scn) if self.scenario is not None else self.default
 
 
+def _text(value) -> str:
+    """A value as the user wrote it, cut to a short prefix (``mjxskill.errors.quote``)."""
+    text = str(value)
+    return text if len(text) <= QUOTE_CHARS else f"{text[:QUOTE_CHARS]}... ({len(text)} characters)"
+
+
 def _int(value) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, str)):
-        raise ValueError(f"expected an integer, got {value!r}")
+        raise ValueError(f"expected an integer, got {quote(value)}")
     try:
         return int(value)
     except ValueError:
-        raise ValueError(f"expected an integer, got {value!r}") from None
+        raise ValueError(f"expected an integer, got {quote(value)}") from None
 
 
 def _float(value) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-        raise ValueError(f"expected a number, got {value!r}")
+        raise ValueError(f"expected a number, got {quote(value)}")
     try:
         number = float(value)
     except (ValueError, OverflowError):
-        raise ValueError(f"expected a number, got {value!r}") from None
+        raise ValueError(f"expected a number, got {quote(value)}") from None
     if not math.isfinite(number):
-        raise ValueError(f"must be a positive finite number, got {value}")
+        raise ValueError(f"must be a positive finite number, got {_text(value)}")
     return number
 
 

@@ -17,12 +17,12 @@ caller's: ``ScenarioError`` for scenarios, ``RunError`` for a run's ``config.yam
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import yaml
 
-from mjxskill.errors import ScenarioError, UserError
+from mjxskill.errors import ScenarioError, UserError, quote
+from mjxskill.scenario.domain import Domain
 
 _constructor = yaml.constructor.SafeConstructor()
 
@@ -110,14 +110,16 @@ def _problem(err: yaml.YAMLError) -> str:
     if isinstance(err, yaml.reader.ReaderError):  # str(err) would name "<unicode string>"
         code = err.character if isinstance(err.character, int) else ord(err.character)
         return f"the character #x{code:04x} is not allowed in YAML ({err.reason})"
-    return _one_line(getattr(err, "problem", None) or err)
+    return _one_line(getattr(err, "problem", None) or err)[:200]  # a token of the text at most
 
 
-def _finite(value: int | float) -> bool:
-    try:
-        return math.isfinite(value)
-    except OverflowError:  # an integer too large for a float (10**400)
-        return False
+KEY_CHARS = 40  # a key in a key path (``objects.<key>.mass``) is cut to this many characters
+
+
+def _key_text(key) -> str:
+    """A mapping key as it appears in a key path, at most KEY_CHARS characters."""
+    text = str(key)
+    return text if len(text) <= KEY_CHARS else text[: KEY_CHARS - 3] + "..."
 
 
 def _one_line(text: str) -> str:
@@ -165,7 +167,7 @@ def _children(node: yaml.Node, path: str) -> list[tuple[yaml.Node, str]]:
     if isinstance(node, yaml.MappingNode):
         out = []
         for key, value in node.value:
-            name = key.value if isinstance(key, yaml.ScalarNode) else "?"
+            name = _key_text(key.value) if isinstance(key, yaml.ScalarNode) else "?"
             child = f"{path}.{name}" if path else str(name)
             out += [(key, child), (value, child)]
         return out
@@ -202,7 +204,8 @@ class Field:
     def _child_path(self, key) -> str:
         if isinstance(key, int):
             return f"{self.path}[{key}]"
-        return f"{self.path}.{key}" if self.path else str(key)
+        key = _key_text(key)
+        return f"{self.path}.{key}" if self.path else key
 
     # -- containers ---------------------------------------------------------------------------
     def items(self) -> list[tuple[str, "Field"]]:
@@ -214,10 +217,10 @@ class Field:
         for key_node, value_node in self.node.value:
             key = self._child(key_node, self.path).scalar()
             if not isinstance(key, str):
-                self._child(key_node, self._child_path(key)).fail(f"keys must be names, got {key!r}")
+                self._child(key_node, self._child_path(str(key))).fail(f"keys must be names, got {quote(key)}")
             if key in seen:
                 self._child(key_node, self._child_path(key)).fail(
-                    f"duplicate key {key!r} (first on line {seen[key]})"
+                    f"duplicate key {quote(key)} (first on line {seen[key]})"
                 )
             seen[key] = key_node.start_mark.line + 1
             pairs.append((key, self._child(value_node, self._child_path(key), key_node)))
@@ -229,7 +232,7 @@ class Field:
         allowed = set(required) | set(optional)
         for key, field in fields.items():
             if key not in allowed:
-                field.fail(f"unknown key {key!r}; expected one of {sorted(allowed)}")
+                field.fail(f"unknown key {quote(key)}; expected one of {sorted(allowed)}")
         for key in required:
             if key not in fields:
                 self.fail(f"missing key {key!r}")
@@ -247,8 +250,8 @@ class Field:
         try:
             return _constructor.construct_object(self.node)
         except Exception as err:  # noqa: BLE001  (e.g. !!float abc, !!bool maybe: any failure is a bad value)
-            text = self.node.value if len(self.node.value) <= 60 else self.node.value[:57] + "..."
-            self.fail(f"cannot read {text!r} as {self.node.tag.rpartition(':')[2]}: {_one_line(err)[:200]}")
+            self.fail(f"cannot read {quote(self.node.value)} as {self.node.tag.rpartition(':')[2]}: "
+                      f"{_one_line(err)[:200]}")
 
     def is_null(self) -> bool:
         return isinstance(self.node, yaml.ScalarNode) and self.node.tag.endswith(":null")
@@ -256,18 +259,23 @@ class Field:
     def string(self, choices=None) -> str:
         value = self.scalar()
         if not isinstance(value, str) or not value:
-            self.fail(f"expected a name (text), got {value!r}")
+            self.fail(f"expected a name (text), got {quote(value)}")
         if choices is not None and value not in choices:
-            self.fail(f"{value!r} is not one of {sorted(choices)}")
+            self.fail(f"{quote(value)} is not one of {sorted(choices)}")
         return value
 
     def boolean(self) -> bool:
         value = self.scalar()
         if not isinstance(value, bool):
-            self.fail(f"expected true or false, got {value!r}")
+            self.fail(f"expected true or false, got {quote(value)}")
         return value
 
-    def number(self, positive: bool = False, nonnegative: bool = False, maximum: float | None = None) -> float:
+    def number(self, domain: Domain | None = None, *, positive: bool = False, nonnegative: bool = False,
+               maximum: float | None = None) -> float:
+        """The value as a float inside ``domain`` (``mjxskill.scenario.domain``; without one: finite,
+        and > 0 with ``positive``, >= 0 with ``nonnegative``, <= ``maximum``)."""
+        if domain is None:
+            domain = Domain(minimum=0.0 if positive or nonnegative else None, maximum=maximum, exclusive_minimum=positive)
         value = self.scalar()
         if isinstance(value, str) and self.node.style is None:
             try:  # YAML 1.1 reads an exponent without a dot (1e300, 5e-3) as text; it means a number
@@ -275,35 +283,31 @@ class Field:
             except ValueError:
                 pass
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(f"expected a number, got {value!r}")
-        if not _finite(value):
-            self.fail(f"expected a finite number, got {value!r}")
-        if positive and value <= 0:
-            self.fail(f"expected a positive number, got {value!r}")
-        if nonnegative and value < 0:
-            self.fail(f"expected a number >= 0, got {value!r}")
-        if maximum is not None and value > maximum:
-            self.fail(f"expected a number <= {maximum:g}, got {value!r}")
+            self.fail(f"expected a number, got {quote(value)}")
+        problem = domain.problem(value)
+        if problem:
+            self.fail(problem)
         return float(value)
 
     def integer(self, minimum: int | None = None, maximum: int | None = None) -> int:
         value = self.scalar()
         if isinstance(value, bool) or not isinstance(value, int):
-            self.fail(f"expected an integer, got {value!r}")
+            self.fail(f"expected an integer, got {quote(value)}")
         if minimum is not None and value < minimum:
-            self.fail(f"expected an integer >= {minimum}, got {value!r}")
+            self.fail(f"expected an integer >= {minimum}, got {quote(value)}")
         if maximum is not None and value > maximum:
-            self.fail(f"expected an integer <= {maximum}, got {value!r}")
+            self.fail(f"expected an integer <= {maximum}, got {quote(value)}")
         return value
 
-    def vector(self, length: int | None = None) -> tuple[float, ...]:
+    def vector(self, length: int | None = None, domain: Domain | None = None) -> tuple[float, ...]:
+        """A list of numbers (``length`` of them when given), each inside ``domain``."""
         items = self.seq()
         if length is not None and len(items) != length:
             self.fail(f"expected a list of {length} numbers, got {len(items)}")
-        return tuple(item.number() for item in items)
+        return tuple(item.number(domain) for item in items)
 
-    def matrix(self, columns: int) -> tuple[tuple[float, ...], ...]:
-        return tuple(row.vector(columns) for row in self.seq())
+    def matrix(self, columns: int, domain: Domain | None = None) -> tuple[tuple[float, ...], ...]:
+        return tuple(row.vector(columns, domain) for row in self.seq())
 
     def strings(self) -> tuple[str, ...]:
         return tuple(item.string() for item in self.seq())
@@ -313,4 +317,7 @@ class Field:
             return "a mapping"
         if isinstance(self.node, yaml.SequenceNode):
             return "a list"
-        return repr(self.scalar())
+        if not self.path:  # the whole document is one value: a file of another kind; never show it
+            return (f"text of {len(self.node.value)} characters, not YAML keys and values (is {self.source} "
+                    "the file meant?)")
+        return quote(self.scalar())

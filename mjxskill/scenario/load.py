@@ -13,12 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from mjxskill.errors import GoalError, ScenarioError
+from mjxskill.errors import GoalError, ScenarioError, listing, quote
 from mjxskill.planner.world_pddl import check_atom, goal_literals, parse_literal
 from mjxskill.scenario.fields import Field, compose_file
 from mjxskill.scenario.scene_refs import check_scene
+from mjxskill.scenario.domain import Domain
 from mjxskill.scenario.schema import (
-    MAX_EPISODE_SECONDS, Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping,
+    ANGLE_DEG, EXTRA, FRICTION, JOINT_LIMIT_DEG, MASS, MAX_EPISODE_SECONDS, POSITION, SIZE, STIFFNESS, Pose, Robot,
+    Scenario, WorldObject, frozen_array, frozen_mapping,
 )
 from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.scenario.sections import optimizer, pick, randomization, rewards, success
@@ -46,8 +48,8 @@ def scenario_path(name_or_path: str | Path) -> Path:
     path = SCENARIO_DIR / f"{text}.yaml"
     if not path.exists():
         raise ScenarioError(
-            f"unknown task {text!r}: no {path.name} in {SCENARIO_DIR} "
-            f"(available: {', '.join(available_scenarios()) or 'none'}); pass a YAML path for your own"
+            f"unknown task {quote(text)}: no {path.name} in {SCENARIO_DIR} "
+            f"(available: {listing(available_scenarios()) or 'none'}); pass a YAML path for your own"
         )
     return path
 
@@ -93,7 +95,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         top["control_hz"].fail(f"control_hz {control_hz} must be a multiple of bt_hz {bt_hz}")
     name = top["name"].string()
     if not name.replace("-", "").replace("_", "").isalnum():
-        top["name"].fail(f"{name!r} is not usable as a PDDL name (letters, digits, - and _)")
+        top["name"].fail(f"{quote(name)} is not usable as a PDDL name (letters, digits, - and _)")
     scn = Scenario(
         name=name,
         source=str(path),
@@ -146,7 +148,9 @@ def _skill(name: str, field: Field, types, predicates, path: Path, overrides=Non
 
 def _skill_libraries(top, path: Path) -> list[tuple[Path, Field]]:
     """(path, root Field) of each file ``skill_library`` names (one path or a list, relative to
-    the scenario file), read like the scenario."""
+    the scenario file), read like the scenario. Only a regular file named ``*.yaml`` or ``*.yml``
+    is read: a path to any other file (``/etc/passwd``) is refused before it is opened, so that no
+    error can show what it holds."""
     if "skill_library" not in top:
         return []
     field = top["skill_library"]
@@ -154,8 +158,16 @@ def _skill_libraries(top, path: Path) -> list[tuple[Path, Field]]:
     libraries = []
     for item in items:
         library = (path.parent / item.string()).resolve()
-        if not library.is_file():
-            item.fail(f"the skill library {str(library)!r} is not a file (paths are relative to the scenario file)")
+        try:
+            regular = library.is_file()
+        except OSError as err:  # a name too long, a loop of links
+            item.fail(f"the skill library {quote(str(library), 300)} cannot be read ({err.strerror})")
+        if not regular:
+            item.fail(f"the skill library {quote(str(library), 300)} is not a file (paths are relative to the scenario "
+                      "file)")
+        if library.suffix.lower() not in (".yaml", ".yml"):
+            item.fail(f"the skill library {quote(str(library), 300)} is not a YAML file (.yaml or .yml); refusing to "
+                      "read it")
         libraries.append((library, compose_file(library, what="skill library")))
     return libraries
 
@@ -188,13 +200,13 @@ def _no_duplicates(field: Field, names, what: str) -> None:
     seen = set()
     for item, name in zip(field.seq(), names):
         if name.lower() in seen:
-            item.fail(f"duplicate {what} name {name!r}")
+            item.fail(f"duplicate {what} name {quote(name)}")
         seen.add(name.lower())
 
 
 def _pddl_name(field: Field, name: str) -> str:
     if not name.replace("-", "").replace("_", "").isalnum() or not name[0].isalpha():
-        field.fail(f"{name!r} is not a PDDL name (a letter, then letters, digits, - or _)")
+        field.fail(f"{quote(name)} is not a PDDL name (a letter, then letters, digits, - or _)")
     return name.lower()
 
 
@@ -205,15 +217,15 @@ def _types(field: Field):
         if key == "object":
             parent.fail("'object' is PDDL's root type; name your types differently")
         if key in parents:
-            parent.fail(f"duplicate type {name!r}")
+            parent.fail(f"duplicate type {quote(name)}")
         parents[key] = None if parent.is_null() else parent.string().lower()
     for (name, parent), (_, parent_field) in zip(parents.items(), field.items()):
         if parent is not None and parent not in parents:
-            parent_field.fail(f"unknown parent type {parent!r} (types: {', '.join(parents)})")
+            parent_field.fail(f"unknown parent type {quote(parent)} (types: {listing(parents)})")
         seen = {name}
         while parent is not None:  # a cycle would make every type its own ancestor
             if parent in seen:
-                parent_field.fail(f"type {name!r} is its own ancestor")
+                parent_field.fail(f"type {quote(name)} is its own ancestor")
             seen.add(parent)
             parent = parents[parent]
     return frozen_mapping(parents)
@@ -224,11 +236,11 @@ def _predicates(field: Field, types):
     for name, args in field.items():
         key = _pddl_name(args, name)
         if key in predicates:
-            args.fail(f"duplicate predicate {name!r}")
+            args.fail(f"duplicate predicate {quote(name)}")
         arg_types = tuple(t.lower() for t in args.strings())
         for item, type_ in zip(args.seq(), arg_types):
             if type_ not in types:
-                item.fail(f"unknown type {type_!r} (types: {', '.join(types)})")
+                item.fail(f"unknown type {quote(type_)} (types: {listing(types)})")
         predicates[key] = arg_types
     return frozen_mapping(predicates)
 
@@ -244,10 +256,10 @@ def _object_names(robot: Field, objects: Field, types) -> dict[str, str]:
     for name, where, type_field in entries:
         key = _pddl_name(where, name)
         if key in names:
-            where.fail(f"duplicate name {name!r}: object names must differ in more than case")
+            where.fail(f"duplicate name {quote(name)}: object names must differ in more than case")
         type_ = type_field.string().lower()
         if type_ not in types:
-            type_field.fail(f"unknown type {type_!r} (types: {', '.join(types)})")
+            type_field.fail(f"unknown type {quote(type_)} (types: {listing(types)})")
         names[key] = type_
     return names
 
@@ -260,7 +272,7 @@ def _relations(field: Field | None, types, predicates, names) -> tuple[str, ...]
         text = item.string()
         literal = parse_literal(text)
         if literal is None or not literal[0]:
-            item.fail(f"{text!r} is not a PDDL fact like (pushable box-1)")
+            item.fail(f"{quote(text)} is not a PDDL fact like (pushable box-1)")
         problem = check_atom(literal[1], literal[2], predicates, types, names)
         if problem:
             item.fail(problem)
@@ -275,7 +287,7 @@ _ROBOT_KEYS = (
 
 
 def _configs(field: Field, limits: np.ndarray, at_least: int) -> np.ndarray:
-    rows = field.matrix(7)
+    rows = field.matrix(7, JOINT_ANGLE)
     if len(rows) < at_least:
         field.fail(f"expected at least {at_least} configurations of 7 joint angles (rad), got {len(rows)}")
     for i, row in enumerate(rows):
@@ -289,9 +301,7 @@ def _configs(field: Field, limits: np.ndarray, at_least: int) -> np.ndarray:
 
 def _robot(field: Field, types, predicates, names) -> Robot:
     f = field.mapping(required=_ROBOT_KEYS[:-1], optional=("relations",))
-    limits_deg = np.array(f["joint_limits_deg"].vector(7))
-    if np.any(limits_deg <= 0):
-        f["joint_limits_deg"].fail("joint limits must be positive (degrees, symmetric)")
+    limits_deg = np.array(f["joint_limits_deg"].vector(7, JOINT_LIMIT_DEG))
     limits = np.deg2rad(limits_deg)
     home = _configs_row(f["home"], limits)
     return Robot(
@@ -302,25 +312,17 @@ def _robot(field: Field, types, predicates, names) -> Robot:
         joint_limits=frozen_array([-limits, limits]),
         start_configs=_configs(f["start_configs"], limits, 1),
         eval_configs=_configs(f["eval_configs"], limits, 0),
-        nullspace_stiffness=f["nullspace_stiffness"].number(nonnegative=True),
-        default_stiffness=_nonnegative_vector(f["default_stiffness"], 6),
+        nullspace_stiffness=f["nullspace_stiffness"].number(STIFFNESS),
+        default_stiffness=frozen_array(f["default_stiffness"].vector(6, STIFFNESS)),
         relations=_relations(f.get("relations"), types, predicates, names),
     )
 
 
 def _configs_row(field: Field, limits) -> np.ndarray:
-    values = field.vector(7)
+    values = field.vector(7, JOINT_ANGLE)
     for j, q in enumerate(values):
         if abs(q) > limits[j]:
             field.seq()[j].fail(f"joint {j + 1} angle {q} rad is outside the joint limit +-{limits[j]:.4f} rad")
-    return frozen_array(values)
-
-
-def _nonnegative_vector(field: Field, length: int) -> np.ndarray:
-    values = field.vector(length)
-    for item, v in zip(field.seq(), values):
-        if v < 0:
-            item.fail(f"expected a value >= 0, got {v}")
     return frozen_array(values)
 
 
@@ -335,17 +337,12 @@ def _object(name: str, field: Field, types, predicates, names) -> WorldObject:
     pose = f["pose"].mapping(required=("position", "rpy_deg"))
     shape = f["shape"].string(choices=SHAPES)
     kind = SHAPES[shape]
-    size = f["size"].vector()
-    if len(size) != kind.size:
-        f["size"].fail(f"a {shape} has {kind.size} sizes (m), got {len(size)}")
-    for item, v in zip(f["size"].seq(), size):
-        if v < 0:
-            item.fail(f"sizes are lengths >= 0 (m), got {v}")
     name_of = lambda key: None if key not in f or f[key].is_null() else f[key].string()  # noqa: E731
     body, geom = name_of("mjcf_body"), name_of("mjcf_geom")
+    size = _size(f["size"], shape, kind.size, plane=geom is not None)
     if body is not None and geom is not None:
         f["mjcf_geom"].fail("an object is an MJCF body or a geom of the world body, not both")
-    optional_number = lambda key: None if key not in f or f[key].is_null() else f[key].number(positive=True)  # noqa: E731
+    optional_number = lambda key, domain: None if key not in f or f[key].is_null() else f[key].number(domain)  # noqa: E731
     # Physics the simulator takes from the YAML (mjxskill.sim.model) needs something to write it into.
     for key in ("mass", "com_offset"):
         if key in f and not f[key].is_null() and body is None:
@@ -354,19 +351,40 @@ def _object(name: str, field: Field, types, predicates, names) -> WorldObject:
         f["friction"].fail(f"friction needs a body or geom to simulate it (mjcf_body or mjcf_geom); {name} has neither")
     extra = f["extra"].mapping(required=kind.extra) if "extra" in f else {}
     if kind.extra and "extra" not in f:
-        f["shape"].fail(f"a {shape} needs extra: {{{', '.join(f'{k}: ...' for k in kind.extra)}}}")
+        f["shape"].fail(f"a {shape} needs extra: {{{listing(f'{k}: ...' for k in kind.extra)}}}")
     return WorldObject(
         name=name,
         type=f["type"].string().lower(),
-        pose=Pose(frozen_array(pose["position"].vector(3)), frozen_array(pose["rpy_deg"].vector(3))),
+        pose=Pose(frozen_array(pose["position"].vector(3, POSITION)), frozen_array(pose["rpy_deg"].vector(3, ANGLE_DEG))),
         mjcf_body=body,
         shape=shape,
         size=frozen_array(size),
-        mass=optional_number("mass"),
-        friction=optional_number("friction"),
-        com_offset=frozen_array(f["com_offset"].vector(3) if "com_offset" in f else (0.0, 0.0, 0.0)),
-        approach_offset=frozen_array(f["approach_offset"].vector(3) if "approach_offset" in f else (0.0, 0.0, 0.0)),
-        extra=frozen_mapping((k, v.number(positive=True)) for k, v in extra.items()),
+        mass=optional_number("mass", MASS),
+        friction=optional_number("friction", FRICTION),
+        com_offset=frozen_array(f["com_offset"].vector(3, POSITION) if "com_offset" in f else (0.0, 0.0, 0.0)),
+        approach_offset=frozen_array(f["approach_offset"].vector(3, POSITION) if "approach_offset" in f
+                                     else (0.0, 0.0, 0.0)),
+        extra=frozen_mapping((k, v.number(EXTRA)) for k, v in extra.items()),
         relations=_relations(f.get("relations"), types, predicates, names),
         mjcf_geom=geom,
     )
+
+
+# Joint angles (rad) are checked against the robot's limits; this keeps out what no limit can be
+# compared with (a number beyond a float's range) before that.
+JOINT_ANGLE = Domain(-2 * np.pi, 2 * np.pi, unit="rad", why="a joint angle")
+
+
+def _size(field: Field, shape: str, count: int, plane: bool) -> tuple[float, ...]:
+    """``size``: ``count`` lengths in ``SIZE`` (m); an object that is a geom of the world body
+    (``plane``) may have height 0: a plane (``mjxskill.sim.model`` checks which it is)."""
+    items = field.seq()
+    if len(items) != count:
+        field.fail(f"a {shape} has {count} sizes (m), got {len(items)}")
+    size = []
+    for i, item in enumerate(items):
+        if plane and i == 2 and item.number() == 0:
+            size.append(0.0)
+        else:
+            size.append(item.number(SIZE))
+    return tuple(size)

@@ -3,7 +3,18 @@
 from __future__ import annotations
 
 from mjxskill.scenario.fields import Field
+from mjxskill.errors import listing, quote
 from mjxskill.scenario.schema import (
+    ANGLE_TOLERANCE_DEG,
+    CLIP_SIGMAS,
+    DEPTH,
+    FORCE,
+    FRICTION_RANGE,
+    POSITION,
+    REGION_SIZE,
+    SIGMA,
+    TOLERANCE,
+    WEIGHT,
     MAX_BATCH,
     MAX_BUDGET,
     MAX_REPEATS,
@@ -31,40 +42,44 @@ def rewards(field: Field, objectives, object_names) -> tuple[Reward, ...]:
         )
         name = f["name"].string()
         if name in {r.name for r in terms}:
-            f["name"].fail(f"duplicate reward name {name!r}")
+            f["name"].fail(f"duplicate reward name {quote(name)}")
         kind = f["kind"].string(choices=REWARD_KINDS)
         spec = REWARD_KINDS[kind]
         objective = f["objective"].string()
         if objective not in objectives:
-            f["objective"].fail(f"unknown objective {objective!r} (objectives: {', '.join(objectives)})")
+            f["objective"].fail(f"unknown objective {quote(objective)} (objectives: {listing(objectives)})")
         used.add(objective)
         required = tuple(k for k, default in spec.constants.items() if default is REQUIRED)
         optional = tuple(k for k, default in spec.constants.items() if default is not REQUIRED)
         if "constants" in f:
             given = f["constants"].mapping(required=required, optional=optional)
         elif required:
-            item.fail(f"missing key 'constants' ({kind} needs {', '.join(required)})")
+            item.fail(f"missing key 'constants' ({kind} needs {listing(required)})")
         else:
             given = {}
-        constants = {k: spec.constants[k] for k in optional} | {k: v.number() for k, v in given.items()}
+        constants = {k: spec.constants[k] for k in optional} | {k: v.number(spec.domain(k)) for k, v in given.items()}
         for key in ("object", "target"):
             if key in f and f[key].string() not in object_names:
-                f[key].fail(f"unknown object {f[key].string()!r} (objects: {', '.join(sorted(object_names))})")
+                f[key].fail(f"unknown object {quote(f[key].string())} (objects: {listing(sorted(object_names))})")
         missing = [key for key in spec.needs if key not in f]
         if missing:
             item.fail(f"{kind} needs {' and '.join(repr(k) for k in missing)} (an object name)")
         terms.append(
             Reward(
-                name, kind, f["weight"].number(), objective, frozen_mapping(constants),
+                name, kind, f["weight"].number(WEIGHT), objective, frozen_mapping(constants),
                 f["object"].string() if "object" in f else None,
                 f["target"].string() if "target" in f else None,
-                frozen_array(f["target_offset"].vector(3)) if "target_offset" in f else None,
+                frozen_array(f["target_offset"].vector(3, POSITION)) if "target_offset" in f else None,
             )
         )
     for objective in objectives:
         if objective not in used:
-            field.fail(f"objective {objective!r} has no reward")
+            field.fail(f"objective {quote(objective)} has no reward")
     return tuple(terms)
+
+
+# the numbers of a success test (SUCCESS_KINDS), one domain each
+_SUCCESS_DOMAINS = {"position_tolerance": TOLERANCE, "orientation_tolerance_deg": ANGLE_TOLERANCE_DEG, "depth": DEPTH}
 
 
 def success(field: Field, objects) -> Success:
@@ -76,18 +91,15 @@ def success(field: Field, objects) -> Success:
     f = field.mapping(required=("kind", "object", "target", *required), optional=optional)
     for key in ("object", "target"):
         if f[key].string() not in objects:
-            f[key].fail(f"unknown object {f[key].string()!r} (objects: {', '.join(sorted(objects))})")
+            f[key].fail(f"unknown object {quote(f[key].string())} (objects: {listing(sorted(objects))})")
     values = {}
     for key in (*required, *optional):
         if key not in f:
             continue
         if key.startswith("region_"):
-            vector = f[key].vector(3)
-            if key == "region_size" and min(vector) <= 0:
-                f[key].fail(f"a region's size is three lengths > 0 (m), got {list(vector)}")
-            values[key] = frozen_array(vector)
+            values[key] = frozen_array(f[key].vector(3, REGION_SIZE if key == "region_size" else POSITION))
         else:
-            values[key] = f[key].number(positive=True)
+            values[key] = f[key].number(_SUCCESS_DOMAINS[key])
     if kind == "inserted" and objects[f["target"].string()].shape not in ("box_with_hole", "box_with_round_hole"):
         f["target"].fail(f"an insertion goes into the hole of a box_with_hole or a box_with_round_hole; "
                          f"{f['target'].string()} is a "
@@ -100,12 +112,12 @@ def randomization(field: Field, object_names) -> Randomization:
     sigma = {}
     for name, value in f["xy_sigma"].items():
         if name not in object_names:
-            value.fail(f"unknown object {name!r} (objects: {', '.join(sorted(object_names))})")
-        sigma[name] = value.number(nonnegative=True)
-    clip = None if "clip_sigmas" not in f or f["clip_sigmas"].is_null() else f["clip_sigmas"].number(positive=True)
+            value.fail(f"unknown object {quote(name)} (objects: {listing(sorted(object_names))})")
+        sigma[name] = value.number(SIGMA)
+    clip = None if "clip_sigmas" not in f or f["clip_sigmas"].is_null() else f["clip_sigmas"].number(CLIP_SIGMAS)
     friction = None
     if "friction_range" in f and not f["friction_range"].is_null():
-        low, high = f["friction_range"].vector(2)
+        low, high = f["friction_range"].vector(2, FRICTION_RANGE)
         if not 0 <= low <= high:
             f["friction_range"].fail(f"expected 0 <= low <= high, got [{low}, {high}]")
         friction = (low, high)
@@ -136,5 +148,5 @@ def pick(field: Field | None) -> PickBound | None:
     f = field.mapping(required=("max_force", "why"))
     why = f["why"].scalar()
     if not isinstance(why, str) or not why.strip():
-        f["why"].fail(f"expected the reason for the bound (text), got {why!r}")
-    return PickBound(f["max_force"].number(nonnegative=True), " ".join(why.split()))
+        f["why"].fail(f"expected the reason for the bound (text), got {quote(why)}")
+    return PickBound(f["max_force"].number(FORCE), " ".join(why.split()))

@@ -23,10 +23,12 @@ from __future__ import annotations
 
 import re
 
+from mjxskill.errors import listing, quote
 from mjxskill.ebt.nodes import Kind
 from mjxskill.ebt.primitives import INPUTS, PRIMITIVES, REQUIRED
 from mjxskill.ebt.template import COMPONENTS, OBJECT_ATTRIBUTES, LeafTemplate, NodeTemplate, Ref, Sum, references
 from mjxskill.scenario.fields import Field
+from mjxskill.scenario.schema import PARAMETER
 
 PROCESSORS = {"sequence": Kind.SEQUENCE, "serial_star": Kind.SERIAL_STAR, "selector": Kind.SELECTOR,
               "selector_star": Kind.SELECTOR_STAR, "parallel": Kind.PARALLEL, "parallel_fs": Kind.PARALLEL_FS}
@@ -46,19 +48,19 @@ def read_tree(field: Field, parameters) -> NodeTemplate | LeafTemplate:
     used = {ref.name for ref in references(template)}
     for p in parameters.values():
         if p.learnable and p.name not in used:
-            field.fail(f"the learnable parameter {p.name!r} is not read by the tree: the optimizer would search a "
+            field.fail(f"the learnable parameter {quote(p.name)} is not read by the tree: the optimizer would search a "
                        f"value that changes nothing (read it in a leaf's args as ${p.name}, or set learnable: false)")
     return template
 
 
 def _node(field: Field, parameters):
     if not field.node.tag.endswith(":map"):
-        field.fail(f"a tree node is a mapping with one of {', '.join(NODE_KINDS)}")
+        field.fail(f"a tree node is a mapping with one of {listing(NODE_KINDS)}")
     keys = [key for key, _ in field.items()]
     kinds = [key for key in keys if key in NODE_KINDS]
     if len(kinds) != 1:
-        what = f"both {kinds[0]!r} and {kinds[1]!r}" if kinds else f"none of them (keys: {', '.join(keys)})"
-        field.fail(f"a tree node has exactly one of {', '.join(NODE_KINDS)}; this one has {what}")
+        what = f"both {quote(kinds[0])} and {quote(kinds[1])}" if kinds else f"none of them (keys: {listing(keys)})"
+        field.fail(f"a tree node has exactly one of {listing(NODE_KINDS)}; this one has {what}")
     kind = kinds[0]
     if kind == "action":
         return _leaf(field, parameters)
@@ -86,17 +88,17 @@ def _leaf(field: Field, parameters) -> LeafTemplate:
     f = field.mapping(required=("action", "primitive"), optional=("args",))
     primitive = f["primitive"].string()
     if primitive not in PRIMITIVES:
-        f["primitive"].fail(f"unknown primitive {primitive!r} (primitives: {', '.join(PRIMITIVES)})")
+        f["primitive"].fail(f"unknown primitive {quote(primitive)} (primitives: {listing(PRIMITIVES)})")
     signature = INPUTS[primitive]
     given = f["args"].items() if "args" in f else []
     inputs = []
     for name, value in given:
         if name not in signature:
-            value.fail(f"{primitive} has no input {name!r} (inputs: {', '.join(signature) or 'none'})")
+            value.fail(f"{primitive} has no input {quote(name)} (inputs: {listing(signature) or 'none'})")
         inputs.append((name, _input(value, signature[name], parameters)))
     for name, spec in signature.items():
         if spec.default is REQUIRED and name not in dict(given):
-            (f["args"] if "args" in f else field).fail(f"{primitive} needs the input {name!r} ({spec.kind})")
+            (f["args"] if "args" in f else field).fail(f"{primitive} needs the input {quote(name)} ({spec.kind})")
     return LeafTemplate(_name(f["action"]), primitive, tuple(inputs))
 
 
@@ -111,7 +113,7 @@ def _input(field: Field, spec, parameters):
     if kind == "choice":
         value = field.string()
         if value not in spec.choices:
-            field.fail(f"{value!r} is not one of {', '.join(spec.choices)}")
+            field.fail(f"{quote(value)} is not one of {listing(spec.choices)}")
         return value
     if kind == "number":
         value = _number(field, parameters, learnable_ok=spec.learnable)
@@ -133,20 +135,20 @@ def _ref_text(field: Field, parameters) -> Ref:
     text = field.string()
     match = _REF.fullmatch(text.strip())
     if not match:
-        field.fail(f"expected a reference like $threshold or $target.position, got {text!r}")
+        field.fail(f"expected a reference like $threshold or $target.position, got {quote(text)}")
     return _reference(match, parameters, field)
 
 
 def _reference(match, parameters, field: Field) -> Ref:
     name, path = match.group(1), tuple(p for p in match.group(2).split(".") if p)
     if name not in parameters:
-        field.fail(f"${name} names no parameter of the skill (parameters: {', '.join(parameters)})")
+        field.fail(f"${name} names no parameter of the skill (parameters: {listing(parameters)})")
     p = parameters[name]
     if path and not p.plan:
         field.fail(f"${name} is a {p.type}: only a plan argument (an object) has attributes like .position")
     if path:
         if path[0] not in OBJECT_ATTRIBUTES:
-            field.fail(f"an object has no attribute {path[0]!r} (attributes: {', '.join(OBJECT_ATTRIBUTES)})")
+            field.fail(f"an object has no attribute {quote(path[0])} (attributes: {listing(OBJECT_ATTRIBUTES)})")
         if len(path) > 2 or (len(path) == 2 and path[1] not in COMPONENTS):
             field.fail(f"after .{path[0]} comes at most one of .x .y .z; got {'$' + match.group(0)[1:]}")
     return Ref(name, path)
@@ -165,7 +167,7 @@ def _length(ref: Ref, parameters, field: Field) -> int:
 def _number(field: Field, parameters, learnable_ok: bool):
     """A number: a literal, a reference to a number, or a sum of numbers and references."""
     if not field.node.tag.endswith(":str"):
-        return field.number()
+        return field.number(PARAMETER)
     text = field.string().strip()
     terms, sign, pos, expect_term = [], 1, 0, True
     while pos < len(text):
@@ -175,7 +177,7 @@ def _number(field: Field, parameters, learnable_ok: bool):
             sign = -sign if text[pos] == "-" else sign
             expect_term, pos = True, pos + 1
         elif not expect_term:
-            field.fail(f"expected + or - at {text[pos:]!r} in {text!r}")
+            field.fail(f"expected + or - at {quote(text[pos:])} in {quote(text)}")
         elif (match := _REF.match(text, pos)) is not None:
             ref = _reference(match, parameters, field)
             if _length(ref, parameters, field) != 0:
@@ -186,9 +188,9 @@ def _number(field: Field, parameters, learnable_ok: bool):
             terms.append((sign, float(match.group(0))))
             sign, expect_term, pos = 1, False, match.end()
         else:
-            field.fail(f"expected a number or a reference like $threshold at {text[pos:]!r} in {text!r}")
+            field.fail(f"expected a number or a reference like $threshold at {quote(text[pos:])} in {quote(text)}")
     if not terms or expect_term:
-        field.fail(f"{text!r} is not a number, a reference or a sum of them")
+        field.fail(f"{quote(text)} is not a number, a reference or a sum of them")
     learnable = [t for _, t in terms if isinstance(t, Ref) and not t.path and parameters[t.name].learnable]
     if learnable and (not learnable_ok or len(terms) > 1 or terms[0][0] < 0):
         why = ("this input is fixed when the tree is built" if not learnable_ok else

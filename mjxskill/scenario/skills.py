@@ -10,9 +10,11 @@ default or bounds of its own.
 
 from __future__ import annotations
 
+from mjxskill.errors import listing, quote
 from mjxskill.planner.world_pddl import check_atom, parse_literal
 from mjxskill.scenario.fields import Field
-from mjxskill.scenario.schema import ManualSet, ParameterPrior, Skill, SkillParameter, frozen_mapping
+from mjxskill.scenario.schema import (MIN_PRIOR_STD_SHARE, PARAMETER, ManualSet, ParameterPrior, Skill, SkillParameter,
+                                     frozen_mapping)
 from mjxskill.scenario.skill_tree import read_tree
 
 
@@ -20,7 +22,7 @@ def skill(name: str, field: Field, types, predicates, overrides: dict | None = N
     """One entry of ``skills``: its parameters, PDDL conditions and tree. overrides: parameter
     name -> the scenario's ``skill_parameters`` entry for it (``skill_parameter_overrides``)."""
     if not name.replace("-", "").replace("_", "").isalnum() or not name[0].isalpha():
-        field.fail(f"{name!r} is not usable as a skill name (a letter, then letters, digits, - or _)")
+        field.fail(f"{quote(name)} is not usable as a skill name (a letter, then letters, digits, - or _)")
     f = field.mapping(required=("parameters", "preconditions", "postconditions", "tree"), optional=("holdconditions",))
     parameters = []
     for pname, pfield in f["parameters"].items():
@@ -35,10 +37,10 @@ def skill(name: str, field: Field, types, predicates, overrides: dict | None = N
             text = item.string()
             literal = parse_literal(text)
             if literal is None:
-                item.fail(f"{text!r} is not a PDDL literal like (at ?peg ?box) or (not (at ?peg ?box))")
+                item.fail(f"{quote(text)} is not a PDDL literal like (at ?peg ?box) or (not (at ?peg ?box))")
             problem = check_atom(literal[1], literal[2], predicates, types, variables, what="parameter")
             if problem:
-                item.fail(f"{problem} (plan parameters: {', '.join(variables) or 'none'})")
+                item.fail(f"{problem} (plan parameters: {listing(variables) or 'none'})")
             texts.append(text)
         conditions[key] = tuple(texts)
     if not conditions["postconditions"]:
@@ -59,7 +61,7 @@ def skill_fields(top: Field, library_files: list) -> list[tuple[str, Field]]:
     seen: dict[str, Field] = {}
     for name, field in entries:
         if name in seen:
-            field.fail(f"skill {name!r} is defined twice; the first is at {seen[name].where()}")
+            field.fail(f"skill {quote(name)} is defined twice; the first is at {seen[name].where()}")
         seen[name] = field
     return entries
 
@@ -80,14 +82,14 @@ def skill_parameter_overrides(field: Field | None, entries: list[tuple[str, Fiel
     for key, item in field.items():
         skill_name, dot, name = key.partition(".")
         if not dot or skill_name not in skills:
-            item.fail(f"{key!r} names no skill parameter: expected <Skill>.<parameter> with a skill of the library "
-                      f"(skills: {', '.join(skills)})")
+            item.fail(f"{quote(key)} names no skill parameter: expected <Skill>.<parameter> with a skill of the library "
+                      f"(skills: {listing(skills)})")
         declared = [p for p, _ in skills[skill_name].mapping(optional=("parameters",) + _SKILL_KEYS)["parameters"].items()]
         if name not in declared:
-            item.fail(f"skill {skill_name} has no parameter {name!r} (parameters: {', '.join(declared)})")
+            item.fail(f"skill {skill_name} has no parameter {quote(name)} (parameters: {listing(declared)})")
         entry = item.mapping(optional=OVERRIDABLE)
         if not entry:
-            item.fail(f"give at least one of {', '.join(OVERRIDABLE)}")
+            item.fail(f"give at least one of {listing(OVERRIDABLE)}")
         out.setdefault(skill_name, {})[name] = item
     return out
 
@@ -109,7 +111,7 @@ def _skill_parameter(name: str, field: Field, types, override: Field | None = No
     if plan:
         type_ = f["type"].string().lower()
         if type_ not in types:
-            f["type"].fail(f"unknown type {type_!r} for a plan parameter (types: {', '.join(types)})")
+            f["type"].fail(f"unknown type {quote(type_)} for a plan parameter (types: {listing(types)})")
         for key in ("default", "bounds", "learnable"):
             if key in f:
                 f[key].fail(f"a plan parameter (set by the planner) has no {key}")
@@ -122,11 +124,11 @@ def _skill_parameter(name: str, field: Field, types, override: Field | None = No
     if type_ == "vector":
         if learnable or "bounds" in f:
             field.fail("vector parameters cannot be learnable")
-        return SkillParameter(name, type_, False, unit, f["default"].vector(), None, False, description)
-    default = f["default"].number()
+        return SkillParameter(name, type_, False, unit, f["default"].vector(domain=PARAMETER), None, False, description)
+    default = f["default"].number(PARAMETER)
     bounds = None
     if "bounds" in f:
-        lower, upper = f["bounds"].vector(2)
+        lower, upper = f["bounds"].vector(2, PARAMETER)
         if lower > upper:
             f["bounds"].fail(f"lower bound {lower} is above the upper bound {upper}")
         if not lower <= default <= upper:
@@ -154,7 +156,7 @@ def manual_parameters(field: Field | None, skills) -> dict:
         values = {}
         for key, item in values_field.items():
             parameter = _learnable_named(key, item, skills)
-            v = item.number()
+            v = item.number(PARAMETER)
             lower, upper = parameter.bounds
             if not lower <= v <= upper:
                 item.fail(f"{v} is outside the bounds [{lower}, {upper}] {parameter.unit}")
@@ -174,13 +176,17 @@ def parameter_priors(field: Field | None, skills) -> dict:
     for key, item in field.items():
         parameter = _learnable_named(key, item, skills)
         f = item.mapping(required=("mean", "std"))
-        mean = f["mean"].number()
+        mean = f["mean"].number(PARAMETER)
         lower, upper = parameter.bounds
         if not lower <= mean <= upper:
             f["mean"].fail(f"prior mean {mean:g} is outside the bounds [{lower:g}, {upper:g}] {parameter.unit}")
-        std = f["std"].number()
+        std = f["std"].number(PARAMETER)
         if not std > 0:
             f["std"].fail(f"prior std must be > 0 ({parameter.unit}), got {std:g}")
+        if std < MIN_PRIOR_STD_SHARE * (upper - lower):
+            f["std"].fail(f"prior std {std:g} {parameter.unit} is below {MIN_PRIOR_STD_SHARE:g} of the bounds' width "
+                          f"{upper - lower:g}: a prior that narrow is a point the optimizer cannot evaluate its "
+                          "density near")
         priors[key] = ParameterPrior(mean, std, item.where())
     return frozen_mapping(priors)
 
@@ -191,7 +197,7 @@ def _learnable_named(key: str, item: Field, skills) -> SkillParameter:
     parameter = _learnable(key, skills)
     if parameter is None:
         learnable = [f"{s.name}.{p.name}" for s in skills.values() for p in s.parameters if p.learnable]
-        item.fail(f"{key!r} is not a learnable parameter of the skill library (learnable: {', '.join(learnable)})")
+        item.fail(f"{quote(key)} is not a learnable parameter of the skill library (learnable: {listing(learnable)})")
     return parameter
 
 

@@ -9,9 +9,11 @@ registry names exactly its table.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Mapping
+
+from mjxskill.scenario.domain import Domain
 
 
 REQUIRED = None  # a reward constant without a default: the YAML must give it
@@ -23,10 +25,31 @@ class RewardKind:
 
     constants: name -> default (``REQUIRED``: the YAML must give it); the loader rejects any
     other constant. needs: the reward's own keys the kind reads ("object", "target").
+    domains: name -> the constant's ``Domain`` (``CONSTANT_DOMAINS`` where the kind gives none):
+    the values the reward's formula can take, checked when the scenario loads.
     """
 
     constants: Mapping[str, float | None]
     needs: tuple[str, ...] = ()
+    domains: Mapping[str, Domain] = field(default_factory=lambda: MappingProxyType({}))
+
+    def domain(self, constant: str) -> Domain:
+        return self.domains.get(constant) or CONSTANT_DOMAINS[constant]
+
+
+# The reward constants' domains (``Reward`` gives the formulas). sigma_w divides, squared (0
+# divided by zero after the run directory existed; at 0.1 mm the exponential is already a step
+# 1e-4 m wide). The weights multiply a distance (m) or an angle (rad), d_o shifts one; cap
+# bounds a force.
+CONSTANT_DOMAINS: Mapping[str, Domain] = MappingProxyType({
+    "value": Domain(-1e6, 1e6, why="the reward per tick; an objective sums it over every tick"),
+    "w": Domain(1e-6, 1e6, why="1 / (w (d + d_o)) divides by it"),
+    "d_o": Domain(0.0, 100.0, why="an offset of a distance (m) or an angle (rad)"),
+    "sigma_w": Domain(1e-4, 100.0, why="exp(-(d + d_o) / (2 sigma_w^2)) divides by its square"),
+    "position_weight": Domain(0.0, 1e6, why="weights a distance"),
+    "orientation_weight": Domain(0.0, 1e6, why="weights an angle"),
+    "cap": Domain(0.0, 1e6, exclusive_minimum=True, unit="N", why="the largest force counted"),
+})
 
 
 # The reward vocabulary, read by the loader (what a YAML may and must give), the compiled
@@ -35,7 +58,11 @@ class RewardKind:
 REWARD_KINDS: Mapping[str, RewardKind] = MappingProxyType(
     {
         "task_completion": RewardKind(MappingProxyType({"value": REQUIRED})),
-        "ee_distance_to_box": RewardKind(MappingProxyType({"w": REQUIRED, "d_o": REQUIRED}), ("target",)),
+        # d_o > 0: at d = 0 the reward 1 / (w d) is infinite (and its worst value, with a
+        # negative weight, too)
+        "ee_distance_to_box": RewardKind(MappingProxyType({"w": REQUIRED, "d_o": REQUIRED}), ("target",),
+                                         MappingProxyType({"d_o": Domain(1e-6, 100.0, unit="m", why=(
+                                             "1 / (w (d + d_o)) is infinite at d = 0 when d_o is 0"))})),
         "applied_wrench": RewardKind(MappingProxyType({"cap": 100.0})),
         "contact_force": RewardKind(MappingProxyType({"cap": 100.0})),
         "exp_ee_to_goal": RewardKind(MappingProxyType({"sigma_w": REQUIRED, "d_o": REQUIRED}), ("target",)),

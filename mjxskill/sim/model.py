@@ -27,6 +27,7 @@ contact force of both engines.
 from __future__ import annotations
 
 import copy
+import re
 import weakref
 
 import mujoco
@@ -56,7 +57,7 @@ def compile_model(scn) -> mujoco.MjModel:
     """``build_model``'s work, done every time: three MjSpec compiles (the MJCF as written, with
     the tool's force sensors placed, and the final model)."""
     spec = mujoco.MjSpec.from_file(scn.scene)
-    base = spec.compile()  # the MJCF as written: poses, masses, where the tool tip is
+    base = _compile(spec, scn)  # the MJCF as written: poses, masses, where the tool tip is
     data = mujoco.MjData(base)
     mujoco.mj_kinematics(base, data)
     site = base.site(scn.robot.tool_site).id
@@ -71,8 +72,50 @@ def compile_model(scn) -> mujoco.MjModel:
     spec.option.timestep = 1.0 / scn.control_hz
     if not scn.gravity:
         spec.option.gravity = [0.0, 0.0, 0.0]
-    add_tool_force_sensors(spec, spec.compile(), scn.robot.tool_site)
-    return spec.compile()
+    add_tool_force_sensors(spec, _compile(spec, scn), scn.robot.tool_site)
+    return _compile(spec, scn)
+
+
+def _compile(spec, scn) -> mujoco.MjModel:
+    """``spec.compile()``, MuJoCo's refusal (a degenerate mesh, an inertia that is not positive
+    definite) a ScenarioError naming the YAML entry of the object it is about."""
+    try:
+        return spec.compile()
+    except ValueError as err:
+        raise ScenarioError(_compile_error(spec, scn, str(err))) from None
+
+
+def _compile_error(spec, scn, text: str) -> str:
+    """The message of MuJoCo's compile error ``text``: at the YAML entry of the object whose body,
+    geom or mesh MuJoCo names (its size; its mass where the inertia is at fault and the YAML
+    gives one), else at the scenario's objects."""
+    problem = " ".join(text.split("Element name")[0].removeprefix("Error:").split())[:300]
+    match = re.search(r"Element name '([^']*)'", text)
+    element = match.group(1) if match else None
+    for obj in scn.objects.values():
+        if element and element in _element_names(spec, obj):
+            inertia = "inertia" in problem or "mass" in problem
+            key = "mass" if inertia and obj.mass is not None else "size"
+            return (f"{scn.where(f'objects.{obj.name}.{key}')}: MuJoCo cannot build the simulated model with this value: "
+                    f"{problem}")
+    return f"{scn.source}: objects: MuJoCo cannot build the simulated model from the objects' values: {problem}"
+
+
+def _element_names(spec, obj) -> set[str]:
+    """The names of the MJCF elements that simulate ``obj``: its body, geoms and their meshes."""
+    if obj.mjcf_body is not None:
+        body = spec.body(obj.mjcf_body)
+        geoms = list(body.geoms) if body is not None else []
+        names = {obj.mjcf_body}
+    elif obj.mjcf_geom is not None:
+        geom = spec.geom(obj.mjcf_geom)
+        geoms = [geom] if geom is not None else []
+        names = {obj.mjcf_geom}
+    else:
+        return set()
+    for geom in geoms:
+        names |= {geom.name, geom.meshname} - {""}
+    return names
 
 
 def _fail(scn, obj, key: str, message: str):
@@ -200,6 +243,8 @@ def _world_geom(spec, scn, obj) -> None:
             _fail(scn, obj, "size", f"geom {obj.mjcf_geom!r} is a plane: its height must be 0, got {obj.size[2]:g}")
         geom.size = [obj.size[0] / 2, obj.size[1] / 2, geom.size[2]]
     elif geom.type == mujoco.mjtGeom.mjGEOM_BOX:
+        if obj.size[2] == 0:
+            _fail(scn, obj, "size", f"geom {obj.mjcf_geom!r} is a box: its height must be > 0 (only a plane's is 0)")
         geom.size = np.asarray(obj.size, float) / 2
     else:
         _fail(scn, obj, "shape", f"geom {obj.mjcf_geom!r} is a {geom.type.name.removeprefix('mjGEOM_').lower()}, "
