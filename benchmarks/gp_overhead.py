@@ -2,14 +2,16 @@
 
 Prints the first ask (compile + run) and the median of later asks in the same padded-size
 bucket (compiled), plus, as a yardstick of how loaded the machine is, the time of a numpy
-float64 Cholesky of the same padded size measured in the same run.
+float64 Cholesky of the same padded size measured in the same run, and the 1-min load average
+before and after. ``--json FILE`` writes the same figures (and the options) for a results folder.
 
-    python benchmarks/gp_overhead.py [--n 400] [--d 4] [--q 8] [--repeats 5] [--option KEY=VALUE ...]
+    python benchmarks/gp_overhead.py [--n 400] [--d 4] [--q 8] [--repeats 5] [--option KEY=VALUE ...] [--json FILE]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -32,11 +34,13 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                     help="acquisition setting of mjxskill.gp (repeatable), e.g. model=per_objective")
+    ap.add_argument("--json", help="write the figures to this file as JSON")
     args = ap.parse_args(argv)
     try:
         settings = acquisition_settings(dict(kv.partition("=")[::2] for kv in args.option))
     except ValueError as err:
         ap.error(f"--option: {err}")
+    load_before = os.getloadavg()[0]
     rng = np.random.default_rng(0)
     cfg = MOBOConfig(bounds=[[0.0] * args.d, [1.0] * args.d], n_objectives=2, batch_size=args.q, n_init=40,
                      acquisition=settings)
@@ -66,6 +70,14 @@ def main(argv=None):
     print(f"first ask (compile + run): {first:.1f} s")
     print(f"compiled ask: median {run:.2f} s over {args.repeats} (min {min(times):.2f}, max {max(times):.2f})")
     print(f"numpy Cholesky {size}x{size}: {chol * 1e3:.2f} ms; ask / Cholesky = {run / chol:.0f}")
+    load_after = os.getloadavg()[0]
+    print(f"1-min load: {load_before:.2f} before, {load_after:.2f} after")
+    if args.json:
+        doc = {"n": args.n, "d": args.d, "q": args.q, "padded_rows": size, "options": args.option, "first_ask_s": first,
+               "ask_median_s": run, "ask_s": times, "cholesky_s": chol, "load1_before": load_before,
+               "load1_after": load_after}
+        with open(args.json, "w") as fh:
+            json.dump(doc, fh, indent=1)
 
 
 if __name__ == "__main__":
