@@ -49,7 +49,8 @@ class LearnableParameter:
 def ground_plan(scn: "Scenario", plan: Sequence[str]) -> tuple[PlanStep, ...]:
     """Planner output ``["(gotolinear iiwa-1 home-1 peg-1)", ...]`` -> PlanSteps."""
     by_action = {skill.pddl_name: skill for skill in scn.skills.values()}
-    steps, uses = [], {}
+    steps: list[PlanStep] = []
+    uses: dict[str, int] = {}
     for text in plan:
         tokens = text.strip().strip("()").split()
         if not tokens or tokens[0].lower() not in by_action:
@@ -80,6 +81,8 @@ def plan_to_tree(scn: "Scenario", steps: Sequence[PlanStep]) -> tuple[Node, tupl
         subtrees.append(expand(skill.tree, _binding(scn, step)))
         for p in skill.parameters:
             if p.learnable:
+                # a float with bounds (mjxskill.scenario.skills._skill_parameter)
+                assert p.bounds is not None and isinstance(p.default, float)
                 learnable.append(
                     LearnableParameter(
                         f"{step.label}.{p.name}", step.skill, p.name, p.unit,

@@ -7,7 +7,7 @@ BT the native-MuJoCo baseline runs. Semantics: see ``mjxskill/ebt/nodes.py``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, cast
 
 from mjxskill.ebt.nodes import Kind, Node, Status
 
@@ -54,6 +54,14 @@ class Interpreter:
             next_id = self._number(child, next_id)
         return next_id
 
+    def _count(self, nid: int) -> int:
+        """A SerialStar/SelectorStar's index or a Repeat/Retry/Timeout's count (0: none kept)."""
+        return cast(int, self.memory.get(nid, 0))
+
+    def _done(self, nid: int) -> frozenset[int]:
+        """A Parallel's children that succeeded (none kept: none)."""
+        return cast(frozenset[int], self.memory.get(nid, frozenset()))
+
     def reset(self) -> None:
         self.memory.clear()
 
@@ -99,7 +107,7 @@ class Interpreter:
             # Sequences stop on the first non-SUCCESS child, selectors on the first non-FAILURE.
             go_on = Status.SUCCESS if kind in (Kind.SEQUENCE, Kind.SERIAL_STAR) else Status.FAILURE
             has_memory = kind in (Kind.SERIAL_STAR, Kind.SELECTOR_STAR)
-            start = mem.get(nid, 0) if has_memory else 0
+            start = self._count(nid) if has_memory else 0
             status = go_on
             for i in range(start, len(kids)):
                 status = child(kids[i])
@@ -108,7 +116,7 @@ class Interpreter:
                         mem[nid] = i
                     break
         elif kind == Kind.PARALLEL:
-            done = set(mem.get(nid, frozenset()))
+            done = set(self._done(nid))
             status = Status.SUCCESS
             for cid in kids:
                 if cid in done:
@@ -143,12 +151,12 @@ class Interpreter:
             s = child(kids[0])
             status = s
             if s == counted:
-                n = mem.get(nid, 0) + 1
+                n = self._count(nid) + 1
                 if n < node.count:
                     mem[nid] = n  # the child finished, so it restarts fresh next tick
                     status = Status.RUNNING
         elif kind == Kind.TIMEOUT:
-            n = mem.get(nid, 0) + 1
+            n = self._count(nid) + 1
             s = child(kids[0])
             status = s
             if s == Status.RUNNING:
@@ -173,6 +181,6 @@ def run_script(tree: Node, script: list[dict[int, Status]] | list[list[Status]])
     leaf_ids = [i for i, n in enumerate(interp.nodes) if n.is_leaf]
     results = []
     for entry in script:
-        table = entry if isinstance(entry, dict) else dict(zip(leaf_ids, entry))
-        results.append(interp.tick(lambda nid, node, t=table: t[nid]))
+        table: dict[int, Status] = entry if isinstance(entry, dict) else dict(zip(leaf_ids, entry))
+        results.append(interp.tick(lambda nid, node: table[nid]))  # called within this iteration's tick
     return results

@@ -18,7 +18,7 @@ is fixed into ``args`` (vectors and sums rounded to 1e-9, so printed trees show 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Union
+from typing import Callable, Union, cast
 
 from mjxskill.ebt.nodes import Kind, Node
 from mjxskill.ebt.primitives import INPUTS
@@ -93,7 +93,7 @@ class Binding:
         return tuple(float(v) for v in value) if hasattr(value, "__len__") else float(value)
 
 
-def _number(value: Value, binding: Binding) -> float:
+def _number(value: float | Ref | Sum, binding: Binding) -> float:
     if isinstance(value, Ref):
         return float(binding.value(value))
     if isinstance(value, Sum):
@@ -101,7 +101,7 @@ def _number(value: Value, binding: Binding) -> float:
     return float(value)
 
 
-def _vector(value: Value, binding: Binding) -> tuple[float, ...]:
+def _vector(value: Ref | tuple, binding: Binding) -> tuple[float, ...]:
     items = binding.value(value) if isinstance(value, Ref) else tuple(_number(v, binding) for v in value)
     return tuple(round(float(v), 9) for v in items)
 
@@ -111,16 +111,18 @@ def _leaf(leaf: LeafTemplate, binding: Binding) -> Node:
     signature = INPUTS[leaf.primitive]
     for name, value in leaf.inputs:
         kind = signature[name].kind
+        # What an input of each kind holds (mjxskill.scenario.skill_tree checks it): an object, a
+        # Ref; a number, a float, Ref or Sum; a vector, a Ref or a tuple
         if kind == "object":
-            obj = binding.obj(value.name)
+            obj = binding.obj(cast(Ref, value).name)
             args[name] = obj.name
             args["mjcf_body"] = obj.mjcf_body
         elif isinstance(value, Ref) and not value.path and binding.learnable(value.name):
             params[name] = f"{binding.label}.{value.name}"
         elif kind == "number":
-            args[name] = _number(value, binding)
+            args[name] = _number(cast(Union[float, Ref, Sum], value), binding)
         elif kind in ("vector3", "vector6"):
-            args[name] = _vector(value, binding)
+            args[name] = _vector(cast(Union[Ref, tuple], value), binding)
         else:
             args[name] = value
     return Node(Kind.ACTION, _name(leaf.name, binding), primitive=leaf.primitive, args=args, params=params)

@@ -86,6 +86,7 @@ class MOBOConfig:
 
     def to_dict(self) -> dict:
         """Plain JSON-able form: the acquisition settings nested as a mapping."""
+        assert self.acquisition is not None  # __post_init__ sets it
         return {**{f.name: getattr(self, f.name) for f in dataclasses.fields(self)}, "acquisition": self.acquisition.to_dict(),
                 "prior": None if self.prior is None else self.prior.to_dict()}
 

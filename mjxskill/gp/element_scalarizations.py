@@ -13,7 +13,7 @@ normalized objectives into the space the per-objective GPs are fitted in.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -54,8 +54,8 @@ class Scalarization(NamedTuple):
 
     space: jnp.ndarray
     targets: jnp.ndarray
-    incumbents: object
-    log_ei: object
+    incumbents: Callable[[jnp.ndarray, jnp.ndarray], Any]  # -> a pytree of incumbents
+    log_ei: Callable[..., Callable[[jnp.ndarray, jnp.ndarray], jnp.ndarray]]
     directions: jnp.ndarray
     scale: jnp.ndarray
     variance_factor: jnp.ndarray

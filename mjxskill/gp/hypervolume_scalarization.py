@@ -227,6 +227,7 @@ def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.nda
     for i in range(m):  # static
         t_i = (1.0 - mean[:, i, None]) * inv[None, :, i] - sd[:, i, None] * slope[None, :, i]  # (b, k s)
         t = t_i if t is None else jnp.minimum(t, t_i)
+    assert t is not None  # m >= 1 objectives
     # scalarize's extension below 0 (t^m above, t below), on the anchored Chebyshev values t.
     scalarized = jnp.where(t > 0.0, jnp.maximum(t, 0.0) ** m, t)
     return log_mean_softplus((scalarized - best) / tau, axis=-1) + jnp.log(tau)

@@ -35,7 +35,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
-from typing import Callable, Mapping, NamedTuple
+from typing import Any, Callable, Mapping, NamedTuple
 
 import jax
 import numpy as np
@@ -115,6 +115,7 @@ def reference_of(state: MOBOState) -> np.ndarray:
     """(m,) the hypervolume scalarizations' reference point, in objective units: the config's,
     or inferred as ``acquisition.reference`` says (from the warm-up rows or the current front)."""
     cfg = state.config
+    assert cfg.acquisition is not None  # MOBOConfig.__post_init__ sets it
     if cfg.ref_point is not None:
         return np.asarray(cfg.ref_point, np.float64)
     if cfg.acquisition.reference == "warmup":
@@ -125,6 +126,7 @@ def reference_of(state: MOBOState) -> np.ndarray:
 def _padded_training_set(state: MOBOState):
     """(x, y_norm, mask, ref) padded to the bucket size, in the proposal's units."""
     cfg = state.config
+    assert cfg.acquisition is not None  # MOBOConfig.__post_init__ sets it
     lo, hi = np.asarray(cfg.bounds)
     n = len(state.x)
     size = cfg.acquisition.bucket * -(-n // cfg.acquisition.bucket)
@@ -176,6 +178,7 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
     with the uniform density (``proposal.prior_weighted``).
     """
     cfg = state.config
+    assert cfg.acquisition is not None  # MOBOConfig.__post_init__ sets it
     q = cfg.batch_size if num is None else int(num)
     if q < 1:
         raise ValueError(f"ask: batch size must be positive, got {num!r}")
@@ -191,7 +194,7 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
         return lo + u * (hi - lo)
     x, y, mask, ref = _padded_training_set(state)
     with jax.enable_x64(True):
-        prior_args = ()
+        prior_args: tuple = ()
         if cfg.prior is not None:
             prior_args = (jax.tree.map(jax.numpy.asarray, unit_prior(cfg.prior, cfg.bounds)),
                           jax.numpy.asarray(pibo_weight(cfg.acquisition.pibo_beta, n), jax.numpy.float64))
@@ -254,7 +257,7 @@ def save_state(state: MOBOState, path) -> None:
     """Writes the state as NPZ (arrays, the noise array when the state has one, and the config
     as JSON); no pickle."""
     config_json = json.dumps({"format": STATE_FORMAT, "config": state.config.to_dict()})
-    noise = {} if state.noise is None else {"noise": state.noise}
+    noise: dict[str, Any] = {} if state.noise is None else {"noise": state.noise}  # Any: savez's stubs
     with open(path, "wb") as fh:
         np.savez(fh, x=state.x, y=state.y, config_json=np.array(config_json), **noise)
 
@@ -332,7 +335,7 @@ def minimize(
     # The number of objectives is learned from the first warm-up batch (the warm-up draws
     # use none of the acquisition settings but prior_share, the same whatever that number).
     probe = MOBOConfig(bounds=bounds, n_objectives=1, batch_size=batch_size, n_init=n_init, seed=seed,
-                       acquisition=resolved(None), prior=prior)
+                       acquisition=resolved(None), prior=prior)  # type: ignore[arg-type]  # MOBOConfig reads a mapping too
     x0 = ask(init(probe))
     y0 = evaluate(x0)
     cfg = dataclasses.replace(probe, n_objectives=y0.shape[1], ref_point=ref_point, acquisition=resolved(y0.shape[1]))

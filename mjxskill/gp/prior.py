@@ -112,6 +112,7 @@ class Prior:
                              f"[{lo[i]:g}, {hi[i]:g}]")
 
     def to_dict(self) -> dict:
+        assert self.weights is not None  # __post_init__ sets it
         return {"mean": [list(r) for r in self.mean], "std": [list(r) for r in self.std], "weights": list(self.weights)}
 
     @classmethod

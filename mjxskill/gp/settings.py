@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Mapping
+from typing import Any, Mapping, cast
 
 from mjxskill.errors import quote
 
@@ -119,7 +119,7 @@ class AcquisitionSettings:
 # resumes with it, so a change of the defaults never changes a run in progress. What each generation is:
 # 1, ParEGO's log-EI with the hybrid model; 2, the hypervolume scalarization on per-objective GPs; 3 and 4 change
 # only what a given reference point with three objectives changes (below). RESULTS.md has how each was chosen.
-DEFAULTS_BY_GENERATION = {
+DEFAULTS_BY_GENERATION: dict[int, dict[str, Any]] = {
     1: {"scalarization": "chebyshev", "n_directions": 1, "directions": "independent", "single_direction_share": 0.0,
         "single_direction_reference": "global", "final_learning_rate": 0.02, "prior": "gamma", "model": "hybrid",
         "n_draws": 128, "pending": "variance", "incumbent": "observed", "variance": "latent"},
@@ -131,11 +131,12 @@ GENERATION = max(DEFAULTS_BY_GENERATION)
 
 # With a given reference point (MOBOConfig.ref_point) from generation 2 on: 2048 directions, one posterior draw each,
 # paired in one Sobol set; about a reference inferred from the warm-up (every robot run) they cost more than they gain.
-GIVEN_REFERENCE_DEFAULTS = {"n_directions": 2048, "n_draws": 1, "draw_pairing": "per_direction"}
+GIVEN_REFERENCE_DEFAULTS: dict[str, Any] = {"n_directions": 2048, "n_draws": 1, "draw_pairing": "per_direction"}
 # With a given reference and three objectives: the closed-form improvement with 4x the candidates and 3x the Adam
 # steps (generation 3), and half the candidates on the bounds (generation 4); two objectives lost with both.
-_CLOSED_FORM = {"hypervolume_improvement": "exact", "n_raw": 4096, "n_opt_steps": 300}
-GIVEN_REFERENCE_THREE_OBJECTIVES_BY_GENERATION = {3: _CLOSED_FORM, 4: {**_CLOSED_FORM, "raw_bounds_share": 0.5}}
+_CLOSED_FORM: dict[str, Any] = {"hypervolume_improvement": "exact", "n_raw": 4096, "n_opt_steps": 300}
+GIVEN_REFERENCE_THREE_OBJECTIVES_BY_GENERATION: dict[int, dict[str, Any]] = {
+    3: _CLOSED_FORM, 4: {**_CLOSED_FORM, "raw_bounds_share": 0.5}}
 
 
 def acquisition_defaults(generation: int = GENERATION, reference_given: bool = False,
@@ -156,7 +157,8 @@ def acquisition_defaults(generation: int = GENERATION, reference_given: bool = F
 
 
 NAMES = tuple(f.name for f in dataclasses.fields(AcquisitionSettings))
-_KINDS = {f.name: f.type for f in dataclasses.fields(AcquisitionSettings)}
+# Each field's type as its name ("int", "float", "str"): this module's annotations are postponed (strings)
+_KINDS = {f.name: cast(str, f.type) for f in dataclasses.fields(AcquisitionSettings)}
 _NONNEGATIVE = ("alpha", "ref_margin", "pibo_beta", "prior_share", "single_direction_share", "raw_bounds_share")
 _AT_MOST_ONE = ("prior_share", "single_direction_share", "raw_bounds_share")
 _POSITIVE = ("tau", "learning_rate", "final_learning_rate")

@@ -59,7 +59,8 @@ def ground(task: LiftedTask, prune_unreachable: bool = True) -> GroundTask:
     static_init = frozenset(fact(a) for a in task.init if a.predicate not in fluent_predicates)
     init = frozenset(fact(a) for a in task.init if a.predicate in fluent_predicates)
 
-    goal_pos, goal_neg = set(), set()
+    goal_pos: set[str] = set()
+    goal_neg: set[str] = set()
     for literals, positive in ((task.goal.pos, True), (task.goal.neg, False)):
         for atom in literals:
             text = fact(atom)

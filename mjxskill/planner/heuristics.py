@@ -89,7 +89,7 @@ class _Relaxed(NamedTuple):
     dropped. Fact ``start`` is the precondition of operators without one; the last operator is
     the artificial goal operator (cost 0), which needs every goal fact and adds fact ``goal``."""
 
-    index: dict  # fact -> its index
+    fact_index: dict  # fact -> its index (not `index`: that is tuple's method)
     start: int
     goal: int
     n_facts: int
@@ -141,7 +141,7 @@ def lmcut(task: GroundTask) -> Heuristic:
             return math.inf
         if goal_pos <= state:
             return 0
-        sources = sorted(r.index[f] for f in state if f in r.index) + [r.start]
+        sources = sorted(r.fact_index[f] for f in state if f in r.fact_index) + [r.start]
         cost = r.unit_costs.copy()
         total = 0.0
         while True:

@@ -70,7 +70,7 @@ class LiftedTask(NamedTuple):
 # Building pddl's lark parser costs ~0.1 s, so one of each is kept; its transformer carries state
 # between calls (and is left inconsistent by a failed parse), so it is re-initialised before every
 # use, under a lock.
-_PARSERS: dict[type, object] = {}
+_PARSERS: dict[type, DomainParser | ProblemParser] = {}
 _PARSER_LOCK = threading.Lock()
 
 
@@ -264,7 +264,8 @@ def _action(src: Source, action, predicates, objects, ancestors,
         raise src.error(f"{where} declares a parameter twice", src.locate([], span))
     pre = _condition(src, action.precondition, predicates, objects, variables, span, where,
                      negation_declared)
-    add, delete = [], []
+    add: list[Atom] = []
+    delete: list[Atom] = []
     effects = _conjuncts(action.effect)
     for effect in effects:
         target = add
@@ -296,14 +297,17 @@ def _head(formula) -> list[str]:
 
 def _condition(src, formula, predicates, objects, variables, span, where,
                negation_declared: bool) -> Condition:
-    pos, neg, equal, not_equal = [], [], [], []
+    pos: list[Atom] = []
+    neg: list[Atom] = []
+    equal: list[tuple[str, str]] = []
+    not_equal: list[tuple[str, str]] = []
     for literal in _conjuncts(formula):
         negated = isinstance(literal, Not)
         inner = literal.argument if negated else literal
         if isinstance(inner, EqualTo):
             here = src.locate([(["="], True)], span)
-            pair = tuple(_checked_term(src, t, objects, variables, span, where, here)
-                         for t in (inner.left, inner.right))
+            pair = (_checked_term(src, inner.left, objects, variables, span, where, here),
+                    _checked_term(src, inner.right, objects, variables, span, where, here))
             (not_equal if negated else equal).append(pair)
         elif isinstance(inner, Predicate):
             atom = _atom(src, inner, predicates, objects, variables, span, where)

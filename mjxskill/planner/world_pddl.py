@@ -62,11 +62,12 @@ def parse_literal(text: str) -> tuple[bool, str, tuple[str, ...]] | None:
 def is_subtype(types: Mapping[str, str | None], child: str, ancestor: str) -> bool:
     """Whether PDDL type ``child`` is ``ancestor`` or derives from it."""
     seen = set()
-    while child is not None and child not in seen:
-        if child == ancestor:
+    current: str | None = child
+    while current is not None and current not in seen:
+        if current == ancestor:
             return True
-        seen.add(child)
-        child = types.get(child)
+        seen.add(current)
+        current = types.get(current)
     return False
 
 
@@ -226,7 +227,9 @@ def problem_pddl(scn: "Scenario", goal: str) -> str:
     objects = " ".join(f"{name} - {type_}" for name, type_ in object_types(scn).items())
     facts = []
     for relation in (*scn.robot.relations, *(r for o in scn.objects.values() for r in o.relations)):
-        positive, predicate, args = parse_literal(relation)
+        literal = parse_literal(relation)
+        assert literal is not None  # the loader keeps only the facts it parsed (scenario.load._relations)
+        positive, predicate, args = literal
         facts.append(_literal_text(positive, predicate, args))
     init = "\n    ".join(dict.fromkeys(facts))  # a fact listed by two objects once
     text = (

@@ -15,7 +15,7 @@ import csv
 import io
 import math
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -83,17 +83,20 @@ class Evaluations(NamedTuple):
         one per parameter set (every row when the rows do not pool)."""
         mask = np.ones(len(self), bool)
         if self.pooled:
+            assert self.replaces is not None  # pooled rows carry every pooling field
             replaced = self.replaces[: len(self) if upto is None else upto]
             mask[replaced[(replaced >= 0) & (replaced < len(self))]] = False
         return mask
 
     def take(self, index) -> "Evaluations":
-        return Evaluations(*(None if a is None else np.asarray(a)[index] for a in self))
+        fields: list[Any] = [None if a is None else np.asarray(a)[index] for a in self]
+        return Evaluations(*fields)
 
     def concat(self, other: "Evaluations") -> "Evaluations":
         if self.pooled != other.pooled:
             raise ValueError("cannot join rows with and without the pooling fields")
-        return Evaluations(*(None if a is None else np.concatenate([a, b]) for a, b in zip(self, other)))
+        fields: list[Any] = [None if a is None else np.concatenate([a, b]) for a, b in zip(self, other)]
+        return Evaluations(*fields)
 
 
 def concat_all(parts, n_params: int, n_objectives: int, pooled: bool = False) -> Evaluations:
@@ -112,7 +115,10 @@ def format_rows(ev: Evaluations) -> str:
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     for i in range(len(ev)):
-        pooling = [] if not ev.pooled else [int(ev.worlds[i]), int(ev.replaces[i]), *map(_format, ev.spread[i])]
+        pooling = []
+        if ev.pooled:
+            assert ev.worlds is not None and ev.replaces is not None and ev.spread is not None  # set together
+            pooling = [int(ev.worlds[i]), int(ev.replaces[i]), *map(_format, ev.spread[i])]
         writer.writerow(
             [int(ev.iteration[i]), *map(_format, ev.params[i]), *map(_format, ev.objectives[i]),
              _format(ev.success_rate[i]), *(_format(getattr(ev, c)[i]) for c in FORCE_COLUMNS), *pooling]
@@ -185,8 +191,12 @@ def parse(data: bytes, columns: list[str], bounds, where: str) -> Parsed:
     pooled = POOLING_COLUMNS[0] in columns
     extra = len(POOLING_COLUMNS) + o if pooled else 0  # the pooling columns after the forces
     p = len(columns) - o - 2 - (len(LEGACY_FORCE_COLUMNS) if legacy else len(FORCE_COLUMNS)) - extra
-    lo, hi = np.asarray(bounds, np.float64) if bounds is not None else (None, None)
-    tol = None if bounds is None else 1e-9 * (hi - lo)  # the optimizer's own tolerance (mjxskill.gp.tell)
+    lo: np.ndarray | None = None
+    hi: np.ndarray | None = None
+    tol: np.ndarray | None = None
+    if bounds is not None:
+        lo, hi = np.asarray(bounds, np.float64)
+        tol = 1e-9 * (hi - lo)  # the optimizer's own tolerance (mjxskill.gp.tell)
     values, numbers, texts, rejected = [], [], [], []
     for number, raw in enumerate(lines[1:], start=2):
         last = number == len(lines)

@@ -121,8 +121,8 @@ class RunConfig:
                 values[setting.name] = setting.coerce(f[setting.name].scalar())
             except ValueError as err:
                 f[setting.name].fail(str(err))
-        for name, problem in cross_problems(values):
-            f.get(name, root).fail(f"{name} {values[name]} {problem}")
+        for name, reason in cross_problems(values):
+            f.get(name, root).fail(f"{name} {values[name]} {reason}")
         options = {}
         if "optimizer_options" in f and not f["optimizer_options"].is_null():
             for key, item in f["optimizer_options"].items():
@@ -185,7 +185,7 @@ def _scenario_changes(field: Field) -> tuple:
     changes = []
     for item in field.seq():
         f = item.mapping(required=("scenario", "difference"), optional=("evaluations", "previous_copy"))
-        change = {"scenario": f["scenario"].string(), "difference": f["difference"].string()}
+        change: dict[str, str | int] = {"scenario": f["scenario"].string(), "difference": f["difference"].string()}
         if "evaluations" in f:
             change["evaluations"] = f["evaluations"].integer(minimum=0)
         if "previous_copy" in f:

@@ -177,7 +177,8 @@ def record_scenario_change(root: Path, scenario: str, scn, difference: Differenc
         n = 1
         while os.path.lexists(run.path / f"{SCENARIO_COPY}.orig-{n}"):
             n += 1
-        change = {"scenario": named, "difference": difference.text(), "previous_copy": f"{SCENARIO_COPY}.orig-{n}"}
+        change: dict[str, str | int] = {"scenario": named, "difference": difference.text(),
+                                        "previous_copy": f"{SCENARIO_COPY}.orig-{n}"}
         if config.repeats == 1 and os.path.lexists(run.path / EVALUATIONS):
             change["evaluations"] = len(run.evaluations(config))
         kept = read_text(run.path / SCENARIO_COPY, RunError, "run's copy of its scenario")

@@ -18,6 +18,7 @@ caller's: ``ScenarioError`` for scenarios, ``RunError`` for a run's ``config.yam
 from __future__ import annotations
 
 from pathlib import Path
+from typing import NoReturn
 
 import yaml
 
@@ -195,7 +196,7 @@ class Field:
     def where(self) -> str:
         return f"{self.source}: {self.path or '<top level>'} (line {self.line})"
 
-    def fail(self, message: str):
+    def fail(self, message: str) -> NoReturn:
         raise self.error(f"{self.where()}: {message}")
 
     def _child(self, node: yaml.Node, path: str, key_node: yaml.Node | None = None) -> "Field":

@@ -211,14 +211,14 @@ def _pddl_name(field: Field, name: str) -> str:
 
 
 def _types(field: Field):
-    parents = {}
-    for name, parent in field.items():
-        key = _pddl_name(parent, name)
+    parents: dict[str, str | None] = {}
+    for name, item in field.items():
+        key = _pddl_name(item, name)
         if key == "object":
-            parent.fail("'object' is PDDL's root type; name your types differently")
+            item.fail("'object' is PDDL's root type; name your types differently")
         if key in parents:
-            parent.fail(f"duplicate type {quote(name)}")
-        parents[key] = None if parent.is_null() else parent.string().lower()
+            item.fail(f"duplicate type {quote(name)}")
+        parents[key] = None if item.is_null() else item.string().lower()
     for (name, parent), (_, parent_field) in zip(parents.items(), field.items()):
         if parent is not None and parent not in parents:
             parent_field.fail(f"unknown parent type {quote(parent)} (types: {listing(parents)})")

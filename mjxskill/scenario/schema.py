@@ -414,7 +414,8 @@ class Scenario:
         return self.control_hz // self.bt_hz
 
     def object_by_pddl_name(self, pddl_name: str) -> WorldObject | Robot:
-        for obj in (*self.objects.values(), self.robot):
+        candidates: tuple[WorldObject | Robot, ...] = (*self.objects.values(), self.robot)
+        for obj in candidates:
             if obj.pddl_name == pddl_name.lower():
                 return obj
         raise KeyError(pddl_name)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from mjxskill.scenario.fields import Field
 from mjxskill.errors import listing, quote
 from mjxskill.scenario.schema import (
@@ -35,7 +37,8 @@ from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS, SUCCESS_KINDS
 def rewards(field: Field, objectives, object_names) -> tuple[Reward, ...]:
     """``rewards``: a list of terms, each of a kind of ``REWARD_KINDS`` with that kind's
     constants (defaults filled in) and the object keys it needs."""
-    terms, used = [], set()
+    terms: list[Reward] = []
+    used: set[str] = set()
     for item in field.seq():
         f = item.mapping(
             required=("name", "kind", "objective", "weight"), optional=("constants", "object", "target", "target_offset")
@@ -92,7 +95,7 @@ def success(field: Field, objects) -> Success:
     for key in ("object", "target"):
         if f[key].string() not in objects:
             f[key].fail(f"unknown object {quote(f[key].string())} (objects: {listing(sorted(objects))})")
-    values = {}
+    values: dict[str, Any] = {}  # a number, or a region's vector (3,)
     for key in (*required, *optional):
         if key not in f:
             continue

@@ -169,7 +169,8 @@ def _number(field: Field, parameters, learnable_ok: bool):
     if not field.node.tag.endswith(":str"):
         return field.number(PARAMETER)
     text = field.string().strip()
-    terms, sign, pos, expect_term = [], 1, 0, True
+    terms: list[tuple[int, float | Ref]] = []
+    sign, pos, expect_term = 1, 0, True
     while pos < len(text):
         if text[pos].isspace():
             pos += 1

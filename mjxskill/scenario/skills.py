@@ -10,6 +10,8 @@ default or bounds of its own.
 
 from __future__ import annotations
 
+from typing import Mapping
+
 from mjxskill.errors import listing, quote
 from mjxskill.planner.world_pddl import check_atom, parse_literal
 from mjxskill.scenario.fields import Field
@@ -49,7 +51,7 @@ def skill(name: str, field: Field, types, predicates, overrides: dict | None = N
                  conditions["postconditions"], tree)
 
 
-def skill_fields(top: Field, library_files: list) -> list[tuple[str, Field]]:
+def skill_fields(top: Mapping[str, Field], library_files: list) -> list[tuple[str, Field]]:
     """(name, Field) of every skill: those of each library file in ``library_files`` (root
     Fields, in order), then the scenario's own ``skills``; a name defined twice is an error
     naming both places."""
@@ -135,15 +137,16 @@ def _skill_parameter(name: str, field: Field, types, override: Field | None = No
             blamed = f["bounds"] if "bounds" in changed and "default" not in changed else f["default"]
             blamed.fail(f"default {default} is outside the bounds [{lower}, {upper}]")
         bounds = (lower, upper)
-    if learnable and bounds is None:
-        field.fail("a learnable parameter needs bounds: [lower, upper]")
-    if learnable and bounds[0] == bounds[1]:
-        f["bounds"].fail(f"bounds [{bounds[0]:g}, {bounds[1]:g}] leave a learnable parameter nothing to learn; "
-                         f"widen them or set learnable: false")
+    if learnable:
+        if bounds is None:
+            field.fail("a learnable parameter needs bounds: [lower, upper]")
+        if bounds[0] == bounds[1]:
+            f["bounds"].fail(f"bounds [{bounds[0]:g}, {bounds[1]:g}] leave a learnable parameter nothing to learn; "
+                             f"widen them or set learnable: false")
     return SkillParameter(name, type_, False, unit, default, bounds, learnable, description)
 
 
-def manual_parameters(field: Field | None, skills) -> dict:
+def manual_parameters(field: Field | None, skills) -> Mapping:
     """``manual_parameters``: set name -> ManualSet. Each value names a learnable parameter of a
     skill of the library as the plan names it ("<Skill>.<parameter>", "<Skill>#2.<parameter>"
     for a second use) and lies within that parameter's bounds. Whether a set fits a plan (names
@@ -157,6 +160,7 @@ def manual_parameters(field: Field | None, skills) -> dict:
         for key, item in values_field.items():
             parameter = _learnable_named(key, item, skills)
             v = item.number(PARAMETER)
+            assert parameter.bounds is not None  # a learnable parameter has them (_skill_parameter)
             lower, upper = parameter.bounds
             if not lower <= v <= upper:
                 item.fail(f"{v} is outside the bounds [{lower}, {upper}] {parameter.unit}")
@@ -165,7 +169,7 @@ def manual_parameters(field: Field | None, skills) -> dict:
     return frozen_mapping(sets)
 
 
-def parameter_priors(field: Field | None, skills) -> dict:
+def parameter_priors(field: Field | None, skills) -> Mapping:
     """``parameter_priors``: learnable parameter ("<Skill>[#k].<parameter>", as in
     ``manual_parameters``) -> ParameterPrior, ``{mean: m, std: s}`` in the parameter's unit: the
     mean inside the parameter's bounds, the std positive. The priors sit beside the scenario's
@@ -177,6 +181,7 @@ def parameter_priors(field: Field | None, skills) -> dict:
         parameter = _learnable_named(key, item, skills)
         f = item.mapping(required=("mean", "std"))
         mean = f["mean"].number(PARAMETER)
+        assert parameter.bounds is not None  # a learnable parameter has them (_skill_parameter)
         lower, upper = parameter.bounds
         if not lower <= mean <= upper:
             f["mean"].fail(f"prior mean {mean:g} is outside the bounds [{lower:g}, {upper:g}] {parameter.unit}")

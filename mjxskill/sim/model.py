@@ -29,6 +29,7 @@ from __future__ import annotations
 import copy
 import re
 import weakref
+from typing import NoReturn
 
 import mujoco
 import numpy as np
@@ -118,7 +119,7 @@ def _element_names(spec, obj) -> set[str]:
     return names
 
 
-def _fail(scn, obj, key: str, message: str):
+def _fail(scn, obj, key: str, message: str) -> NoReturn:
     raise ScenarioError(f"{scn.where(f'objects.{obj.name}.{key}')}: {message}")
 
 
@@ -208,7 +209,9 @@ def _follow_tool_tip(spec, base, data, scn, body_id: int, drawn: Drawn, old_face
     """The robot's tool site sat on a face of this held tool: it moves with that face."""
     body_rot = data.xmat[body_id].reshape(3, 3)
     tip = body_rot.T @ (data.site_xpos[site] - data.xpos[body_id])  # the site in this body's frame
-    for old, new in zip(old_faces, _faces(drawn, spec)):
+    new_faces = _faces(drawn, spec)
+    assert new_faces is not None  # the geom the caller found faces of before drawing, resized only
+    for old, new in zip(old_faces, new_faces):
         if np.linalg.norm(tip - old) < 1e-6:
             site_body = int(base.site_bodyid[site])
             shift = data.xmat[site_body].reshape(3, 3).T @ (body_rot @ (new - old))

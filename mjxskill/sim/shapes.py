@@ -69,7 +69,7 @@ class Drawn(NamedTuple):
     and their compiled poses in the body frame (pos (G, 3), rotation (G, 3, 3)). hole_item: the
     ``HeldItem`` (a hole's clearance is relative to it), or None."""
 
-    body: object
+    body: mujoco.MjsBody
     geoms: list
     geom_pos: np.ndarray
     geom_rot: np.ndarray

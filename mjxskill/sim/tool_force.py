@@ -49,8 +49,8 @@ def _box_around(model: mujoco.MjModel, geoms: list[int]) -> tuple[np.ndarray, np
         mujoco.mju_quat2Mat(rot, model.geom_quat[g])
         for signs in itertools.product((-1, 1), repeat=3):
             corners.append(model.geom_pos[g] + rot.reshape(3, 3) @ (centre + np.array(signs) * half))
-    corners = np.array(corners)
-    low, high = corners.min(axis=0) - MARGIN, corners.max(axis=0) + MARGIN
+    points = np.array(corners)
+    low, high = points.min(axis=0) - MARGIN, points.max(axis=0) + MARGIN
     return (low + high) / 2, (high - low) / 2
 
 
