@@ -8,7 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 from hypothesis.extra.numpy import arrays
 
 from mjxskill.gp import hypervolume
@@ -214,6 +214,8 @@ def test_paired_draws_are_standard_normal_and_independent_of_their_directions(m,
 
 @settings(deadline=None, max_examples=60)
 @given(st.floats(-3000.0, 3000.0), st.floats(0.0, 60.0), st.integers(0, 2**32 - 1))
+@example(-30.0, 0.0, 0)  # every z at the switch between the two forms (where a maximum's gradient splits)
+@example(30.0, 0.0, 0)  # every z where the softplus turns linear
 def test_log_mean_softplus_is_exact_with_its_gradient_in_every_regime(shift, scale, seed):
     import mpmath as mp
 

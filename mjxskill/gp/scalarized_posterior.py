@@ -92,7 +92,8 @@ def log_mean_softplus(z: jnp.ndarray, axis) -> jnp.ndarray:
     w = jnp.exp(capped - c)  # in (0, 1]
     count = math.prod(z.shape[a] for a in ((axis,) if isinstance(axis, int) else axis))
     far = jnp.squeeze(c, axis) + jnp.log(jnp.sum(w, axis=axis))
-    near_scale = jnp.exp(jnp.maximum(c, _EXP_BELOW))
+    # where, not maximum: at c == _EXP_BELOW maximum's gradient splits in half between its arguments
+    near_scale = jnp.exp(jnp.where(c >= _EXP_BELOW, c, _EXP_BELOW))
     excess = jnp.maximum(z - _LINEAR_ABOVE, 0.0)  # z - capped, without a gradient that cancels
     near = jnp.log(jnp.sum(jnp.log1p(near_scale * w) + excess, axis=axis))
     return jnp.where(jnp.squeeze(c, axis) < _EXP_BELOW, far, near) - math.log(count)
