@@ -6,7 +6,22 @@ elsewhere would have that file replaced (``refuse_link``: one RunError naming th
 one read through when it leaves the directory: ``refuse_links_out`` walks a run or experiment
 directory before a command reads it (an ``explore/`` folder, an evaluation file or a ``seed-<s>``
 run linked elsewhere would be read, and written into, as the run's own); a link that stays
-inside is harmless and allowed."""
+inside is harmless and allowed.
+
+The one writer of a command's outputs (``write_outputs``; ``select``'s export, ``plan --export``,
+the explore page's cache and export, the rendered frames): every output is checked before the
+first write (``check_outputs``): no folder between the root the command owns (a run, an export
+folder the user named) and the output is a symbolic link (each is opened with the folder above
+it held and ``O_NOFOLLOW``: ``open_folder``), the output itself is no link, and whatever is in
+its place already holds the same content or, with ``replace`` (the command's ``--replace``),
+is a file or folder of the same kind. Then each file or whole folder is staged beside its place
+(``.<name>.<host>.<pid>.<hex>.creating``) and renamed into it, so a reader, or a writer killed
+with SIGKILL, sees the old output or the new one, never part of one; a staging left by a killed
+process is removed at the next creation beside it (``remove_stale_staging``). Nested files that
+are appended or replaced one at a time (``evaluation/``, ``explore/`` of a run) reach their
+folder through ``make_folder``, which refuses a link at any depth below the root.
+Files are read back (``read_below``) under the same rule, and only when they are regular
+files (a FIFO would block the reader)."""
 
 from __future__ import annotations
 
@@ -14,8 +29,13 @@ import contextlib
 import errno
 import json
 import os
+import re
+import secrets
+import shutil
+import socket
+import stat
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Mapping, Union  # noqa: UP035  (Union: a runtime alias)
 
 from mjxskill.errors import RunError
 
@@ -58,10 +78,12 @@ def refuse_links_out(root: Path) -> None:
                                "to, or remove it")
 
 
-def replace_whole(path: Path, write: Callable[[Path], object]) -> None:
+def replace_whole(path: Path, write: Callable[[Path], object], *, root: Path | None = None) -> None:
     """``write(tmp)`` fills ``NAME.tmp`` beside ``path``, which then replaces ``path``; RunError
-    when ``path`` is a symbolic link. When writing fails (a full disk) ``path`` is unchanged and
-    ``NAME.tmp`` removed."""
+    when ``path`` is a symbolic link, or (``root`` given) a folder between ``root`` and it is one.
+    When writing fails (a full disk) ``path`` is unchanged and ``NAME.tmp`` removed."""
+    if root is not None:
+        check_folder(root, Path(path).parent)
     refuse_link(path)
     tmp = path.with_name(path.name + ".tmp")
     if os.path.lexists(tmp):  # left by a killed writer, or a link: removed, never written through
@@ -91,10 +113,12 @@ def save_figure(fig, path) -> None:
     replace_whole(Path(path), lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
 
 
-def append_text(path: Path, text: str) -> None:
-    """Appends ``text`` to ``path`` (made if missing; RunError when it is a link) and forces it to
-    disk before returning; when that fails (a full disk) the file is cut back to what it was, so
-    no part of ``text`` stays."""
+def append_text(path: Path, text: str, *, root: Path | None = None) -> None:
+    """Appends ``text`` to ``path`` (made if missing; RunError when it is a link, or a folder
+    between ``root`` and it) and forces it to disk before returning; when that fails (a full
+    disk) the file is cut back to what it was, so no part of ``text`` stays."""
+    if root is not None:
+        check_folder(root, Path(path).parent)
     fd = open_nofollow(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT)
     try:
         size = os.fstat(fd).st_size
@@ -110,13 +134,387 @@ def append_text(path: Path, text: str) -> None:
         os.close(fd)
 
 
-def write_text(path: Path, text: str) -> None:
-    replace_whole(path, lambda tmp: tmp.write_text(text))
+def write_text(path: Path, text: str, *, root: Path | None = None) -> None:
+    replace_whole(path, lambda tmp: tmp.write_text(text), root=root)
 
 
-def write_json(path: Path, doc) -> None:
+def write_json(path: Path, doc, *, root: Path | None = None) -> None:
     """``doc`` as indented JSON with a final newline."""
-    write_text(path, json.dumps(doc, indent=1) + "\n")
+    write_text(path, json.dumps(doc, indent=1) + "\n", root=root)
 
 
-__all__ = ["DISK_FAULTS", "append_text", "open_nofollow", "refuse_link", "refuse_links_out", "replace_whole", "save_figure", "write_json", "write_text"]
+
+
+# -- staging: a file or folder made beside its place, renamed into it -----------------------------
+# .<name>.<host>.<pid>.<hex>.creating (a new output) or .replaced (the output it took the place
+# of, removed right after); stagings of before the host was named lack <host>.
+STAGING = re.compile(r"\.(?P<name>.+?)(?:\.(?P<host>[A-Za-z0-9-]+))?\.(?P<pid>\d+)\.[0-9a-f]{8}\.(?:creating|replaced)")
+
+
+def _this_host() -> str:
+    return re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname()) or "host"
+
+
+def staging_name(name: str, kind: str = "creating") -> str:
+    """A fresh name beside ``name`` for a staging (``kind``: creating or replaced)."""
+    return f".{name}.{_this_host()}.{os.getpid()}.{secrets.token_hex(4)}.{kind}"
+
+
+def _process_gone(pid: int) -> bool:
+    """Whether no process ``pid`` runs on this host (one of another user's still runs)."""
+    try:
+        os.kill(pid, 0)
+    except (ProcessLookupError, OverflowError):  # none, or a number larger than any pid
+        return True
+    except PermissionError:
+        return False
+    return False
+
+
+def remove_stale_staging(parent: Path) -> list[Path]:
+    """Removes the stagings (folders and files) in ``parent`` of processes of this host that no
+    longer run (killed while creating a run, an experiment or an output); returns them. One of
+    another host, of a running process or that is a link is left alone."""
+    removed: list[Path] = []
+    try:
+        entries = list(os.scandir(parent))
+    except OSError:
+        return removed
+    for entry in entries:
+        match = STAGING.fullmatch(entry.name)
+        if match is None or entry.is_symlink() or not (entry.is_dir(follow_symlinks=False) or entry.is_file(follow_symlinks=False)):
+            continue
+        if match["host"] not in (None, _this_host()) or not _process_gone(int(match["pid"])):
+            continue
+        if entry.is_dir(follow_symlinks=False):
+            shutil.rmtree(entry.path, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                os.unlink(entry.path)
+        removed.append(Path(entry.path))
+    return removed
+
+
+@contextlib.contextmanager
+def created_whole(path: Path, what: str, on_failure=lambda: None):
+    """Yields a new folder beside ``path`` to fill; renamed into place in one step when the block
+    ends (onto nothing or an empty folder), removed when it fails or is interrupted, so ``path``
+    appears whole or not at all. An OSError becomes a RunError naming ``what`` and ``path``
+    (``on_failure()`` first, to say something better)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        remove_stale_staging(path.parent)
+        # a fresh name beside it (mkdir is atomic), with the permissions mkdir gives
+        staging = path.parent / staging_name(path.name)
+        staging.mkdir()
+    except OSError as err:
+        raise RunError(f"cannot write the {what} {str(path)!r}: {err.strerror}") from None
+    try:
+        yield staging
+        os.replace(staging, path)
+    except OSError as err:
+        shutil.rmtree(staging, ignore_errors=True)
+        if err.errno in DISK_FAULTS:  # the machine's, not the input's: the command says so (exit 1)
+            raise
+        on_failure()
+        raise RunError(f"cannot write the {what} {str(path)!r}: {err.strerror}") from None
+    except BaseException:  # Ctrl-C half-way or a RunError inside: leave nothing behind
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+
+
+# -- folders below a root, reached without following a link ---------------------------------------
+_DIR_FLAGS = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0)
+
+
+def _parts(root: Path, path: Path) -> tuple[str, ...]:
+    """The names leading from ``root`` to ``path``; RunError when ``path`` is not below it."""
+    try:
+        parts = Path(path).relative_to(root).parts
+    except ValueError:
+        raise RunError(f"{path} is not inside {root}") from None
+    if ".." in parts:
+        raise RunError(f"{path} leaves {root} (a '..' in it)")
+    return parts
+
+
+def _not_a_folder(path: Path) -> RunError:
+    if os.path.islink(path):
+        return RunError(f"{path} is a symbolic link (to {os.readlink(path)!r}); mjxskill never writes or reads through "
+                        "a link below the folder it was given: replace the link by the folder it points to, or remove it")
+    return RunError(f"{path} is in the way: a folder goes there and it is no folder; move it away")
+
+
+def open_folder(root: Path, folder: Path, *, create: bool = False, made: list[Path] | None = None) -> int | None:
+    """A file descriptor of ``folder`` (``root`` or a folder below it), each folder below ``root``
+    opened inside the one above it without following a link (``root`` itself, which the user
+    named, may be one). A missing folder is made when ``create`` (and appended to ``made``), else
+    the answer is None. RunError naming the first that is a link or no folder; the caller closes
+    the descriptor."""
+    root = Path(root)
+    parts = _parts(root, folder)
+    if create and not os.path.isdir(root):
+        try:
+            root.mkdir(parents=True)
+        except FileExistsError:
+            pass
+        else:
+            if made is not None:
+                made.append(root)
+    try:
+        fd = os.open(root, os.O_RDONLY | os.O_DIRECTORY | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        if create:
+            raise
+        return None
+    except NotADirectoryError:
+        raise _not_a_folder(root) from None
+    here = root
+    try:
+        for name in parts:
+            here = here / name
+            try:
+                inner = os.open(name, _DIR_FLAGS, dir_fd=fd)
+            except FileNotFoundError:
+                if not create:
+                    os.close(fd)
+                    return None
+                try:
+                    os.mkdir(name, dir_fd=fd)
+                    if made is not None:
+                        made.append(here)
+                except FileExistsError:
+                    pass
+                try:
+                    inner = os.open(name, _DIR_FLAGS, dir_fd=fd)
+                except OSError as err:
+                    if err.errno in (errno.ELOOP, errno.ENOTDIR):
+                        raise _not_a_folder(here) from None
+                    raise
+            except OSError as err:
+                if err.errno in (errno.ELOOP, errno.ENOTDIR):
+                    raise _not_a_folder(here) from None
+                raise
+            os.close(fd)
+            fd = inner
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.close(fd)
+        raise
+    return fd
+
+
+def check_folder(root: Path, folder: Path) -> None:
+    """RunError when a folder between ``root`` and ``folder`` (included) is a link or no folder."""
+    fd = open_folder(root, folder)
+    if fd is not None:
+        os.close(fd)
+
+
+def make_folder(root: Path, folder: Path) -> Path:
+    """``folder`` (below ``root``), made where missing, never through a link (RunError naming
+    it); returns ``folder``."""
+    os.close(open_folder(root, folder, create=True))  # type: ignore[arg-type]  # create: never None
+    return folder
+
+
+def read_below(root: Path, path: Path, limit: int | None = None) -> bytes:
+    """The bytes of the regular file ``path`` below ``root``, reached without following a link;
+    RunError naming it when it, or a folder above it, is a link, or it is no regular file (a
+    FIFO would block), or it is larger than ``limit``."""
+    path = Path(path)
+    fd = open_folder(root, path.parent)
+    if fd is None:
+        raise RunError(f"{path} is missing")
+    try:
+        try:
+            file = os.open(path.name, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK, dir_fd=fd)
+        except FileNotFoundError:
+            raise RunError(f"{path} is missing") from None
+        except OSError as err:
+            if err.errno == errno.ELOOP:
+                raise _not_a_folder(path) from None
+            raise
+    finally:
+        os.close(fd)
+    with os.fdopen(file, "rb") as fh:
+        info = os.fstat(fh.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise RunError(f"{path} is not a regular file; mjxskill reads only regular files")
+        if limit is not None and info.st_size > limit:
+            raise RunError(f"{path} holds {info.st_size} bytes, more than the {limit} expected")
+        return fh.read()
+
+
+# -- the one writer -------------------------------------------------------------------------------
+# What an output holds: a file's bytes, or a folder's files (name -> bytes)
+Content = Union[bytes, Mapping[str, bytes]]
+
+
+def _same_file(fd: int, name: str, info: os.stat_result, data: bytes) -> bool:
+    if not stat.S_ISREG(info.st_mode) or info.st_size != len(data):
+        return False
+    file = os.open(name, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK, dir_fd=fd)
+    with os.fdopen(file, "rb") as fh:
+        return fh.read() == data
+
+
+def _same_folder(fd: int, name: str, files: Mapping[str, bytes]) -> bool:
+    inner = os.open(name, _DIR_FLAGS, dir_fd=fd)
+    try:
+        if sorted(os.listdir(inner)) != sorted(files):
+            return False
+        return all(_same_file(inner, n, os.stat(n, dir_fd=inner, follow_symlinks=False), data) for n, data in files.items())
+    finally:
+        os.close(inner)
+
+
+def in_the_way(root: Path, path: Path, content: Content) -> tuple[str, bool] | None:
+    """Why ``content`` cannot take ``path``'s place without changing what is there: (a message
+    naming it, whether ``replace`` may replace it), or None when nothing is there or it holds
+    ``content`` already. A link, or a file where a folder goes (or the reverse), is never
+    replaced; a folder above ``path`` that is a link is a RunError."""
+    path = Path(path)
+    fd = open_folder(root, path.parent)
+    if fd is None:
+        return None
+    try:
+        try:
+            info = os.stat(path.name, dir_fd=fd, follow_symlinks=False)
+        except FileNotFoundError:
+            return None
+        if stat.S_ISLNK(info.st_mode):
+            return f"{path} is a symbolic link (to {os.readlink(path.name, dir_fd=fd)!r}), never written through", False
+        folder = not isinstance(content, (bytes, bytearray))
+        if folder != stat.S_ISDIR(info.st_mode) or not (folder or stat.S_ISREG(info.st_mode)):
+            return f"{path} is {'no folder' if folder else 'no regular file'}", False
+        if folder:
+            same = _same_folder(fd, path.name, content)  # type: ignore[arg-type]
+        else:
+            same = _same_file(fd, path.name, info, bytes(content))  # type: ignore[arg-type]
+        return None if same else (f"{path} holds {'other files' if folder else 'other content'}", True)
+    finally:
+        os.close(fd)
+
+
+def check_outputs(root: Path, outputs: Mapping[Path, Content], *, replace: bool = False, hint: str = "",
+                  flag: str = "") -> None:
+    """RunError naming the first output of ``outputs`` (path -> content) that cannot be written
+    (``in_the_way``; with ``replace``, other content may be replaced), with ``hint``: what the
+    user can do about it, and ``flag``, the command's flag that replaces other content (named
+    where it would help). Changes nothing."""
+    for path, content in outputs.items():
+        why = in_the_way(root, path, content)
+        if why is not None and not (replace and why[1]):
+            cure = ", ".join(filter(None, [hint, f"or replace it with {flag}" if why[1] and flag else ""]))
+            raise RunError(f"{why[0]}; it is kept" + (f": {cure}" if cure else ""))
+
+
+def _write_file(fd: int, name: str, data: bytes) -> None:
+    file = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0), 0o644, dir_fd=fd)
+    try:
+        view = memoryview(data)
+        while view:
+            view = view[os.write(file, view):]
+        os.fsync(file)
+    finally:
+        os.close(file)
+
+
+def _remove(fd: int, name: str) -> None:
+    """Removes ``name`` (a file, or a folder and what it holds) in the folder ``fd``; no link is followed."""
+    with contextlib.suppress(FileNotFoundError):
+        if stat.S_ISDIR(os.stat(name, dir_fd=fd, follow_symlinks=False).st_mode):
+            shutil.rmtree(name, dir_fd=fd)
+        else:
+            os.unlink(name, dir_fd=fd)
+
+
+def _put(fd: int, name: str, content: Content) -> bool:
+    """Stages ``content`` beside ``name`` in the folder ``fd`` and renames it into place (what held
+    the same content already is left as it is); whether ``name`` is new."""
+    try:
+        info: os.stat_result | None = os.stat(name, dir_fd=fd, follow_symlinks=False)
+    except FileNotFoundError:
+        info = None
+    folder = not isinstance(content, (bytes, bytearray))
+    if info is not None and (_same_folder(fd, name, content) if folder else _same_file(fd, name, info, bytes(content))):  # type: ignore[arg-type]
+        return False
+    staging = staging_name(name)
+    try:
+        if folder:
+            os.mkdir(staging, dir_fd=fd)
+            inner = os.open(staging, _DIR_FLAGS, dir_fd=fd)
+            try:
+                for file, data in content.items():  # type: ignore[union-attr]
+                    if "/" in file or file in ("", ".", ".."):
+                        raise ValueError(f"not a file name: {file!r}")
+                    _write_file(inner, file, data)
+            finally:
+                os.close(inner)
+        else:
+            _write_file(fd, staging, bytes(content))  # type: ignore[arg-type]
+        if info is None or not folder:
+            os.replace(staging, name, src_dir_fd=fd, dst_dir_fd=fd)  # onto a file: in one step
+        else:  # a folder onto a folder: the old one set aside, then removed
+            old = staging_name(name, "replaced")
+            os.rename(name, old, src_dir_fd=fd, dst_dir_fd=fd)
+            try:
+                os.rename(staging, name, src_dir_fd=fd, dst_dir_fd=fd)
+            except BaseException:
+                os.rename(old, name, src_dir_fd=fd, dst_dir_fd=fd)
+                raise
+            _remove(fd, old)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            _remove(fd, staging)
+        raise
+    return info is None
+
+
+def write_outputs(root: Path, outputs: Mapping[Path, Content], *, replace: bool = False, hint: str = "",
+                  flag: str = "") -> list[Path]:
+    """Writes ``outputs`` (path below ``root`` -> a file's bytes or a folder's files): checked
+    first (``check_outputs``, nothing written when one cannot be; ``hint``, ``flag``: its words),
+    then each staged beside its
+    place and renamed into it, the missing folders above it made (never through a link); an
+    output already holding its content is left as it is. Returns the paths, in order. When a
+    write fails, what this call added (outputs, folders) is removed again and what it replaced
+    stays replaced, whole; an OSError of the disk (``DISK_FAULTS``) is raised as it is (the
+    machine's fault), another one becomes a RunError naming the path."""
+    root = Path(root)
+    check_outputs(root, outputs, replace=replace, hint=hint, flag=flag)
+    made: list[Path] = []
+    added: list[Path] = []
+    path = root
+    try:
+        for path, content in outputs.items():
+            fd = open_folder(root, path.parent, create=True, made=made)
+            assert fd is not None
+            try:
+                remove_stale_staging(path.parent)
+                if _put(fd, path.name, content):
+                    added.append(path)
+            finally:
+                os.close(fd)
+    except BaseException as err:
+        for new in reversed(added):
+            with contextlib.suppress(OSError, RunError):
+                fd = open_folder(root, new.parent)
+                if fd is not None:
+                    try:
+                        _remove(fd, new.name)
+                    finally:
+                        os.close(fd)
+        for folder in reversed(made):
+            with contextlib.suppress(OSError):
+                os.rmdir(folder)
+        if isinstance(err, OSError) and err.errno not in DISK_FAULTS:
+            raise RunError(f"cannot write {str(path)!r}: {err.strerror or err}") from None
+        raise
+    return list(outputs)
+
+
+__all__ = ["DISK_FAULTS", "STAGING", "Content", "append_text", "check_folder", "check_outputs", "created_whole", "in_the_way",
+           "make_folder", "open_folder", "open_nofollow", "read_below", "refuse_link", "refuse_links_out", "remove_stale_staging",
+           "replace_whole", "save_figure", "staging_name", "write_json", "write_outputs", "write_text"]
