@@ -18,7 +18,7 @@ from explore_runs import make_push_run  # noqa: E402
 from explore_server import get_json, request, serving  # noqa: E402
 from mjxskill.explore.data import numbers  # noqa: E402
 from mjxskill.explore.solutions import FORMAT, Solutions, _write_json  # noqa: E402
-from mjxskill.runs import atomic_write  # noqa: E402
+from mjxskill.runs import outputs  # noqa: E402
 
 
 def _one_log_line(capfd, status: int, fragment: str) -> str:
@@ -47,7 +47,7 @@ def test_an_export_the_machine_cannot_write_is_a_json_error_and_one_log_line(run
         raise OSError(fault, os.strerror(fault), name)
 
     before = sorted(p.name for p in run.path.iterdir())
-    monkeypatch.setattr(atomic_write, "_put", refused)
+    monkeypatch.setattr(outputs, "_put", refused)
     with serving(run.path) as base:
         capfd.readouterr()
         code, body, kind = request(base, "/api/export", {"run": 0, "k": 1})

@@ -1,4 +1,4 @@
-"""The one writer (``mjxskill.runs.atomic_write.write_outputs``) and the commands that write
+"""The one writer (``mjxskill.runs.outputs.write_outputs``) and the commands that write
 through it (issue 47, classes 1 and 2): a link planted at any depth below what a command owns
 (a run's output folders, ``select``'s export, ``plan --export``, the explore page's cache) is
 refused with one error naming it and the link's target is unchanged; a FIFO where a file is
@@ -25,7 +25,9 @@ from hypothesis import strategies as st  # noqa: E402
 from cli_helpers import error_line, invoke, subprocess_env  # noqa: E402
 from mjxskill.errors import RunError  # noqa: E402
 from mjxskill.runs import atomic_write  # noqa: E402
-from mjxskill.runs.atomic_write import STAGING, make_folder, read_below, write_json, write_outputs  # noqa: E402
+from mjxskill.runs import outputs  # noqa: E402
+from mjxskill.runs.atomic_write import STAGING, make_folder, read_below, write_json  # noqa: E402
+from mjxskill.runs.outputs import write_outputs  # noqa: E402
 
 USERS = b"a file of the user's\n"
 FAST = settings(max_examples=25, deadline=None, derandomize=True, database=None,
@@ -177,7 +179,7 @@ def test_a_write_failing_midway_leaves_the_previous_state(tmp_path_factory, monk
         write_outputs(root, {params: b"old\n", frames: {f"frame_{i:04d}.png": b"old" for i in range(3)}})
     before = tree(root)
     new = {params: b"new\n", frames: {f"frame_{i:04d}.png": b"new %d" % i for i in range(files)}}
-    write_file, calls = atomic_write._write_file, []
+    write_file, calls = outputs._write_file, []
 
     def failing(fd, name, data):
         calls.append(name)
@@ -185,7 +187,7 @@ def test_a_write_failing_midway_leaves_the_previous_state(tmp_path_factory, monk
             raise OSError(errno_, os.strerror(errno_))
         return write_file(fd, name, data)
 
-    monkeypatch.setattr(atomic_write, "_write_file", failing)
+    monkeypatch.setattr(outputs, "_write_file", failing)
     if fail_at >= 1 + files:  # every file written before the failure point: the new export, whole
         write_outputs(root, new, replace=True)
         monkeypatch.undo()
@@ -212,10 +214,10 @@ def test_a_write_failing_midway_leaves_the_previous_state(tmp_path_factory, monk
 KILLED_WHILE_WRITING = textwrap.dedent("""
     import os, signal, sys
     from pathlib import Path
-    from mjxskill.runs import atomic_write
+    from mjxskill.runs import outputs
 
     root, kill_at = Path(sys.argv[1]), int(sys.argv[2])
-    write_file, calls = atomic_write._write_file, []
+    write_file, calls = outputs._write_file, []
 
     def killed(fd, name, data):
         calls.append(name)
@@ -223,9 +225,9 @@ KILLED_WHILE_WRITING = textwrap.dedent("""
             os.kill(os.getpid(), signal.SIGKILL)
         return write_file(fd, name, data)
 
-    atomic_write._write_file = killed
+    outputs._write_file = killed
     frames = {f"frame_{i:04d}.png": b"new %d" % i for i in range(5)}
-    atomic_write.write_outputs(root, {root / "selected-0" / "parameters.yaml": b"new\\n",
+    outputs.write_outputs(root, {root / "selected-0" / "parameters.yaml": b"new\\n",
                                       root / "selected-0" / "frames": frames}, replace=True)
 """)
 

@@ -18,7 +18,8 @@ from typing import TYPE_CHECKING, Sequence
 from mjxskill import cli
 from mjxskill.cli.args import add_task_argument
 from mjxskill.errors import CommandError, RunError
-from mjxskill.runs.atomic_write import DISK_FAULTS, write_outputs
+from mjxskill.runs.atomic_write import DISK_FAULTS
+from mjxskill.runs.outputs import write_outputs
 
 if TYPE_CHECKING:  # pragma: no cover
     from mjxskill.task import PlannedTask
@@ -26,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 def export(task: PlannedTask, folder: Path, replace: bool = False) -> tuple[Path, Path]:
     """Writes ``domain.pddl`` and ``problem.pddl`` of ``task`` into ``folder`` (created if needed)
-    through the one writer (``mjxskill.runs.atomic_write.write_outputs``): both or neither, each
+    through the one writer (``mjxskill.runs.outputs.write_outputs``): both or neither, each
     staged and renamed into place; a file there with other content is kept (RunError naming it)
     unless ``replace``, and a link there is never written through."""
     domain, problem = folder / "domain.pddl", folder / "problem.pddl"

@@ -32,7 +32,8 @@ from mjxskill.engine.build import build_rollout
 from mjxskill.errors import CommandError
 from mjxskill.evaluation.render import RenderUnavailable, default_gl, render_content, render_world
 from mjxskill.evaluation.selection import best_unvalidated, choose, export_document, export_outputs, write_export
-from mjxskill.runs.atomic_write import check_outputs, refuse_links_out
+from mjxskill.runs.atomic_write import refuse_links_out
+from mjxskill.runs.outputs import check_outputs
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -115,6 +116,30 @@ def _say_what_decided(union, i: int, validated, other: int | None, owner) -> Non
               f"reached {union.success_rate[other]:.0%} in training but was not validated (--pick {other} takes it)")
 
 
+def _render(args: argparse.Namespace, run, config, params, root: Path, folder: Path, hint: str):
+    """(``{name: content}`` of the rendered episode for the export, None) or (None, why it could not
+    be rendered: RenderUnavailable). Everything it needs is checked before anything is computed
+    (the run's task, ``--config-index``, no link or file where the frames go); nothing is written."""
+    from mjxskill.runs.run_task import load_run_task  # lazy: imports mujoco, as in _fronts
+
+    scn, task = load_run_task(run, config)
+    n_known = len(scn.robot.start_configs)
+    if args.config_index >= n_known:
+        raise CommandError(f"--config-index {args.config_index}: the task has known start configurations 0-{n_known - 1}")
+    name = "episode.mp4" if args.format == "mp4" else "frames"
+    # no link, no file in a folder's place (other content is compared once rendered)
+    check_outputs(root, {folder / name: b"" if args.format == "mp4" else {}}, replace=True, hint=hint, flag="--replace")
+    rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
+    try:
+        world = render_world(rollout, args.config_index, args.seed)
+        print(f"rendering from start configuration {args.config_index} ({config.engine} engine) ...", flush=True)
+        return {name: render_content(rollout, params, world, args.format, *args.size)}, None
+    except RenderUnavailable as err:
+        return None, err
+    finally:
+        rollout.close()
+
+
 def _main(args: argparse.Namespace) -> int:
     # lazy: these import mujoco, which reads MUJOCO_GL once, when imported; main() sets it first
     from mjxskill.evaluation.validation import row_validation, validated_union
@@ -166,26 +191,7 @@ def _main(args: argparse.Namespace) -> int:
     doc = export_document(config, front, k, run.path, row_validation(validated, worlds, i))
     hint = "move it away, or write this pick elsewhere with --out FOLDER"
     check_outputs(root, export_outputs(doc, folder), replace=args.replace, hint=hint, flag="--replace")  # before anything is computed
-    rendering, unavailable = None, None
-    if not args.no_render:
-        # everything the rendering needs is checked before the first file is written
-        from mjxskill.runs.run_task import load_run_task  # lazy: imports mujoco, as in _fronts
-
-        scn, task = load_run_task(run, config)
-        n_known = len(scn.robot.start_configs)
-        if args.config_index >= n_known:
-            raise CommandError(f"--config-index {args.config_index}: the task has known start configurations 0-{n_known - 1}")
-        name = "episode.mp4" if args.format == "mp4" else "frames"
-        check_outputs(root, {folder / name: b"" if args.format == "mp4" else {}}, replace=True, hint=hint, flag="--replace")  # no link, no file in a folder's place
-        rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
-        try:
-            world = render_world(rollout, args.config_index, args.seed)
-            print(f"rendering from start configuration {args.config_index} ({config.engine} engine) ...", flush=True)
-            rendering = {name: render_content(rollout, front.params[k], world, args.format, *args.size)}
-        except RenderUnavailable as err:
-            unavailable = err
-        finally:
-            rollout.close()
+    rendering, unavailable = (None, None) if args.no_render else _render(args, run, config, front.params[k], root, folder, hint)
     for path in write_export(doc, folder, root, rendering, replace=args.replace, hint=hint, flag="--replace"):
         content = (rendering or {}).get(path.name)
         print(f"wrote {path}" if not isinstance(content, dict) else f"wrote {len(content)} frames to {path}")

@@ -10,14 +10,17 @@ chosen *before* ``mujoco`` is imported: ``MUJOCO_GL=egl`` (headless GPU or Mesa'
 
 from __future__ import annotations
 
+import io
 import os
 import shutil
+import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from mjxskill.errors import UserError
+from mjxskill.runs.outputs import write_outputs
 
 if TYPE_CHECKING:  # pragma: no cover
     from mjxskill.engine.protocol import Rollout
@@ -97,8 +100,6 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progres
 
 def png_frames(images: np.ndarray) -> dict[str, bytes]:
     """The frames as PNG files (``frame_0000.png`` -> its bytes), for the writer to put in place."""
-    import io
-
     # lazy: matplotlib.pyplot ~0.4 s, for the frames only (select --no-render, the explore page's other jobs)
     import matplotlib
 
@@ -118,8 +119,6 @@ def mp4_bytes(images: np.ndarray, fps: float) -> bytes:
     temporary folder: the writer puts the bytes in place."""
     if shutil.which("ffmpeg") is None:
         raise RenderUnavailable("MP4 needs ffmpeg on the PATH (apt-get install ffmpeg); use --format png for PNG frames")
-    import tempfile
-
     # lazy: matplotlib.pyplot ~0.4 s, for the frames only (select --no-render, the explore page's other jobs)
     import matplotlib
 
@@ -163,7 +162,7 @@ def render_content(rollout: Rollout, params: np.ndarray, world, fmt: str = "png"
                    progress: FrameProgress | None = None):
     """Traces ``params`` (P,) in ``world`` (one unbatched world; either engine's rollout) and
     draws it, the world's randomized poses shown: the PNG frames (name -> bytes) or the MP4's
-    bytes, nothing written yet (``mjxskill.runs.atomic_write.write_outputs`` puts them in place
+    bytes, nothing written yet (``mjxskill.runs.outputs.write_outputs`` puts them in place
     whole, at ``rendered_path``)."""
     _, record = rollout.trace(params, world)
     images = frames(rollout.mj_model, np.asarray(record.qpos), width, height, progress,
@@ -183,8 +182,6 @@ def render_episode(rollout: Rollout, params: np.ndarray, world, out: Path, fmt: 
     """``render_content`` written into ``out/`` (PNG frames) or ``out.mp4``, staged beside it and
     renamed into place whole, never through a link below ``root`` (default: ``out``'s folder);
     an earlier rendering there is replaced only with ``replace``. Returns the written files."""
-    from mjxskill.runs.atomic_write import write_outputs
-
     content = render_content(rollout, params, world, fmt, width, height, progress)
     target = rendered_path(Path(out), fmt)
     write_outputs(Path(out).parent if root is None else root, {target: content}, replace=replace)

@@ -17,7 +17,7 @@ unit, ready for a controller) and rendered there (PNG frames, or an MP4 with ffm
 never replaces a file or folder with other content (an earlier pick, a file edited by hand,
 frames of another rendering) unless ``select --replace`` says so, never writes through a link
 at any depth below the run (or ``--out``) and is written whole, each file or folder staged
-beside its place (``mjxskill.runs.atomic_write.write_outputs``): ``select`` and the explore page
+beside its place (``mjxskill.runs.outputs.write_outputs``): ``select`` and the explore page
 refuse with one error naming it; writing the same content again is harmless.
 """
 
@@ -30,7 +30,7 @@ import numpy as np
 import yaml
 
 from mjxskill.errors import RunError
-from mjxskill.runs.atomic_write import write_outputs
+from mjxskill.runs.outputs import write_outputs
 
 
 def choose(front, max_force: float | None = None, min_success: float | None = None, validated=None,
@@ -123,7 +123,7 @@ def export_texts(doc: dict) -> dict[str, str]:
 
 def export_outputs(doc: dict, folder: Path, rendering: dict | None = None) -> dict[Path, bytes | dict[str, bytes]]:
     """What the export of ``doc`` into ``folder`` writes (path -> a file's bytes or a folder's
-    files, for ``mjxskill.runs.atomic_write.write_outputs``): the parameter files and, when given,
+    files, for ``mjxskill.runs.outputs.write_outputs``): the parameter files and, when given,
     the ``rendering`` (name in the folder -> content: ``frames`` or ``episode.mp4``)."""
     out: dict[Path, bytes | dict[str, bytes]] = {folder / name: text.encode() for name, text in export_texts(doc).items()}
     out.update({folder / name: content for name, content in (rendering or {}).items()})

@@ -39,7 +39,8 @@ from mjxskill.engine import build
 from mjxskill.errors import RunError, ServerBusy, UserError
 from mjxskill.evaluation.baselines import evaluation_worlds
 from mjxskill.evaluation.render import RenderUnavailable, render_episode, render_world
-from mjxskill.runs.atomic_write import read_below, write_outputs
+from mjxskill.runs.atomic_write import read_below
+from mjxskill.runs.outputs import write_outputs
 from mjxskill.runs.run_task import load_run_task
 from mjxskill.scenario import load_scenario
 from mjxskill.explore.data import RunEntry, number, numbers
