@@ -345,3 +345,21 @@ def test_plan_export_refuses_a_link_or_a_users_file_and_writes_neither(tmp_path_
         assert invoke(capsys, "plan", "push", "--export", folder, "--replace")[0] == 0
         assert (folder / at).read_bytes().startswith(b"(define")
         assert invoke(capsys, "plan", "push", "--export", folder)[0] == 0  # the same again: harmless
+
+
+@pytest.mark.parametrize("command", ["select", "train"])
+def test_a_repetition_linked_to_another_inside_the_run_is_refused(tmp_path, capsys, command):
+    """``seed-1 -> seed-0`` stays inside the run, so issue 33's check let it be; writing seed-1's
+    files would write seed-0's."""
+    import shutil
+
+    from explore_runs import make_repeated_run
+
+    root = make_repeated_run(tmp_path / "push-x3")
+    shutil.rmtree(root.path / "seed-1")
+    (root.path / "seed-1").symlink_to("seed-0")
+    unlocked = lambda: {k: v for k, v in tree(root.path).items() if k != ".lock"}  # noqa: E731  (the lock says who wrote last)
+    before = unlocked()
+    code, err = invoke(capsys, command, *(["push", "--resume"] if command == "train" else []), root.path)
+    error_line(code, err, command, str(root.path / "seed-1"), "is a symbolic link")
+    assert unlocked() == before

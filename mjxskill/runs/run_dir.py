@@ -41,6 +41,7 @@ from mjxskill.scenario.fields import read_text
 from mjxskill.runs.atomic_write import (  # noqa: F401  (STAGING, _this_host: re-exported, where they lived before)
     STAGING,
     _this_host,
+    check_folder,
     created_whole,
     remove_stale_staging,
     write_text,
@@ -178,7 +179,12 @@ class Run:
         write_text(self.path / RUN_STATE, json.dumps(state, indent=1))
 
     def sub_runs(self, config: RunConfig) -> list["Run"]:
-        return [Run(self.path / f"seed-{config.seed + i}") for i in range(config.repeats)]
+        """The repetitions ``seed-<s>``; RunError naming one that is a symbolic link (even to a
+        folder inside the run: its files would be written into another repetition)."""
+        subs = [Run(self.path / f"seed-{config.seed + i}") for i in range(config.repeats)]
+        for sub in subs:
+            check_folder(self.path, sub.path)
+        return subs
 
 
 def _write_run(folder: Path, config: RunConfig, scenario_text: str, texts: dict[str, str]) -> None:
