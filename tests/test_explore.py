@@ -175,7 +175,7 @@ def test_export_never_replaces_a_different_file(tmp_path):
     (folder / "parameters.yaml").write_text("edited by hand\n")
     with serving(run.path) as base:
         status, doc = get_json(base, "/api/export", {"run": 0, "k": 1})
-    assert status == 400 and "holds another export" in doc["error"]
+    assert status == 400 and "holds other content" in doc["error"] and "it is kept" in doc["error"]
     assert (folder / "parameters.yaml").read_text() == "edited by hand\n"
     assert not (folder / "parameters.json").exists()
 

@@ -34,7 +34,7 @@ from mjxskill.evaluation.pooled import force_bound, group_means, pick, plot_pool
 from mjxskill.evaluation import racing
 from mjxskill.evaluation.validation import in_contention, validate, validation_settings
 from mjxskill.experiment.directory import Experiment, is_done, repetition_settings, runs_of
-from mjxskill.runs.atomic_write import refuse_links_out, write_text
+from mjxskill.runs.atomic_write import make_folder, refuse_links_out, write_text
 from mjxskill.runs.layout import directory_kind, experiment_holding
 from mjxskill.runs.run_dir import Run
 from mjxskill.runs.run_task import load_run_task
@@ -202,8 +202,7 @@ def _pool(run, config, results, bound) -> str:
     results = [(sub, c, ev) for sub, c, ev, _ in results]
     samples = pooled_samples([ev for _, _, ev in results], picks)
     tests = pooled_tests(samples)
-    out = run.path / FOLDER
-    out.mkdir(exist_ok=True)
+    out = make_folder(run.path, run.path / FOLDER)  # never through a link below the run
     plot_pooled(samples, out / "success.png", f"{config.task}: success rate per start configuration, {len(results)} runs")
     doc = {"runs": [str(sub.path) for sub, _, _ in results],
            "picked": [{"seed": c.seed, "pareto_row": p.row, "bound_N": p.bound, "bound_source": p.source,

@@ -9,7 +9,9 @@
 DIR may be a repeated run or an experiment (``mjxskill.runs.layout``): the fronts of all its
 runs are listed in one table (# numbers every row, ``run`` names the run and its row), ``--pick``
 and the constraints choose from all of them, and the export goes to
-``DIR/selected-<kind>-<seed>-<row>/``. Where the runs' picks were validated
+``DIR/selected-<kind>-<seed>-<row>/``. An export is written whole or not at all, never through
+a link below DIR (or ``--out``), and replaces files of other content only with ``--replace``
+(``mjxskill.evaluation.selection.write_export``). Where the runs' picks were validated
 (``evaluation/validation.json``), the table has their validation success and a pick by
 constraint takes a validated solution first.
 
@@ -28,16 +30,10 @@ from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.engine.build import build_rollout
 from mjxskill.errors import CommandError
+from mjxskill.evaluation.render import RenderUnavailable, default_gl, render_content, render_world
+from mjxskill.evaluation.selection import best_unvalidated, choose, export_document, export_outputs, write_export
 from mjxskill.runs.atomic_write import refuse_links_out
-from mjxskill.evaluation.render import RenderUnavailable, default_gl, render_episode, render_world
-from mjxskill.evaluation.selection import (
-    best_unvalidated,
-    choose,
-    conflicting_export,
-    export_document,
-    what_is_there,
-    write_export,
-)
+from mjxskill.runs.outputs import check_outputs
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -49,6 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
     pick.add_argument("--min-success", type=cli_args.nonnegative_float, metavar="RATE", help="success rate at least RATE (0-1)")
     parser.add_argument("--out", type=Path, help="export folder (default RUN_DIR/selected-<K>)")
     parser.add_argument("--no-render", action="store_true", help="export the parameters only")
+    parser.add_argument("--replace", action="store_true", help="replace export files that hold other content (an earlier "
+                        "pick, frames of another rendering); without it they are kept and the export is refused")
     parser.add_argument("--format", choices=("png", "mp4"), default="png", help="PNG frames (default) or an MP4 (needs ffmpeg)")
     parser.add_argument("--config-index", type=cli_args.int_at_least(0), default=0, help="known start configuration to render from (default 0)")
     parser.add_argument("--seed", type=cli_args.seed_type(), default=0, help="seed of the rendered world's randomization")
@@ -118,6 +116,30 @@ def _say_what_decided(union, i: int, validated, other: int | None, owner) -> Non
               f"reached {union.success_rate[other]:.0%} in training but was not validated (--pick {other} takes it)")
 
 
+def _render(args: argparse.Namespace, run, config, params, root: Path, folder: Path, hint: str):
+    """(``{name: content}`` of the rendered episode for the export, None) or (None, why it could not
+    be rendered: RenderUnavailable). Everything it needs is checked before anything is computed
+    (the run's task, ``--config-index``, no link or file where the frames go); nothing is written."""
+    from mjxskill.runs.run_task import load_run_task  # lazy: imports mujoco, as in _fronts
+
+    scn, task = load_run_task(run, config)
+    n_known = len(scn.robot.start_configs)
+    if args.config_index >= n_known:
+        raise CommandError(f"--config-index {args.config_index}: the task has known start configurations 0-{n_known - 1}")
+    name = "episode.mp4" if args.format == "mp4" else "frames"
+    # no link, no file in a folder's place (other content is compared once rendered)
+    check_outputs(root, {folder / name: b"" if args.format == "mp4" else {}}, replace=True, hint=hint, flag="--replace")
+    rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
+    try:
+        world = render_world(rollout, args.config_index, args.seed)
+        print(f"rendering from start configuration {args.config_index} ({config.engine} engine) ...", flush=True)
+        return {name: render_content(rollout, params, world, args.format, *args.size)}, None
+    except RenderUnavailable as err:
+        return None, err
+    finally:
+        rollout.close()
+
+
 def _main(args: argparse.Namespace) -> int:
     # lazy: these import mujoco, which reads MUJOCO_GL once, when imported; main() sets it first
     from mjxskill.evaluation.validation import row_validation, validated_union
@@ -165,37 +187,20 @@ def _main(args: argparse.Namespace) -> int:
     ref, run, config, k = owner[i]
     front = fronts[[f[0] for f in fronts].index(ref)][3]
     folder = args.out or Path(args.run) / (f"selected-{ref.kind}-{ref.seed}-{k}" if several else f"selected-{k}")
+    root = args.out or Path(args.run)  # what the export owns: nothing below it is written through a link
     doc = export_document(config, front, k, run.path, row_validation(validated, worlds, i))
-    conflict = conflicting_export(doc, folder)
-    if conflict is not None:
-        raise CommandError(f"{conflict} {what_is_there(conflict)}; it is kept: move it away, "
-                           "or write this pick elsewhere with --out FOLDER")
-    for path in write_export(doc, folder):
-        print(f"wrote {path}")
+    hint = "move it away, or write this pick elsewhere with --out FOLDER"
+    check_outputs(root, export_outputs(doc, folder), replace=args.replace, hint=hint, flag="--replace")  # before anything is computed
+    rendering, unavailable = (None, None) if args.no_render else _render(args, run, config, front.params[k], root, folder, hint)
+    for path in write_export(doc, folder, root, rendering, replace=args.replace, hint=hint, flag="--replace"):
+        content = (rendering or {}).get(path.name)
+        print(f"wrote {path}" if not isinstance(content, dict) else f"wrote {len(content)} frames to {path}")
     print(f"chose Pareto solution {k}{f' of {run.path}' if several else ''}: "
           + ", ".join(f"{n} = {v['value']:.4g} {v['unit']}" for n, v in doc["parameters"].items())
           + ("" if validated is None or math.isnan(validated[i]) else f" (validated success {validated[i]:.0%})"))
-    if args.no_render:
-        return 0
-
-    from mjxskill.runs.run_task import load_run_task  # lazy: imports mujoco, as in _fronts
-
-    scn, task = load_run_task(run, config)
-    n_known = len(scn.robot.start_configs)
-    if args.config_index >= n_known:
-        raise CommandError(f"--config-index {args.config_index}: the task has known start configurations 0-{n_known - 1}")
-    rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
-    try:
-        world = render_world(rollout, args.config_index, args.seed)
-        print(f"rendering from start configuration {args.config_index} ({config.engine} engine) ...", flush=True)
-        paths = render_episode(rollout, front.params[k], world, folder / ("episode" if args.format == "mp4" else "frames"),
-                               args.format, *args.size)
-    except RenderUnavailable as err:
-        print(f"{build_parser().prog}: rendering skipped: {err}", file=sys.stderr)
+    if unavailable is not None:
+        print(f"{build_parser().prog}: rendering skipped: {unavailable}", file=sys.stderr)
         return 1
-    finally:
-        rollout.close()
-    print(f"wrote {paths[0]}" if len(paths) == 1 else f"wrote {len(paths)} frames to {paths[0].parent}")
     return 0
 
 

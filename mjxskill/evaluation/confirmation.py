@@ -13,13 +13,14 @@ reused while its settings and candidates are the same; a killed confirmation is 
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mjxskill.evaluation.baselines import Candidates, Evaluation, evaluate_candidates
 from mjxskill.evaluation.evaluate_run import FOLDER, evaluation_document, read_evaluation
-from mjxskill.runs.atomic_write import write_json
+from mjxskill.runs.atomic_write import make_folder, write_json
 
 if TYPE_CHECKING:  # pragma: no cover
     from mjxskill.engine.protocol import Rollout
@@ -56,8 +57,8 @@ def confirm(run_path, rollout: Rollout, candidates: Candidates, settings: dict, 
     # MJX: calls of batch_size rows (one compiled shape); native: all candidates in one call
     size = batch_size if settings["engine"] == "mjx" else max(1, len(candidates.names))
     ev = evaluate_candidates(rollout, candidates, settings["per_config"], settings["seed"], size, stream=STREAM)
-    (run_path / FOLDER).mkdir(exist_ok=True)
-    write_json(run_path / FOLDER / FILE, {"format": FORMAT, "settings": settings, **evaluation_document(ev)})
+    make_folder(Path(run_path), Path(run_path) / FOLDER)  # never through a link below the run
+    write_json(Path(run_path) / FOLDER / FILE, {"format": FORMAT, "settings": settings, **evaluation_document(ev)})
     return ev, False
 
 

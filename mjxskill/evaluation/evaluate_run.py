@@ -35,7 +35,7 @@ import numpy as np
 
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
-from mjxskill.runs.atomic_write import append_text, write_json
+from mjxskill.runs.atomic_write import append_text, check_folder, make_folder, write_json
 from mjxskill.evaluation.baselines import (
     CHUNK_FIELDS,
     Candidates,
@@ -108,6 +108,7 @@ def evaluate_run(run: Run, config: RunConfig, rollout: Rollout, task: PlannedTas
     front = run.front(config)
     candidates = build_candidates(task, front.params, settings["random"], settings["seed"])
     folder = run.path / FOLDER
+    check_folder(run.path, folder)  # never read or written through a link below the run
     if (folder / RESULT).is_file():
         try:
             old, old_settings = load_evaluation(run)
@@ -116,7 +117,7 @@ def evaluate_run(run: Run, config: RunConfig, rollout: Rollout, task: PlannedTas
         if old is not None and _same(old_settings, settings) and _same_candidates(old.candidates, candidates):
             write_csv(old, config.parameter_names, folder / "evaluation.csv")  # derived: rewritten, never missing
             return old, plot_boxes(old, folder / "success.png", _title(config)), True
-    folder.mkdir(exist_ok=True)
+    make_folder(run.path, folder)  # never through a link below the run
     chunk_path = folder / CHUNKS
     done = _read_chunks(chunk_path, settings, candidates)
 

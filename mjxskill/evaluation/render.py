@@ -10,14 +10,17 @@ chosen *before* ``mujoco`` is imported: ``MUJOCO_GL=egl`` (headless GPU or Mesa'
 
 from __future__ import annotations
 
+import io
 import os
 import shutil
+import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from mjxskill.errors import UserError
+from mjxskill.runs.outputs import write_outputs
 
 if TYPE_CHECKING:  # pragma: no cover
     from mjxskill.engine.protocol import Rollout
@@ -95,24 +98,25 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progres
     return np.stack(images)
 
 
-def write_png_frames(images: np.ndarray, folder: Path) -> list[Path]:
+def png_frames(images: np.ndarray) -> dict[str, bytes]:
+    """The frames as PNG files (``frame_0000.png`` -> its bytes), for the writer to put in place."""
     # lazy: matplotlib.pyplot ~0.4 s, for the frames only (select --no-render, the explore page's other jobs)
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # lazy, as matplotlib: and after the backend is chosen
 
-    folder.mkdir(parents=True, exist_ok=True)
-    paths = []
+    files = {}
     for t, image in enumerate(images):
-        path = folder / f"frame_{t:04d}.png"
-        plt.imsave(path, image)
-        paths.append(path)
-    return paths
+        buffer = io.BytesIO()
+        plt.imsave(buffer, image, format="png")
+        files[f"frame_{t:04d}.png"] = buffer.getvalue()
+    return files
 
 
-def write_mp4(images: np.ndarray, path: Path, fps: float) -> Path:
-    """Encodes the frames with ffmpeg (through matplotlib's writer)."""
+def mp4_bytes(images: np.ndarray, fps: float) -> bytes:
+    """The frames encoded by ffmpeg (through matplotlib's writer) into an MP4, in a private
+    temporary folder: the writer puts the bytes in place."""
     if shutil.which("ffmpeg") is None:
         raise RenderUnavailable("MP4 needs ffmpeg on the PATH (apt-get install ffmpeg); use --format png for PNG frames")
     # lazy: matplotlib.pyplot ~0.4 s, for the frames only (select --no-render, the explore page's other jobs)
@@ -128,12 +132,21 @@ def write_mp4(images: np.ndarray, path: Path, fps: float) -> Path:
     ax.axis("off")
     shown = ax.imshow(images[0])
     writer = FFMpegWriter(fps=fps)  # type: ignore[arg-type]  # ffmpeg takes a fractional frame rate
-    with writer.saving(fig, str(path), dpi=100):
-        for image in images:
-            shown.set_data(image)
-            writer.grab_frame()
-    plt.close(fig)
-    return path
+    try:
+        with tempfile.TemporaryDirectory(prefix="mjxskill-mp4-") as folder:
+            path = Path(folder) / "episode.mp4"
+            with writer.saving(fig, str(path), dpi=100):
+                for image in images:
+                    shown.set_data(image)
+                    writer.grab_frame()
+            return path.read_bytes()
+    finally:
+        plt.close(fig)
+
+
+def rendered_path(out: Path, fmt: str) -> Path:
+    """Where an episode rendered as ``fmt`` to ``out`` goes: ``out/`` (PNG frames) or ``out.mp4``."""
+    return out.with_suffix(".mp4") if fmt == "mp4" else out
 
 
 def render_world(rollout: Rollout, config_index: int, seed: int = 0):
@@ -145,14 +158,31 @@ def render_world(rollout: Rollout, config_index: int, seed: int = 0):
     return jax.tree.map(lambda x: x[config_index], worlds)
 
 
-def render_episode(rollout: Rollout, params: np.ndarray, world, out: Path, fmt: str = "png", width: int = 640, height: int = 480,
-                   progress: FrameProgress | None = None) -> list[Path]:
+def render_content(rollout: Rollout, params: np.ndarray, world, fmt: str = "png", width: int = 640, height: int = 480,
+                   progress: FrameProgress | None = None):
     """Traces ``params`` (P,) in ``world`` (one unbatched world; either engine's rollout) and
-    writes PNG frames into ``out/`` or ``out.mp4``, the world's randomized poses shown. Returns
-    the written paths."""
+    draws it, the world's randomized poses shown: the PNG frames (name -> bytes) or the MP4's
+    bytes, nothing written yet (``mjxskill.runs.outputs.write_outputs`` puts them in place
+    whole, at ``rendered_path``)."""
     _, record = rollout.trace(params, world)
     images = frames(rollout.mj_model, np.asarray(record.qpos), width, height, progress,
                     mocap_pos=np.asarray(record.mocap_pos), mocap_quat=np.asarray(record.mocap_quat))
     if fmt == "mp4":
-        return [write_mp4(images, out.with_suffix(".mp4"), fps=rollout.scenario.bt_hz)]
-    return write_png_frames(images, out)
+        return mp4_bytes(images, fps=rollout.scenario.bt_hz)
+    return png_frames(images)
+
+
+def rendered_files(out: Path, content) -> list[Path]:
+    """The files of ``content`` (``render_content``) written to ``out`` (``rendered_path``)."""
+    return [out] if isinstance(content, bytes) else [out / name for name in content]
+
+
+def render_episode(rollout: Rollout, params: np.ndarray, world, out: Path, fmt: str = "png", width: int = 640, height: int = 480,
+                   progress: FrameProgress | None = None, *, root: Path | None = None, replace: bool = True) -> list[Path]:
+    """``render_content`` written into ``out/`` (PNG frames) or ``out.mp4``, staged beside it and
+    renamed into place whole, never through a link below ``root`` (default: ``out``'s folder);
+    an earlier rendering there is replaced only with ``replace``. Returns the written files."""
+    content = render_content(rollout, params, world, fmt, width, height, progress)
+    target = rendered_path(Path(out), fmt)
+    write_outputs(Path(out).parent if root is None else root, {target: content}, replace=replace)
+    return rendered_files(target, content)

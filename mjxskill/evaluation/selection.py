@@ -14,23 +14,23 @@ written before contact forces were measured has none: ``--max-force``
 is refused for it (its commanded force is no measure of what the tool did to the world). The choice is written to
 ``RUN_DIR/selected-<k>/parameters.yaml`` and ``parameters.json`` (parameter name -> value and
 unit, ready for a controller) and rendered there (PNG frames, or an MP4 with ffmpeg). An export
-never replaces a parameter file with other content (an earlier pick, a file edited by hand):
-``conflicting_export`` names it, and ``select`` and the explore page refuse; writing the same
-content again is harmless.
+never replaces a file or folder with other content (an earlier pick, a file edited by hand,
+frames of another rendering) unless ``select --replace`` says so, never writes through a link
+at any depth below the run (or ``--out``) and is written whole, each file or folder staged
+beside its place (``mjxskill.runs.outputs.write_outputs``): ``select`` and the explore page
+refuse with one error naming it; writing the same content again is harmless.
 """
 
 from __future__ import annotations
 
-import contextlib
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 import yaml
 
 from mjxskill.errors import RunError
-from mjxskill.runs.atomic_write import DISK_FAULTS, write_text
+from mjxskill.runs.outputs import write_outputs
 
 
 def choose(front, max_force: float | None = None, min_success: float | None = None, validated=None,
@@ -121,50 +121,20 @@ def export_texts(doc: dict) -> dict[str, str]:
     return {"parameters.yaml": yaml.safe_dump(doc, sort_keys=False), "parameters.json": json.dumps(doc, indent=2) + "\n"}
 
 
-def conflicting_export(doc: dict, folder: Path) -> Path | None:
-    """The first parameter file in ``folder`` that an export of ``doc`` would replace with other
-    content (or that is a link or no file at all), or ``folder`` itself when it is a link (a run's
-    selected-<k> pointing elsewhere), or None when writing it changes nothing."""
-    if folder.is_symlink():
-        return folder
-    for name, text in export_texts(doc).items():
-        path = folder / name
-        if path.is_symlink() or (path.exists() and (not path.is_file() or path.read_bytes() != text.encode())):
-            return path
-    return None
+def export_outputs(doc: dict, folder: Path, rendering: dict | None = None) -> dict[Path, bytes | dict[str, bytes]]:
+    """What the export of ``doc`` into ``folder`` writes (path -> a file's bytes or a folder's
+    files, for ``mjxskill.runs.outputs.write_outputs``): the parameter files and, when given,
+    the ``rendering`` (name in the folder -> content: ``frames`` or ``episode.mp4``)."""
+    out: dict[Path, bytes | dict[str, bytes]] = {folder / name: text.encode() for name, text in export_texts(doc).items()}
+    out.update({folder / name: content for name, content in (rendering or {}).items()})
+    return out
 
 
-def what_is_there(conflict: Path) -> str:
-    """How ``conflicting_export``'s answer is in the way, for a message."""
-    if conflict.is_symlink():
-        return f"is a symbolic link (to {os.readlink(conflict)!r}), never written through"
-    return "holds another export or an edited file"
-
-
-def write_export(doc: dict, folder: Path) -> list[Path]:
-    """Writes the export of ``doc`` into ``folder``, each file replaced whole; RunError when
-    ``folder`` holds a parameter file with other content (see ``conflicting_export``)."""
-    conflict = conflicting_export(doc, folder)
-    if conflict is not None:
-        raise RunError(f"{conflict} {what_is_there(conflict)}; it is kept: move it away, or export elsewhere")
-    made = not os.path.lexists(folder)
-    new = []  # the files this export adds: removed again when it cannot finish
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        paths = []
-        for name, text in export_texts(doc).items():
-            if not os.path.lexists(folder / name):
-                new.append(folder / name)
-            write_text(folder / name, text)
-            paths.append(folder / name)
-    except OSError as err:
-        for path in new:
-            with contextlib.suppress(OSError):
-                os.unlink(path)
-        if made:
-            with contextlib.suppress(OSError):
-                folder.rmdir()
-        if err.errno in DISK_FAULTS:  # the machine's, not the input's: the command says so (exit 1)
-            raise
-        raise RunError(f"cannot write the export to {str(folder)!r}: {err.strerror}") from None
-    return paths
+def write_export(doc: dict, folder: Path, root: Path, rendering: dict | None = None, *, replace: bool = False,
+                 hint: str = "move it away, or export elsewhere", flag: str = "") -> list[Path]:
+    """Writes the export of ``doc`` (and its ``rendering``) into ``folder``, below ``root`` (the
+    run, or the folder the user named), through the one writer (``write_outputs``): nothing is
+    written when one of its files is a link, sits below a link, or holds other content (an
+    earlier pick, a file edited by hand) unless ``replace``; each file or folder is staged and
+    renamed into place. RunError (with ``hint`` and ``flag``) names what is in the way."""
+    return write_outputs(root, export_outputs(doc, folder, rendering), replace=replace, hint=hint, flag=flag)

@@ -33,7 +33,7 @@ import numpy as np
 
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
-from mjxskill.runs.atomic_write import write_json
+from mjxskill.runs.atomic_write import make_folder, write_json
 from mjxskill.evaluation.evaluate_run import FOLDER
 from mjxskill.evaluation.baselines import evaluate_chunk
 from mjxskill.evaluation.pooled import contenders
@@ -124,7 +124,7 @@ def validate(run: Run, front: Evaluations, rows: Sequence[int], rollout: Rollout
     doc = {"format": FORMAT, "settings": settings, "worlds": result.worlds, "rows": list(rows),
            "params": front.params[list(rows)].tolist(), "success": success.tolist(),
            "seconds": None if seconds is None else seconds.tolist()}
-    (run.path / FOLDER).mkdir(exist_ok=True)
+    make_folder(run.path, run.path / FOLDER)  # never through a link below the run
     write_json(run.path / FOLDER / FILE, doc)
     return result, False
 

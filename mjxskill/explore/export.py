@@ -5,20 +5,22 @@ An export never replaces a file the user has: where ``selected-<k>/`` already ho
 files with other content (the run trained on and its front changed, or they were edited), it
 is refused and says so. When the page has rendered the solution from known start
 configuration 0 (the world ``select`` renders from by default), the rendering is copied into
-the folder as select would have written it (``frames/`` or ``episode.mp4``), unless one is
-there already.
+the folder as select would have written it (``frames/`` or ``episode.mp4``). The export goes
+through select's writer (``mjxskill.evaluation.selection.write_export``): a rendering there
+already with other files (another size, frames a killed renderer left) is kept and the export
+refused, as a link anywhere below the run is; nothing is written then.
 """
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 from mjxskill.errors import RunError
-from mjxskill.evaluation.selection import conflicting_export, export_document, what_is_there, write_export
+from mjxskill.evaluation.selection import export_document, write_export
 from mjxskill.evaluation.validation import row_validation, validated_union
 from mjxskill.explore.data import RunEntry, evaluation_rows
 from mjxskill.explore.solutions import Solutions
+from mjxskill.runs.atomic_write import read_below
 
 
 def export_solution(entry: RunEntry, k: int, solutions: Solutions | None = None) -> dict:
@@ -29,31 +31,27 @@ def export_solution(entry: RunEntry, k: int, solutions: Solutions | None = None)
                            else f"{entry.run.path} has an empty Pareto front")
     doc = export_document(entry.config, front, k, entry.run.path, row_validation(*validated_union([(entry.run, front)]), k))
     folder = entry.run.path / f"selected-{k}"
-    conflict = conflicting_export(doc, folder)
-    if conflict is not None:
-        raise RunError(f"{conflict} {what_is_there(conflict)}; move it away, or export with "
-                       f"python -m mjxskill.select {entry.run.path} --pick {k} --out FOLDER")
-    written = [str(p) for p in write_export(doc, folder)]
+    rendering = None
     if solutions is not None:
         index = int(evaluation_rows(entry.evaluations(), front.take(slice(k, k + 1)))[0])
         cache = solutions.folder(entry, index)
-        written += _copy_rendering(cache, solutions.cached_video(cache, front.params[k], 0), folder)
-    return {"folder": str(folder), "written": written}
+        rendering = _cached_rendering(entry.run.path, cache, solutions.cached_video(cache, front.params[k], 0))
+    hint = f"move it away, or export with python -m mjxskill.select {entry.run.path} --pick {k} --out FOLDER"
+    written = write_export(doc, folder, entry.run.path, rendering, hint=hint)
+    return {"folder": str(folder), "written": [str(p) for p in written]}
 
 
-def _copy_rendering(cache: Path, video: dict | None, folder: Path) -> list[str]:
+def _cached_rendering(run_path: Path, cache: Path, video: dict | None) -> dict | None:
+    """The page's rendering in ``cache`` (as ``known-0.json`` lists it) as the export's
+    ``frames`` or ``episode.mp4``: read without following a link, regular files only, each
+    named inside the cache; None when the page has rendered none."""
     if video is None:
-        return []
-    if video["kind"] == "mp4":
-        target = folder / "episode.mp4"
-        if target.exists():
-            return []
-        shutil.copyfile(cache / video["files"][0], target)
-        return [str(target)]
-    target = folder / "frames"
-    if target.exists():
-        return []
-    target.mkdir()
-    for name in video["files"]:
-        shutil.copyfile(cache / name, target / Path(name).name)
-    return [str(target)]
+        return None
+    files = video.get("files")
+    if not isinstance(files, list) or not files or not all(isinstance(f, str) for f in files):
+        raise RunError(f"{cache / 'known-0.json'} lists no files; remove it and render the solution again")
+    paths = [cache / f for f in files]
+    content = {p.name: read_below(run_path, p) for p in paths}
+    if video.get("kind") == "mp4":
+        return {"episode.mp4": content[paths[0].name]}
+    return {"frames": content}

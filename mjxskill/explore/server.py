@@ -20,22 +20,30 @@ Before any routing, a request is refused (``mjxskill.explore.guard``) whose Host
 address this server serves (403), a state-changing one not sent by the page itself with a JSON
 body (403), and a body over ``MAX_BODY_BYTES`` (413); so is a path with a ``..`` segment, a
 backslash or a NUL (403). A file is served only when its real path (symlinks resolved) lies
-inside the static folder or the run directory. Bad input to the API answers 400 with
-``{"error": message}``; a rollout the server cannot take now answers 409 (that point has one
-under way) or 429 (the queue is full).
+inside the static folder or the run directory.
+
+Every error a request meets is answered by one handler (``error_response``, installed on every
+route as a Bottle plugin, and Bottle's own errors such as 404 and 405) with a JSON body
+``{"error": message}`` and logged as one line on the server's stderr (``mjxskill.explore: error:
+METHOD PATH -> STATUS: message``), never a traceback: bad input to the API answers 400; a
+rollout the server cannot take now 409 (that point has one under way) or 429 (the queue is
+full); a fault of the machine (a full disk: 507; a file system gone read-only, another
+OSError: 500) and anything unexpected 500, the message naming the file where there is one.
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import socket
 import socketserver
+import sys
 from pathlib import Path
 from wsgiref.simple_server import WSGIRequestHandler, WSGIServer, make_server
 
 import bottle
 
-from mjxskill.errors import RequestError, RunError, ServerBusy, UserError
+from mjxskill.errors import RequestError, RunError, ServerBusy, UserError, bounded, quote
 from mjxskill.explore.data import (
     choose_document,
     evaluations_document,
@@ -68,8 +76,53 @@ class Explorer:
         self.solutions.close()
 
 
+PROG = "mjxskill.explore"
+SPACE = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)  # faults that freeing space cures: 507
+
+
 def _json(status: int, doc: dict) -> bottle.HTTPResponse:
     return bottle.HTTPResponse(json.dumps(doc), status, {"Content-Type": "application/json"})
+
+
+def error_status(err: BaseException) -> tuple[int, str]:
+    """(HTTP status, one-line message) of an error a request met (module doc)."""
+    if isinstance(err, ServerBusy):
+        status, message = err.status, str(err)
+    elif isinstance(err, UserError):
+        status, message = 400, str(err)
+    elif isinstance(err, OSError):
+        where = f" ({err.filename})" if err.filename else ""
+        status = 507 if err.errno in SPACE else 500
+        message = f"{err.strerror or type(err).__name__}{where}: the server could not finish; fix that and ask again"
+    else:
+        status, message = 500, f"internal error: {type(err).__name__}: {quote(str(err), 300)}"
+    return status, bounded(" ".join(message.split()))
+
+
+def log_error(status: int, message: str) -> None:
+    """One line on the server's stderr for an error answered."""
+    where = f"{bottle.request.method} {quote(bottle.request.path, 200)}"
+    print(f"{PROG}: error: {where} -> {status}: {message}", file=sys.stderr, flush=True)
+
+
+def error_response(err: BaseException) -> bottle.HTTPResponse:
+    """The one answer to an error: JSON ``{"error": message}`` with its status, logged in one line."""
+    status, message = error_status(err)
+    log_error(status, message)
+    return _json(status, {"error": message})
+
+
+def _guarded(callback):
+    """``callback`` with every error it raises answered by ``error_response`` (a Bottle plugin:
+    installed on every route); the responses it raises on purpose (a refusal) pass."""
+    def wrapper(*args, **kwargs):
+        try:
+            return callback(*args, **kwargs)
+        except bottle.HTTPResponse:
+            raise
+        except Exception as err:  # noqa: BLE001  (every error: answered as JSON, logged in one line)
+            return error_response(err)
+    return wrapper
 
 
 def refused(path: str) -> bool:
@@ -126,24 +179,26 @@ def _int(doc, name: str, default: int | None = None) -> int:
 def build_app(explorer: Explorer, served: ServedAddress) -> bottle.Bottle:
     """The page and its API for ``explorer``, answering only requests to ``served``."""
     app = bottle.Bottle()
+    app.install(_guarded)  # every route's errors: JSON, one log line
+
+    def _error_page(error: bottle.HTTPError) -> str:  # Bottle's own errors (no such route: 404, 405)
+        message = " ".join(str(error.body or error.status_line).split())
+        log_error(error.status_code, message)
+        bottle.response.content_type = "application/json"
+        return json.dumps({"error": message})
+
+    app.default_error_handler = _error_page  # type: ignore[method-assign]
 
     @app.hook("before_request")
     def _refuse_foreign_and_escapes():
-        refused_request = refusal(bottle.request.environ, served)
+        try:
+            refused_request = refusal(bottle.request.environ, served)
+        except Exception as err:  # noqa: BLE001  (answered as every other error is)
+            raise error_response(err) from None
         if refused_request is not None:
             raise _json(refused_request[0], {"error": refused_request[1]})
         if refused(bottle.request.path):
             raise _json(403, {"error": f"refused: {bottle.request.path!r} leaves the served folders"})
-
-    def api(fn):
-        def handler(*args, **kwargs):
-            try:
-                return fn(*args, **kwargs)
-            except ServerBusy as err:
-                return _json(err.status, {"error": str(err)})
-            except UserError as err:
-                return _json(400, {"error": str(err)})
-        return handler
 
     def solution(run: int, index: int, start: bool):
         config_index = _int(_body() if start else bottle.request.query, "config", 0)
@@ -154,16 +209,15 @@ def build_app(explorer: Explorer, served: ServedAddress) -> bottle.Bottle:
     app.get("/")(lambda: serve_file(STATIC, "index.html"))
     app.get("/static/<path:path>")(lambda path: serve_file(STATIC, path))
     app.get("/files/<path:path>")(lambda path: serve_file(explorer.path, path))
-    app.get("/api/run")(api(lambda: run_document(explorer.path, explorer.entries())))
-    app.get("/api/front")(api(lambda: front_document(explorer.entries())))
-    app.get("/api/evaluations")(api(lambda: evaluations_document(explorer.entries())))
-    app.get("/api/hypervolume")(api(lambda: hypervolume_document(explorer.entries())))
-    app.get("/api/choose")(api(lambda: choose_document(explorer.entries(), _limit("max_force"), _limit("min_success"))))
-    app.get("/api/solution/<run:int>/<index:int>")(api(lambda run, index: solution(run, index, start=False)))
-    app.post("/api/solution/<run:int>/<index:int>")(api(lambda run, index: solution(run, index, start=True)))
+    app.get("/api/run")(lambda: run_document(explorer.path, explorer.entries()))
+    app.get("/api/front")(lambda: front_document(explorer.entries()))
+    app.get("/api/evaluations")(lambda: evaluations_document(explorer.entries()))
+    app.get("/api/hypervolume")(lambda: hypervolume_document(explorer.entries()))
+    app.get("/api/choose")(lambda: choose_document(explorer.entries(), _limit("max_force"), _limit("min_success")))
+    app.get("/api/solution/<run:int>/<index:int>")(lambda run, index: solution(run, index, start=False))
+    app.post("/api/solution/<run:int>/<index:int>")(lambda run, index: solution(run, index, start=True))
 
     @app.post("/api/export")
-    @api
     def _export():
         doc, entries = _body(), explorer.entries()
         run = _int(doc, "run")

@@ -39,7 +39,8 @@ from mjxskill.engine import build
 from mjxskill.errors import RunError, ServerBusy, UserError
 from mjxskill.evaluation.baselines import evaluation_worlds
 from mjxskill.evaluation.render import RenderUnavailable, render_episode, render_world
-from mjxskill.runs.atomic_write import write_json
+from mjxskill.runs.atomic_write import read_below
+from mjxskill.runs.outputs import write_outputs
 from mjxskill.runs.run_task import load_run_task
 from mjxskill.scenario import load_scenario
 from mjxskill.explore.data import RunEntry, number, numbers
@@ -49,6 +50,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 FORMAT = "mjxskill.explore/1"
 CACHE = "explore"
+MAX_CACHE_BYTES = 16 * 1024 * 1024  # a cache document is a few KB: a larger file is none
 MAX_WAITING_JOBS = 4  # a rollout with rendering takes a minute or more on a CPU
 ACTIVE = ("queued", "running")
 
@@ -62,6 +64,11 @@ def build_for(entry: RunEntry) -> Rollout:
     explicitly)."""
     scn, task = load_run_task(entry.run, entry.config)
     return build.build_rollout(scn, task, entry.config.engine, worlds=1, episode_seconds=entry.config.episode_seconds)
+
+
+def _run_of(folder: Path) -> Path:
+    """The run whose cache folder (``RUN/explore/evaluation-<i>``) ``folder`` is."""
+    return folder.parent.parent
 
 
 @dataclass
@@ -83,16 +90,20 @@ class Job:
                 "elapsed_s": round(time.monotonic() - self.started, 1)}
 
 
-def _write_json(path: Path, doc: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_json(path, doc)
+def _write_json(root: Path, path: Path, doc: dict) -> None:
+    """``doc`` into the cache file ``path`` of the run ``root``: the cache is the page's own and
+    replaced freely, but never through a link below the run (``write_outputs``)."""
+    write_outputs(root, {path: (json.dumps(doc, indent=1) + "\n").encode()}, replace=True)
 
 
-def read_cached(path: Path, params: np.ndarray, **settings) -> dict | None:
-    """The cached document at ``path`` if it was computed for ``params`` with ``settings``."""
+def read_cached(path: Path, params: np.ndarray, root: Path | None = None, **settings) -> dict | None:
+    """The cached document at ``path`` if it was computed for ``params`` with ``settings``; a
+    link below ``root`` (default: ``path``'s folder), or no regular file, is no cache."""
     try:
-        doc = json.loads(path.read_text())
-    except (OSError, ValueError):
+        doc = json.loads(read_below(path.parent if root is None else root, path, limit=MAX_CACHE_BYTES))
+    except (OSError, ValueError, RunError):
+        return None
+    if not isinstance(doc, dict):
         return None
     ok = doc.get("format") == FORMAT and doc.get("params") == numbers(params)
     return doc if ok and all(doc.get(k) == v for k, v in settings.items()) else None
@@ -127,10 +138,10 @@ class Solutions:
         return "/files/" + Path(os.path.relpath(path, self.root)).as_posix()
 
     def cached_worlds(self, folder: Path, params: np.ndarray) -> dict | None:
-        return read_cached(folder / "worlds.json", params, per_config=self.per_config, seed=self.seed)
+        return read_cached(folder / "worlds.json", params, _run_of(folder), per_config=self.per_config, seed=self.seed)
 
     def cached_video(self, folder: Path, params: np.ndarray, config_index: int) -> dict | None:
-        return read_cached(folder / f"known-{config_index}.json", params, seed=self.seed, size=list(self.size))
+        return read_cached(folder / f"known-{config_index}.json", params, _run_of(folder), seed=self.seed, size=list(self.size))
 
     def check_config(self, entry: RunEntry, config_index: int) -> None:
         """Raises RunError unless ``config_index`` is a known start configuration of the run's
@@ -243,7 +254,7 @@ class Solutions:
         folder = self.folder(job.entry, job.index)
         rollout = self._rollout(job)
         if self.cached_worlds(folder, job.params) is None:
-            _write_json(folder / "worlds.json", self._worlds(job, rollout))
+            _write_json(job.entry.run.path, folder / "worlds.json", self._worlds(job, rollout))
         if self.cached_video(folder, job.params, job.config_index) is None:
             return self._render(job, rollout, folder)
         return ""
@@ -279,11 +290,11 @@ class Solutions:
         world = render_world(rollout, job.config_index, self.seed)
         progress = lambda i, n: self._set(job, f"rendering frame {i} of {n}", 0.6 + 0.4 * i / n)  # noqa: E731
         try:
-            paths = render_episode(rollout, job.params, world, out, fmt, *self.size, progress=progress)
+            paths = render_episode(rollout, job.params, world, out, fmt, *self.size, progress=progress, root=job.entry.run.path)
         except RenderUnavailable as err:
             self._no_video = err.reason
             return f"the per-world results are ready; no video: {err.reason}"
-        _write_json(folder / f"known-{job.config_index}.json", {
+        _write_json(job.entry.run.path, folder / f"known-{job.config_index}.json", {
             "format": FORMAT, "params": numbers(job.params), "seed": self.seed, "size": list(self.size), "kind": fmt,
             "fps": float(rollout.scenario.bt_hz),
             "world": f"known start configuration {job.config_index}, objects randomized with seed {self.seed}",

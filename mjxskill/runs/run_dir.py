@@ -29,21 +29,23 @@ checked when read: a damaged one is a ``RunError`` naming it.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
-import re
-import secrets
-import shutil
-import socket
 from pathlib import Path
 
 import numpy as np
 
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
-from mjxskill.runs.atomic_write import DISK_FAULTS, write_text
+from mjxskill.runs.atomic_write import (  # noqa: F401  (STAGING, _this_host: re-exported, where they lived before)
+    STAGING,
+    _this_host,
+    check_folder,
+    created_whole,
+    remove_stale_staging,
+    write_text,
+)
 from mjxskill.runs.evaluations_csv import (  # noqa: F401  (re-exported: the run's CSV format)
     Batches,
     Evaluations,
@@ -177,74 +179,12 @@ class Run:
         write_text(self.path / RUN_STATE, json.dumps(state, indent=1))
 
     def sub_runs(self, config: RunConfig) -> list["Run"]:
-        return [Run(self.path / f"seed-{config.seed + i}") for i in range(config.repeats)]
-
-
-# .<name>.<host>.<pid>.<hex>.creating; folders of before the host was named lack <host>.
-STAGING = re.compile(r"\.(?P<name>.+?)(?:\.(?P<host>[A-Za-z0-9-]+))?\.(?P<pid>\d+)\.[0-9a-f]{8}\.creating")
-
-
-def _this_host() -> str:
-    return re.sub(r"[^A-Za-z0-9-]", "-", socket.gethostname()) or "host"
-
-
-def _process_gone(pid: int) -> bool:
-    """Whether no process ``pid`` runs on this host (one of another user's still runs)."""
-    try:
-        os.kill(pid, 0)
-    except (ProcessLookupError, OverflowError):  # none, or a number larger than any pid
-        return True
-    except PermissionError:
-        return False
-    return False
-
-
-def remove_stale_staging(parent: Path) -> list[Path]:
-    """Removes the staging folders in ``parent`` of processes of this host that no longer run
-    (killed while creating a run or an experiment); returns them. A folder of another host, of a
-    running process or that is a link is left alone."""
-    removed: list[Path] = []
-    try:
-        entries = list(os.scandir(parent))
-    except OSError:
-        return removed
-    for entry in entries:
-        match = STAGING.fullmatch(entry.name)
-        if match is None or not entry.is_dir(follow_symlinks=False):
-            continue
-        if match["host"] not in (None, _this_host()) or not _process_gone(int(match["pid"])):
-            continue
-        shutil.rmtree(entry.path, ignore_errors=True)
-        removed.append(Path(entry.path))
-    return removed
-
-
-@contextlib.contextmanager
-def created_whole(path: Path, what: str, on_failure=lambda: None):
-    """Yields a new folder beside ``path`` to fill; renamed into place in one step when the block
-    ends (onto nothing or an empty folder), removed when it fails or is interrupted, so ``path``
-    appears whole or not at all. An OSError becomes a RunError naming ``what`` and ``path``
-    (``on_failure()`` first, to say something better)."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        remove_stale_staging(path.parent)
-        # a fresh name beside it (mkdir is atomic), with the permissions mkdir gives
-        staging = path.parent / f".{path.name}.{_this_host()}.{os.getpid()}.{secrets.token_hex(4)}.creating"
-        staging.mkdir()
-    except OSError as err:
-        raise RunError(f"cannot write the {what} {str(path)!r}: {err.strerror}") from None
-    try:
-        yield staging
-        os.replace(staging, path)
-    except OSError as err:
-        shutil.rmtree(staging, ignore_errors=True)
-        if err.errno in DISK_FAULTS:  # the machine's, not the input's: the command says so (exit 1)
-            raise
-        on_failure()
-        raise RunError(f"cannot write the {what} {str(path)!r}: {err.strerror}") from None
-    except BaseException:  # Ctrl-C half-way or a RunError inside: leave nothing behind
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
+        """The repetitions ``seed-<s>``; RunError naming one that is a symbolic link (even to a
+        folder inside the run: its files would be written into another repetition)."""
+        subs = [Run(self.path / f"seed-{config.seed + i}") for i in range(config.repeats)]
+        for sub in subs:
+            check_folder(self.path, sub.path)
+        return subs
 
 
 def _write_run(folder: Path, config: RunConfig, scenario_text: str, texts: dict[str, str]) -> None:
