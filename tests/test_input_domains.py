@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from cli_helpers import error_line, invoke
 from mjxskill.errors import MAX_MESSAGE_CHARS, ScenarioError, UserError
 from mjxskill.gp.settings import MAXIMUM, NAMES, setting_value
-from mjxskill.scenario import load_scenario, schema
+from mjxskill.scenario import domain, load_scenario, schema
 from mjxskill.scenario.domain import Domain
 from mjxskill.scenario.vocabulary import CONSTANT_DOMAINS, REWARD_KINDS
 from scenario_texts import library_text, shipped_text, write_library_copy
@@ -33,24 +33,24 @@ PEG_BOX_D_O = REWARD_KINDS["ee_distance_to_box"].domain("d_o")
 # (text, the line as shipped, the line with {v} for the value, key path, the declared domain).
 # One entry per declared numeric field of the scenarios and the skill library.
 SITES = [
-    ("push", "size: [0.15, 0.30, 0.07]", "size: [{v}, 0.30, 0.07]", "objects.ObjectToBePushed-1.size[0]", schema.SIZE),
-    ("push", "size: [0.07, 0.07, 0.05]", "size: [0.07, {v}, 0.05]", "objects.Pusher-1.size[1]", schema.SIZE),
-    ("peg", "size: [0.015, 0.05] ", "size: [{v}, 0.05] ", "objects.Peg-1.size[0]", schema.SIZE),
-    ("peg", "size: [0.073, 0.073, 0.05]", "size: [0.073, 0.073, {v}]", "objects.BoxWithHole-1.size[2]", schema.SIZE),
-    ("push", "mass: 2.5", "mass: {v}", "objects.ObjectToBePushed-1.mass", schema.MASS),
-    ("push", "friction: 0.25", "friction: {v}", "objects.Pusher-1.friction", schema.FRICTION),
+    ("push", "size: [0.15, 0.30, 0.07]", "size: [{v}, 0.30, 0.07]", "objects.ObjectToBePushed-1.size[0]", domain.SIZE),
+    ("push", "size: [0.07, 0.07, 0.05]", "size: [0.07, {v}, 0.05]", "objects.Pusher-1.size[1]", domain.SIZE),
+    ("peg", "size: [0.015, 0.05] ", "size: [{v}, 0.05] ", "objects.Peg-1.size[0]", domain.SIZE),
+    ("peg", "size: [0.073, 0.073, 0.05]", "size: [0.073, 0.073, {v}]", "objects.BoxWithHole-1.size[2]", domain.SIZE),
+    ("push", "mass: 2.5", "mass: {v}", "objects.ObjectToBePushed-1.mass", domain.MASS),
+    ("push", "friction: 0.25", "friction: {v}", "objects.Pusher-1.friction", domain.FRICTION),
     ("push", "com_offset: [-0.02, 0.04, -0.005]", "com_offset: [-0.02, {v}, -0.005]",
-     "objects.ObjectToBePushed-1.com_offset[1]", schema.POSITION),
+     "objects.ObjectToBePushed-1.com_offset[1]", domain.POSITION),
     ("push", "position: [0.55, -0.20, 0.035]", "position: [{v}, -0.20, 0.035]",
-     "objects.ObjectToBePushed-1.pose.position[0]", schema.POSITION),
-    ("push", "rpy_deg: [0, 0, 26]", "rpy_deg: [0, 0, {v}]", "objects.ObjectGoalPose-1.pose.rpy_deg[2]", schema.ANGLE_DEG),
+     "objects.ObjectToBePushed-1.pose.position[0]", domain.POSITION),
+    ("push", "rpy_deg: [0, 0, 26]", "rpy_deg: [0, 0, {v}]", "objects.ObjectGoalPose-1.pose.rpy_deg[2]", domain.ANGLE_DEG),
     ("push", "approach_offset: [0.0, -0.20, 0.09]", "approach_offset: [0.0, -0.20, {v}]",
-     "objects.ObjectToBePushed-1.approach_offset[2]", schema.POSITION),
-    ("peg", "hole_clearance: 0.0015", "hole_clearance: {v}", "objects.BoxWithHole-1.extra.hole_clearance", schema.EXTRA),
-    ("peg", "hole_depth: 0.04", "hole_depth: {v}", "objects.BoxWithHole-1.extra.hole_depth", schema.EXTRA),
-    ("push", "joint_limits_deg: [170,", "joint_limits_deg: [{v},", "robot.joint_limits_deg[0]", schema.JOINT_LIMIT_DEG),
-    ("push", "nullspace_stiffness: 5.0", "nullspace_stiffness: {v}", "robot.nullspace_stiffness", schema.STIFFNESS),
-    ("push", "default_stiffness: [400,", "default_stiffness: [{v},", "robot.default_stiffness[0]", schema.STIFFNESS),
+     "objects.ObjectToBePushed-1.approach_offset[2]", domain.POSITION),
+    ("peg", "hole_clearance: 0.0015", "hole_clearance: {v}", "objects.BoxWithHole-1.extra.hole_clearance", domain.EXTRA),
+    ("peg", "hole_depth: 0.04", "hole_depth: {v}", "objects.BoxWithHole-1.extra.hole_depth", domain.EXTRA),
+    ("push", "joint_limits_deg: [170,", "joint_limits_deg: [{v},", "robot.joint_limits_deg[0]", domain.JOINT_LIMIT_DEG),
+    ("push", "nullspace_stiffness: 5.0", "nullspace_stiffness: {v}", "robot.nullspace_stiffness", domain.STIFFNESS),
+    ("push", "default_stiffness: [400,", "default_stiffness: [{v},", "robot.default_stiffness[0]", domain.STIFFNESS),
     ("push", "objective: success, weight: 1.0,\n     object: ObjectToBePushed-1, target: ObjectGoalPose-1,\n     "
              "constants: {sigma_w: 0.4, d_o: 0.0, position_weight: 6.0",
      "objective: success, weight: 1.0,\n     object: ObjectToBePushed-1, target: ObjectGoalPose-1,\n     "
@@ -64,35 +64,35 @@ SITES = [
              "target: ObjectGoalPose-1,\n     constants: {sigma_w: 0.4, d_o: 0.0, position_weight: 6.0",
      "kind: object_pose_divergence, objective: success, weight: {v},\n     object: ObjectToBePushed-1, "
      "target: ObjectGoalPose-1,\n     constants: {sigma_w: 0.4, d_o: 0.0, position_weight: 6.0", "rewards[0].weight",
-     schema.WEIGHT),
+     domain.WEIGHT),
     ("peg", "constants: {value: 8.0}", "constants: {value: {v}}", "rewards[0].constants.value", CONSTANT_DOMAINS["value"]),
     ("peg", "constants: {w: 2.0, d_o: 0.006}", "constants: {w: {v}, d_o: 0.006}", "rewards[2].constants.w",
      CONSTANT_DOMAINS["w"]),
     ("peg", "constants: {w: 2.0, d_o: 0.006}", "constants: {w: 2.0, d_o: {v}}", "rewards[2].constants.d_o", PEG_BOX_D_O),
     ("peg", "target_offset: [0.0, 0.0, 0.01]", "target_offset: [0.0, 0.0, {v}]", "rewards[1].target_offset[2]",
-     schema.POSITION),
-    ("push", "position_tolerance: 0.01", "position_tolerance: {v}", "success.position_tolerance", schema.TOLERANCE),
+     domain.POSITION),
+    ("push", "position_tolerance: 0.01", "position_tolerance: {v}", "success.position_tolerance", domain.TOLERANCE),
     ("push", "orientation_tolerance_deg: 5.0", "orientation_tolerance_deg: {v}", "success.orientation_tolerance_deg",
-     schema.ANGLE_TOLERANCE_DEG),
-    ("peg", "  depth: 0.01", "  depth: {v}", "success.depth", schema.DEPTH),
+     domain.ANGLE_TOLERANCE_DEG),
+    ("peg", "  depth: 0.01", "  depth: {v}", "success.depth", domain.DEPTH),
     ("push", "xy_sigma: {ObjectToBePushed-1: 0.007", "xy_sigma: {ObjectToBePushed-1: {v}",
-     "randomization.xy_sigma.ObjectToBePushed-1", schema.SIGMA),
+     "randomization.xy_sigma.ObjectToBePushed-1", domain.SIGMA),
     ("push", "friction_range: [0.2, 0.25]", "friction_range: [0.2, {v}]", "randomization.friction_range[1]",
-     schema.FRICTION_RANGE),
-    ("push", "max_force: 10.0", "max_force: {v}", "pick.max_force", schema.FORCE),
+     domain.FRICTION_RANGE),
+    ("push", "max_force: 10.0", "max_force: {v}", "pick.max_force", domain.FORCE),
     ("push", "episode_seconds: 12.0", "episode_seconds: {v}", "episode_seconds",
      Domain(0.0, schema.MAX_EPISODE_SECONDS, exclusive_minimum=True)),
     ("library", "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3]",
      "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [{v}, 0.3]",
-     "skills.Push.parameters.offset_x_start.bounds[0]", schema.PARAMETER),
+     "skills.Push.parameters.offset_x_start.bounds[0]", domain.PARAMETER),
     ("library", "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [-0.3, 0.3]",
      "offset_x_start: {type: float, unit: m, default: 0.0, bounds: [-0.3, {v}]",
-     "skills.Push.parameters.offset_x_start.bounds[1]", schema.PARAMETER),
+     "skills.Push.parameters.offset_x_start.bounds[1]", domain.PARAMETER),
     ("library", "push_height: {type: float, unit: m, default: 0.02", "push_height: {type: float, unit: m, default: {v}",
-     "skills.Push.parameters.push_height.default", schema.PARAMETER),
+     "skills.Push.parameters.push_height.default", domain.PARAMETER),
     ("library", "stiffness: {type: vector, unit: \"N/m, Nm/rad\", default: [700,",
      "stiffness: {type: vector, unit: \"N/m, Nm/rad\", default: [{v},", "skills.Push.parameters.stiffness.default[0]",
-     schema.PARAMETER),
+     domain.PARAMETER),
 ]
 # What a user might write out of a domain: YAML's spellings of the special floats, the extremes of
 # a float, and the values that once ended in a traceback (issue 47).

@@ -1,8 +1,7 @@
 """The domain of a number a user gives: what values the simulator and the math can honour.
 
-A ``Domain`` is declared once, beside what it bounds (``mjxskill.scenario.schema`` for the world
-model's physics and the task's numbers, ``mjxskill.scenario.vocabulary`` for the reward
-constants), and ``Field.number`` / ``Field.vector`` check a YAML value against it when the
+A ``Domain`` is declared once (below for the world model's physics and the task's numbers,
+``mjxskill.scenario.vocabulary`` beside each reward kind for its constants), and ``Field.number`` / ``Field.vector`` check a YAML value against it when the
 scenario loads, before anything runs or is written; the error names the file, key and line and
 says the domain. Every domain is finite: infinities and NaN are never a value.
 
@@ -12,7 +11,7 @@ longer positive definite, a reward constant sigma_w of 0 a division by zero, bou
 parameter range whose width overflows); each bound states its reason (``why``), and every bound
 lies far outside the values of any scenario we know of.
 
-This module imports nothing of mjxskill (the vocabulary and the schema declare domains with it).
+This module imports nothing of mjxskill (the vocabulary declares its domains with it).
 """
 
 from __future__ import annotations
@@ -86,3 +85,37 @@ NONNEGATIVE = Domain(minimum=0.0)
 POSITIVE = Domain(minimum=0.0, exclusive_minimum=True)
 
 __all__ = ["Domain", "FINITE", "NONNEGATIVE", "POSITIVE"]
+
+
+# The domains of the world model's and the task's numbers (mjxskill.scenario.domain), checked
+# when the scenario loads, before anything is written. Each lies far outside any scenario we know
+# of (the shipped ones: sizes 1.5 mm to 2.4 m, masses 0.2-2.5 kg, frictions 0.2-0.35, positions
+# within 1 m of the robot); what it keeps out is what MuJoCo or the math cannot honour.
+MAX_DISTANCE = 100.0  # m: positions and offsets; the robot reaches about 0.8 m
+POSITION = Domain(-MAX_DISTANCE, MAX_DISTANCE, unit="m", why="a place in the robot's world")
+MIN_SIZE, MAX_SIZE = 1e-4, 100.0  # m
+SIZE = Domain(MIN_SIZE, MAX_SIZE, unit="m", why="MuJoCo cannot build a shape below 0.1 mm (a degenerate mesh) and "
+              "the robot handles none beyond 100 m")
+ANGLE_DEG = Domain(-360.0, 360.0, unit="deg", why="an angle of the pose")
+JOINT_LIMIT_DEG = Domain(0.0, 360.0, exclusive_minimum=True, unit="deg", why="symmetric joint limits")
+MASS = Domain(1e-6, 1e4, unit="kg", why="MuJoCo's inertia of a lighter body is not positive definite, a heavier "
+              "one no robot moves")
+FRICTION = Domain(0.0, 100.0, exclusive_minimum=True, why="a sliding friction coefficient")
+FRICTION_RANGE = Domain(0.0, 100.0, why="a sliding friction coefficient")
+STIFFNESS = Domain(0.0, 1e6, unit="N/m or Nm/rad", why="an impedance the controller can integrate")
+SIGMA = Domain(0.0, MAX_DISTANCE, unit="m", why="a standard deviation of a position")
+CLIP_SIGMAS = Domain(0.0, 1000.0, exclusive_minimum=True, why="standard deviations")
+TOLERANCE = Domain(0.0, MAX_DISTANCE, exclusive_minimum=True, unit="m", why="a distance")
+ANGLE_TOLERANCE_DEG = Domain(0.0, 180.0, exclusive_minimum=True, unit="deg", why="an angle between two poses")
+DEPTH = Domain(0.0, MAX_SIZE, exclusive_minimum=True, unit="m", why="a depth into a hole")
+REGION_SIZE = Domain(0.0, MAX_DISTANCE, exclusive_minimum=True, unit="m", why="a region's extent")
+EXTRA = Domain(0.0, MAX_SIZE, exclusive_minimum=True, unit="m", why="a shape's dimension")
+FORCE = Domain(0.0, 1e6, unit="N", why="a force bound")
+# Skill parameters (defaults, bounds, the trees' numbers, manual sets, priors) in any unit: the
+# optimizer scales a learnable one by its bounds' width, which must stay a finite float.
+MAX_PARAMETER = 1e6
+PARAMETER = Domain(-MAX_PARAMETER, MAX_PARAMETER, why="a skill parameter's value in its unit")
+WEIGHT = Domain(-1e6, 1e6, why="a reward's weight; an objective sums it over every tick")
+# A prior narrower than this share of its parameter's bounds is a point the optimizer's
+# truncated Gaussian cannot be evaluated at (its density underflows to 0 next to the mean).
+MIN_PRIOR_STD_SHARE = 1e-6

@@ -17,11 +17,8 @@ from mjxskill.errors import GoalError, ScenarioError, listing, quote
 from mjxskill.planner.world_pddl import check_atom, goal_literals, parse_literal
 from mjxskill.scenario.fields import Field, compose_file
 from mjxskill.scenario.scene_refs import check_scene
-from mjxskill.scenario.domain import Domain
-from mjxskill.scenario.schema import (
-    ANGLE_DEG, EXTRA, FRICTION, JOINT_LIMIT_DEG, MASS, MAX_EPISODE_SECONDS, POSITION, SIZE, STIFFNESS, Pose, Robot,
-    Scenario, WorldObject, frozen_array, frozen_mapping,
-)
+from mjxskill.scenario.domain import ANGLE_DEG, EXTRA, FRICTION, JOINT_LIMIT_DEG, MASS, POSITION, SIZE, STIFFNESS, Domain
+from mjxskill.scenario.schema import MAX_EPISODE_SECONDS, Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping
 from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.scenario.sections import optimizer, pick, randomization, rewards, success
 from mjxskill.scenario.skills import (

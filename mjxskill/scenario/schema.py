@@ -28,7 +28,6 @@ from typing import Mapping
 
 import numpy as np
 
-from mjxskill.scenario.domain import Domain
 from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS
 
 
@@ -46,40 +45,6 @@ MAX_BATCH = 4096  # parameter sets per batch
 MAX_WORLDS = 4096  # randomized worlds per parameter set; the paper uses 7
 MAX_BATCH_EPISODES = 262_144  # batch x worlds: the episodes of one call (64 x 4096), all held in memory at once
 MAX_REPEATS = 1000  # repetitions of a run or an experiment (one folder each); the paper has 10
-
-
-# The domains of the world model's and the task's numbers (mjxskill.scenario.domain), checked
-# when the scenario loads, before anything is written. Each lies far outside any scenario we know
-# of (the shipped ones: sizes 1.5 mm to 2.4 m, masses 0.2-2.5 kg, frictions 0.2-0.35, positions
-# within 1 m of the robot); what it keeps out is what MuJoCo or the math cannot honour.
-MAX_DISTANCE = 100.0  # m: positions and offsets; the robot reaches about 0.8 m
-POSITION = Domain(-MAX_DISTANCE, MAX_DISTANCE, unit="m", why="a place in the robot's world")
-MIN_SIZE, MAX_SIZE = 1e-4, 100.0  # m
-SIZE = Domain(MIN_SIZE, MAX_SIZE, unit="m", why="MuJoCo cannot build a shape below 0.1 mm (a degenerate mesh) and "
-              "the robot handles none beyond 100 m")
-ANGLE_DEG = Domain(-360.0, 360.0, unit="deg", why="an angle of the pose")
-JOINT_LIMIT_DEG = Domain(0.0, 360.0, exclusive_minimum=True, unit="deg", why="symmetric joint limits")
-MASS = Domain(1e-6, 1e4, unit="kg", why="MuJoCo's inertia of a lighter body is not positive definite, a heavier "
-              "one no robot moves")
-FRICTION = Domain(0.0, 100.0, exclusive_minimum=True, why="a sliding friction coefficient")
-FRICTION_RANGE = Domain(0.0, 100.0, why="a sliding friction coefficient")
-STIFFNESS = Domain(0.0, 1e6, unit="N/m or Nm/rad", why="an impedance the controller can integrate")
-SIGMA = Domain(0.0, MAX_DISTANCE, unit="m", why="a standard deviation of a position")
-CLIP_SIGMAS = Domain(0.0, 1000.0, exclusive_minimum=True, why="standard deviations")
-TOLERANCE = Domain(0.0, MAX_DISTANCE, exclusive_minimum=True, unit="m", why="a distance")
-ANGLE_TOLERANCE_DEG = Domain(0.0, 180.0, exclusive_minimum=True, unit="deg", why="an angle between two poses")
-DEPTH = Domain(0.0, MAX_SIZE, exclusive_minimum=True, unit="m", why="a depth into a hole")
-REGION_SIZE = Domain(0.0, MAX_DISTANCE, exclusive_minimum=True, unit="m", why="a region's extent")
-EXTRA = Domain(0.0, MAX_SIZE, exclusive_minimum=True, unit="m", why="a shape's dimension")
-FORCE = Domain(0.0, 1e6, unit="N", why="a force bound")
-# Skill parameters (defaults, bounds, the trees' numbers, manual sets, priors) in any unit: the
-# optimizer scales a learnable one by its bounds' width, which must stay a finite float.
-MAX_PARAMETER = 1e6
-PARAMETER = Domain(-MAX_PARAMETER, MAX_PARAMETER, why="a skill parameter's value in its unit")
-WEIGHT = Domain(-1e6, 1e6, why="a reward's weight; an objective sums it over every tick")
-# A prior narrower than this share of its parameter's bounds is a point the optimizer's
-# truncated Gaussian cannot be evaluated at (its density underflows to 0 next to the mean).
-MIN_PRIOR_STD_SHARE = 1e-6
 
 
 def frozen_array(values, dtype=np.float64) -> np.ndarray:

@@ -6,31 +6,10 @@ from typing import Any
 
 from mjxskill.scenario.fields import Field
 from mjxskill.errors import listing, quote
-from mjxskill.scenario.schema import (
-    ANGLE_TOLERANCE_DEG,
-    CLIP_SIGMAS,
-    DEPTH,
-    FORCE,
-    FRICTION_RANGE,
-    POSITION,
-    REGION_SIZE,
-    SIGMA,
-    TOLERANCE,
-    WEIGHT,
-    MAX_BATCH,
-    MAX_BUDGET,
-    MAX_REPEATS,
-    MAX_SEED,
-    MAX_WORLDS,
-    MIN_N_INIT,
-    Optimizer,
-    PickBound,
-    Randomization,
-    Reward,
-    Success,
-    frozen_array,
-    frozen_mapping,
-)
+from mjxskill.scenario.domain import (ANGLE_TOLERANCE_DEG, CLIP_SIGMAS, DEPTH, FORCE, FRICTION_RANGE, POSITION, REGION_SIZE,
+                                      SIGMA, TOLERANCE, WEIGHT)
+from mjxskill.scenario.schema import (MAX_BATCH, MAX_BUDGET, MAX_REPEATS, MAX_SEED, MAX_WORLDS, MIN_N_INIT, Optimizer,
+                                      PickBound, Randomization, Reward, Success, frozen_array, frozen_mapping)
 from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS, SUCCESS_KINDS
 
 

@@ -28,7 +28,7 @@ from mjxskill.ebt.nodes import Kind
 from mjxskill.ebt.primitives import INPUTS, PRIMITIVES, REQUIRED
 from mjxskill.ebt.template import COMPONENTS, OBJECT_ATTRIBUTES, LeafTemplate, NodeTemplate, Ref, Sum, references
 from mjxskill.scenario.fields import Field
-from mjxskill.scenario.schema import PARAMETER
+from mjxskill.scenario.domain import PARAMETER
 
 PROCESSORS = {"sequence": Kind.SEQUENCE, "serial_star": Kind.SERIAL_STAR, "selector": Kind.SELECTOR,
               "selector_star": Kind.SELECTOR_STAR, "parallel": Kind.PARALLEL, "parallel_fs": Kind.PARALLEL_FS}

@@ -15,8 +15,8 @@ from typing import Mapping
 from mjxskill.errors import listing, quote
 from mjxskill.planner.world_pddl import check_atom, parse_literal
 from mjxskill.scenario.fields import Field
-from mjxskill.scenario.schema import (MIN_PRIOR_STD_SHARE, PARAMETER, ManualSet, ParameterPrior, Skill, SkillParameter,
-                                     frozen_mapping)
+from mjxskill.scenario.schema import ManualSet, ParameterPrior, Skill, SkillParameter, frozen_mapping
+from mjxskill.scenario.domain import MIN_PRIOR_STD_SHARE, PARAMETER
 from mjxskill.scenario.skill_tree import read_tree
 
 
