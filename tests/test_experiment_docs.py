@@ -44,6 +44,8 @@ def test_the_wall_time_quoted_is_the_reports(path):
 @pytest.mark.parametrize("path", EXPERIMENTS, ids=[p.name for p in EXPERIMENTS])
 def test_the_hypervolume_p_quoted_is_the_reports(path):
     report = json.loads((path / "report.json").read_text())
+    if report["status"]["repetitions_done"] < report["status"]["repetitions"]:
+        pytest.skip(f"{path.name} is not finished: its README quotes no p over the ten yet")
     p = report["hypervolume"]["mann_whitney_p_final"]
     readme = (path / "README.md").read_text()
     quoted = _quoted(readme, r"p = ([0-9.]+e-\d+|0\.\d+)[^0-9]*(?:exact|the smallest p|over the ten)")
