@@ -101,7 +101,7 @@ def open_nofollow(path: Path, flags: int, mode: int = 0o644) -> int:
     """``os.open`` of ``path`` that refuses a symbolic link with RunError naming it."""
     try:
         return os.open(path, flags | os.O_NOFOLLOW, mode)
-    except OSError as err:
+    except OSError:
         if os.path.islink(path):
             refuse_link(path)
         raise
