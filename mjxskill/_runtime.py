@@ -165,3 +165,45 @@ def enable_compilation_cache(path: Path | None = None) -> Path | None:
             except (ImportError, AttributeError):  # private API moved: the cache may stay off
                 pass
     return Path(os.environ["JAX_COMPILATION_CACHE_DIR"])
+
+
+_KNOWN_GOOD = {setting for _, setting in CPU_SETTINGS}
+_checked: dict[str, str | None] = {}
+
+
+def xla_flags_problem(flags: str | None = None) -> str | None:
+    """Why XLA would abort on ``XLA_FLAGS`` (None: it would not), found before jax reads them:
+    XLA ends the process with a fatal line of its own on an unknown flag or a bad value, which
+    no ``try`` catches. A token that is not ``--name`` or ``--name=value`` is refused by its
+    shape; flags beyond mjxskill's own are tried once in a child process (about a second),
+    whose fatal line names the bad token."""
+    import re
+    import subprocess
+
+    flags = os.environ.get("XLA_FLAGS", "") if flags is None else flags
+    if flags in _checked:
+        return _checked[flags]
+    problem = None
+    tokens = flags.split()
+    bad = next((t for t in tokens if not re.fullmatch(r"--[A-Za-z][A-Za-z0-9_]*(=\S*)?", t)), None)
+    if bad is not None:
+        problem = f"XLA_FLAGS: {bad[:60]!r} is not an XLA flag (--name or --name=value)"
+    elif any(t not in _KNOWN_GOOD and not re.fullmatch(rf"{HOST_DEVICES_FLAG}=[1-9][0-9]*", t) for t in tokens):
+        env = dict(os.environ, XLA_FLAGS=flags, JAX_PLATFORMS="cpu")
+        try:
+            probe = subprocess.run([sys.executable, "-c", "import jax; jax.devices('cpu')"], env=env,
+                                   capture_output=True, text=True, timeout=300)
+        except (OSError, subprocess.TimeoutExpired):
+            probe = None  # cannot tell: jax will say
+        if probe is not None and probe.returncode != 0 and "XLA_FLAGS" in probe.stderr + flags:
+            unknown = re.search(r"Unknown flag in XLA_FLAGS: (\S+)", probe.stderr)
+            value = re.search(r"Couldn't interpret value (.*) for flag (\w+)", probe.stderr)
+            if unknown:
+                problem = f"XLA_FLAGS: {unknown.group(1)[:60]!r} is not a flag XLA knows"
+            elif value:
+                token = next((t for t in tokens if t.startswith(f"--{value.group(2)}=")), value.group(2))
+                problem = f"XLA_FLAGS: {token[:60]!r} has a value XLA cannot read"
+            elif "parse_flags_from_env" in probe.stderr:
+                problem = "XLA_FLAGS: XLA refuses them (" + probe.stderr.strip().splitlines()[0][-120:] + ")"
+    _checked[flags] = problem
+    return problem

@@ -20,7 +20,7 @@ import sys
 import warnings
 from typing import Callable, Sequence
 
-from mjxskill._runtime import enable_compilation_cache
+from mjxskill._runtime import enable_compilation_cache, xla_flags_problem
 from mjxskill.cli import interrupt
 from mjxskill.cli.interrupt import EXIT_INTERRUPTED
 from mjxskill.errors import Notice, UserError
@@ -55,6 +55,9 @@ def run(main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentPars
 
         warnings.showwarning = show
         try:
+            problem = xla_flags_problem()  # XLA aborts on bad flags, past any except: said here
+            if problem is not None:
+                raise UserError(problem)
             enable_compilation_cache()
             return main(args)
         except UserError as err:

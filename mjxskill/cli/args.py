@@ -8,21 +8,34 @@ import math
 from typing import Any, Callable
 
 from mjxskill.errors import QUOTE_CHARS, CommandError, quote
-from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_VALIDATION_CANDIDATES
+from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_VALIDATION_CANDIDATES, workers_problem
 
 
 def add_task_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("task", help="scenario name (push, peg) or path of a scenario YAML file")
 
 
-MAX_WORKERS = 256  # more processes than any one machine has cores would only cost memory
 MAX_FRAME_SIDE = 8192  # pixels of a rendered frame's side (8K); a frame is held whole in memory
 
 
 def add_workers_argument(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--workers", type=int_in(1, MAX_WORKERS), metavar="N",
+    parser.add_argument("--workers", type=workers_count, metavar="N",
                         help="native engine: worker processes a call's episodes are split over (default: one per "
                              "core, the fastest measured; 1: this process). Results do not depend on it")
+
+
+def workers_count(text: str) -> int:
+    """``--workers`` of every command: at least 1, and no more worker processes than the
+    machine's available memory holds (``mjxskill.runs.bounds.workers_problem``, the numbers in
+    the message)."""
+    value = positive_int(text)
+    problem = workers_problem(value)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return value
+
+
+workers_count.__name__ = "worker count"
 
 
 def add_cluster_argument(parser: argparse.ArgumentParser) -> None:

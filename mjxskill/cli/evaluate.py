@@ -29,7 +29,7 @@ from mjxskill.cli import args as cli_args
 from mjxskill.engine.build import CHOICES, build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 from mjxskill.evaluation.baselines import table
-from mjxskill.evaluation.evaluate_run import FOLDER, differences_from_earlier, evaluate_run, evaluation_settings
+from mjxskill.evaluation.evaluate_run import FOLDER, call_problem, differences_from_earlier, evaluate_run, evaluation_settings
 from mjxskill.evaluation.pooled import force_bound, group_means, pick, plot_pooled, pooled_samples, pooled_table, pooled_tests
 from mjxskill.evaluation import racing
 from mjxskill.evaluation.validation import in_contention, validate, validation_settings
@@ -77,6 +77,12 @@ def _settings(args, config, seed: int) -> dict:
                                args.batch_size or config.batch_size, engine, args.episode_seconds or config.episode_seconds)
 
 
+def _refuse_large_calls(settings: dict, scn: Scenario) -> None:
+    problem = call_problem(settings, scn)
+    if problem is not None:
+        raise CommandError(problem)
+
+
 def _rollout(args, scn: Scenario, task: PlannedTask, settings: dict, config) -> Rollout:
     why = resolve_engine(args.engine)[1] if args.engine else "the run's"
     print(f"engine: {settings['engine']} ({why})", flush=True)
@@ -121,6 +127,8 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
     scn, task = load_run_task(run, config)
     bound = force_bound(args.max_force, scn.pick)
     seed = 0 if args.seed is None else args.seed
+    for i, sub in enumerate(subs):  # a call the machine cannot hold is refused before anything is written
+        _refuse_large_calls(_settings(args, sub.config(), seed + i), scn)
     if not args.replace:
         for i, sub in enumerate(subs):
             _keep_earlier(sub, _settings(args, sub.config(), seed + i))
@@ -246,6 +254,9 @@ def _experiment(args: argparse.Namespace) -> int:
     if not ready:
         raise CommandError(f"{exp.path} has no finished repetition yet; continue it with python -m mjxskill.experiment "
                            f"{config.task} --resume {exp.path}")
+    for seed, _ in ready:  # a call the machine cannot hold is refused before anything is written
+        settings = repetition_settings(config, protocol, seed)
+        _refuse_large_calls({**settings, "batch_size": args.batch_size or settings["batch_size"]}, scn)
     with exp.lock():
         protocol = change_validation(args, exp, protocol)
         protocol = settle_bound(exp, scn)

@@ -33,7 +33,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjxskill.errors import RunError
+from mjxskill.errors import CommandError, RunError
+from mjxskill.runs.bounds import call_episodes_problem
 from mjxskill.scenario.fields import read_text
 from mjxskill.runs.atomic_write import append_text, check_folder, make_folder, write_json
 from mjxskill.evaluation.baselines import (
@@ -71,6 +72,16 @@ def evaluation_settings(per_config: int, n_random: int, seed: int, batch_size: i
             "engine": str(engine), "episode_seconds": float(episode_seconds)}
 
 
+def call_problem(settings: dict, scn) -> str | None:
+    """Why an evaluation with ``settings`` of a run of ``scn`` cannot run here (None: it can):
+    a call holds ``batch_size`` candidates x ``per_config`` worlds x every start configuration
+    (known and unseen) at once, bounded as every command's call (``mjxskill.runs.bounds``)."""
+    configs = len(scn.robot.start_configs) + len(scn.robot.eval_configs)
+    episodes = settings["batch_size"] * settings["per_config"] * configs
+    return call_episodes_problem(episodes, f"--batch-size {settings['batch_size']} x --per-config {settings['per_config']} "
+                                           f"x {configs} start configurations")
+
+
 RESULT_SETTINGS = ("per_config", "random", "seed", "engine", "episode_seconds")  # what the numbers depend on
 
 
@@ -105,6 +116,9 @@ def evaluate_run(run: Run, config: RunConfig, rollout: Rollout, task: PlannedTas
     """Evaluates ``run``'s Pareto front against the baselines with ``rollout`` (either engine)
     and writes ``RUN_DIR/evaluation/``; reuses a current evaluation. ``progress(done, total)``
     after each chunk. Returns (evaluation, tests of the box plot, whether it was reused)."""
+    problem = call_problem(settings, rollout.scenario)
+    if problem is not None:  # before anything is written
+        raise CommandError(problem)
     front = run.front(config)
     candidates = build_candidates(task, front.params, settings["random"], settings["seed"])
     folder = run.path / FOLDER

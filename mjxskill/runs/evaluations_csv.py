@@ -19,6 +19,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from mjxskill._files import read_regular
 from mjxskill.errors import RunError
 from mjxskill.runs.atomic_write import append_text, write_text
 
@@ -165,7 +166,7 @@ def legacy_columns(columns: list[str]) -> list[str]:
 
 def read_bytes(path: Path) -> bytes:
     try:
-        return Path(path).read_bytes()
+        return read_regular(path)  # a regular file only: a FIFO in its place would block forever
     except FileNotFoundError:
         raise RunError(f"{path} is missing: the run directory lost its evaluations file") from None
     except OSError as err:

@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mjxskill._files import read_regular
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
 from mjxskill.runs.atomic_write import (  # noqa: F401  (STAGING, _this_host: re-exported, where they lived before)
@@ -82,7 +83,7 @@ class Run:
         self._check_free()
         # on a failure, another process may have got there first: say so
         with created_whole(self.path, "run directory", on_failure=self._check_free) as staging:
-            scenario_text = Path(scenario_source).read_text()
+            scenario_text = read_regular(scenario_source).decode()  # loaded already: a regular UTF-8 file
             _write_run(staging, config, scenario_text, texts)
             for sub in Run(staging).sub_runs(config) if config.repeats > 1 else []:
                 sub.path.mkdir()

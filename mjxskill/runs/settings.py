@@ -20,7 +20,8 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from mjxskill.errors import QUOTE_CHARS, quote
-from mjxskill.scenario.schema import (MAX_BATCH, MAX_BATCH_EPISODES, MAX_BUDGET, MAX_EPISODE_SECONDS, MAX_REPEATS,
+from mjxskill.runs.bounds import call_episodes_problem
+from mjxskill.scenario.schema import (MAX_BATCH, MAX_BUDGET, MAX_EPISODE_SECONDS, MAX_REPEATS,
                                      MAX_SEED, MAX_WORLDS, MIN_N_INIT)
 
 
@@ -155,9 +156,9 @@ def cross_problems(values: dict) -> list[tuple[str, str]]:
         problems.append(("n_init", f"exceeds the budget of {values['budget']} evaluations" if rows == values["budget"] else
                          f"exceeds the {rows} evaluations the robust protocol trains with of the budget of "
                          f"{values['budget']} (the race has the rest)"))
-    if values["batch_size"] * values["worlds"] > MAX_BATCH_EPISODES:
-        problems.append(("worlds", f"with batches of {values['batch_size']} make {values['batch_size'] * values['worlds']} "
-                                   f"episodes per call, more than {MAX_BATCH_EPISODES}"))
+    episodes = call_episodes_problem(values["batch_size"] * values["worlds"], f"with batches of {values['batch_size']}")
+    if episodes is not None:
+        problems.append(("worlds", episodes))
     if values["seed"] + values.get("repeats", 1) - 1 > MAX_SEED:
         problems.append(("repeats", f"make seeds beyond {MAX_SEED} (seed {values['seed']})"))
     return problems

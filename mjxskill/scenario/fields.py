@@ -22,6 +22,7 @@ from typing import NoReturn
 
 import yaml
 
+from mjxskill._files import read_regular
 from mjxskill.errors import ScenarioError, UserError, quote
 from mjxskill.scenario.domain import Domain
 
@@ -39,8 +40,7 @@ def read_text(path: Path, error: type[UserError] = ScenarioError, what: str = "s
     """The UTF-8 text of ``path``, at most ``MAX_BYTES`` long; ``error`` names the problem."""
     source = str(path)
     try:
-        with open(path, "rb") as fh:
-            data = fh.read(MAX_BYTES + 1)  # bounded even for a file that grows or a device
+        data = read_regular(path, MAX_BYTES)  # a regular file only (a FIFO would block), bounded even if it grows
     except OSError as err:
         raise error(f"{source}: cannot read the {what} ({err.strerror})") from None
     if len(data) > MAX_BYTES:

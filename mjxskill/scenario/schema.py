@@ -40,10 +40,11 @@ MIN_N_INIT = 2  # the optimizer's warm-up needs two points to fit a model
 # extra zero or three) is refused before a run directory is written instead of exhausting the
 # machine after it (--repeats 100000 wrote 20,908 seed folders in a minute; --worlds 100000 and
 # --batch-size 10**9 died allocating after the directory existed; --budget 10**12 grew memory).
+# The episodes of one call (batch x worlds) are bounded with every command's, against the machine's
+# memory too: mjxskill.runs.bounds.MAX_CALL_EPISODES and call_episodes_problem.
 MAX_BUDGET = 100_000  # evaluations per run; the paper's runs have 400, the GP is cubic in them
 MAX_BATCH = 4096  # parameter sets per batch
 MAX_WORLDS = 4096  # randomized worlds per parameter set; the paper uses 7
-MAX_BATCH_EPISODES = 262_144  # batch x worlds: the episodes of one call (64 x 4096), all held in memory at once
 MAX_REPEATS = 1000  # repetitions of a run or an experiment (one folder each); the paper has 10
 
 

@@ -1,0 +1,51 @@
+"""The one way a file the user hands over is read (a scenario, a skill library, a run's files):
+only a regular file, and only after that is known.
+
+``open`` on a FIFO blocks until a writer comes, forever (a FIFO given as a scenario, or planted in
+a run's place of ``evaluations.csv``, hung the command); a character device (``/dev/zero``) never
+ends. ``read_regular`` opens without blocking (``O_NONBLOCK``: a FIFO's open returns at once),
+asks the open file what it is (``fstat``: no race between a check and the open) and reads only a
+regular file; anything else is ``NotRegularFile``, an ``OSError`` whose ``strerror`` names what
+the path is, so that every reader's existing "cannot read PATH (why)" error says it. Imports
+nothing of mjxskill: every stage may read through it."""
+
+from __future__ import annotations
+
+import errno
+import os
+import stat
+
+KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+         (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+
+
+class NotRegularFile(OSError):
+    """A path that names something other than a regular file; never opened for reading."""
+
+
+def kind_of(mode: int) -> str:
+    return next((name for test, name in KINDS if test(mode)), "not a regular file")
+
+
+def read_regular(path, limit: int | None = None) -> bytes:
+    """The bytes of the regular file ``path`` (the first ``limit + 1`` at most when ``limit`` is
+    given, so that a caller sees a file over its bound). NotRegularFile for a FIFO, device,
+    socket or directory, without reading from it; other OSErrors as ``open`` raises them."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except IsADirectoryError:
+        raise NotRegularFile(errno.EISDIR, "is a directory, not a regular file", str(path)) from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise NotRegularFile(errno.EINVAL, f"is {kind_of(mode)}, not a regular file", str(path))
+        os.set_blocking(fd, True)
+        with os.fdopen(fd, "rb", closefd=True) as fh:
+            fd = -1
+            return fh.read() if limit is None else fh.read(limit + 1)
+    finally:
+        if fd >= 0:
+            os.close(fd)
+
+
+__all__ = ["NotRegularFile", "kind_of", "read_regular"]
