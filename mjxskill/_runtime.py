@@ -28,6 +28,8 @@ off). It is switched on where compiling starts (``compile_rollout``) and by the 
 from __future__ import annotations
 
 import os
+import re
+import subprocess
 import sys
 import warnings
 from pathlib import Path
@@ -177,9 +179,6 @@ def xla_flags_problem(flags: str | None = None) -> str | None:
     no ``try`` catches. A token that is not ``--name`` or ``--name=value`` is refused by its
     shape; flags beyond mjxskill's own are tried once in a child process (about a second),
     whose fatal line names the bad token."""
-    import re
-    import subprocess
-
     flags = os.environ.get("XLA_FLAGS", "") if flags is None else flags
     if flags in _checked:
         return _checked[flags]

@@ -61,3 +61,23 @@ def test_only_staging_folders_of_dead_processes_of_this_host_are_removed(tmp_pat
     assert not names & set(stale)
     assert set(kept) | {f".push-7.{host}.{dead}.00000000.creating", "push-8"} <= names
     assert (outside / "keep.txt").read_text() == "the user's\n"
+
+
+def test_an_output_set_aside_by_a_killed_replacement_goes_back_where_nothing_took_its_place(tmp_path):
+    """A folder replaced by a folder is set aside (``.replaced``) before the new one is renamed in;
+    killed between the two, the old one is renamed back by the next write beside it, not removed."""
+    from mjxskill.runs.atomic_write import remove_stale_staging
+
+    pid = _dead_pid()
+    old = tmp_path / f".frames.{_this_host()}.{pid}.0123abcd.replaced"
+    old.mkdir()
+    (old / "frame_0000.png").write_bytes(b"the user's frame")
+    new = tmp_path / f".frames.{_this_host()}.{pid}.4567cdef.creating"
+    new.mkdir()
+    remove_stale_staging(tmp_path)
+    assert (tmp_path / "frames" / "frame_0000.png").read_bytes() == b"the user's frame"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frames"]
+    # where the replacement did arrive, the set-aside one is stale and goes
+    old.mkdir()
+    remove_stale_staging(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frames"]

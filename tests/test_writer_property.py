@@ -363,3 +363,16 @@ def test_a_repetition_linked_to_another_inside_the_run_is_refused(tmp_path, caps
     code, err = invoke(capsys, command, *(["push", "--resume"] if command == "train" else []), root.path)
     error_line(code, err, command, str(root.path / "seed-1"), "is a symbolic link")
     assert unlocked() == before
+
+
+def test_an_export_path_the_system_cannot_open_is_one_error_exit_2(push_run, tmp_path, capsys):
+    """A loop of links or a name too long for the file system as select's --out: refused before
+    anything is written, as bad input (exit 2), not as a fault of the machine."""
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)
+    code, err = invoke(capsys, "select", push_run.path, "--pick", 0, "--no-render", "--out", loop / "inside")
+    error_line(code, err, "select", str(loop))
+    long = tmp_path / ("x" * 300)
+    code, err = invoke(capsys, "select", push_run.path, "--pick", 0, "--no-render", "--out", long)
+    error_line(code, err, "select", "x" * 40)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["loop"]

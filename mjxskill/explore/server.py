@@ -135,9 +135,9 @@ def serve_file(root: Path, relative: str):
     real_root = root.resolve()
     target = (real_root / relative).resolve()
     if refused(relative) or relative.startswith("/") or not target.is_relative_to(real_root):
-        return _json(403, {"error": f"refused: {relative!r} is outside the served folder"})
+        return _json(403, {"error": f"refused: {quote(relative)} is outside the served folder"})
     if not target.is_file():
-        return _json(404, {"error": f"no file {relative!r}"})
+        return _json(404, {"error": f"no file {quote(relative)}"})
     response = bottle.static_file(target.relative_to(real_root).as_posix(), root=str(real_root))
     response.set_header("Cache-Control", "no-cache")
     return response
@@ -182,7 +182,7 @@ def build_app(explorer: Explorer, served: ServedAddress) -> bottle.Bottle:
     app.install(_guarded)  # every route's errors: JSON, one log line
 
     def _error_page(error: bottle.HTTPError) -> str:  # Bottle's own errors (no such route: 404, 405)
-        message = " ".join(str(error.body or error.status_line).split())
+        message = bounded(" ".join(str(error.body or error.status_line).split()))
         log_error(error.status_code, message)
         bottle.response.content_type = "application/json"
         return json.dumps({"error": message})
@@ -198,7 +198,7 @@ def build_app(explorer: Explorer, served: ServedAddress) -> bottle.Bottle:
         if refused_request is not None:
             raise _json(refused_request[0], {"error": refused_request[1]})
         if refused(bottle.request.path):
-            raise _json(403, {"error": f"refused: {bottle.request.path!r} leaves the served folders"})
+            raise _json(403, {"error": f"refused: {quote(bottle.request.path)} leaves the served folders"})
 
     def solution(run: int, index: int, start: bool):
         config_index = _int(_body() if start else bottle.request.query, "config", 0)

@@ -186,6 +186,11 @@ def remove_stale_staging(parent: Path) -> list[Path]:
             continue
         if match["host"] not in (None, _this_host()) or not _process_gone(int(match["pid"])):
             continue
+        if entry.name.endswith(".replaced") and not os.path.lexists(os.path.join(parent, match["name"])):
+            # killed between setting the old output aside and renaming the new one in: the old one goes back
+            with contextlib.suppress(OSError):
+                os.rename(entry.path, os.path.join(parent, match["name"]))
+            continue
         if entry.is_dir(follow_symlinks=False):
             shutil.rmtree(entry.path, ignore_errors=True)
         else:

@@ -83,9 +83,15 @@ def check_outputs(root: Path, outputs: Mapping[Path, Content], *, replace: bool 
     """RunError naming the first output of ``outputs`` (path -> content) that cannot be written
     (``in_the_way``; with ``replace``, other content may be replaced), with ``hint``: what the
     user can do about it, and ``flag``, the command's flag that replaces other content (named
-    where it would help). Changes nothing."""
+    where it would help). Changes nothing. An OSError of the disk (``DISK_FAULTS``) is raised as
+    it is; another one (a path too long, a loop of links) becomes a RunError naming the path."""
     for path, content in outputs.items():
-        why = in_the_way(root, path, content)
+        try:
+            why = in_the_way(root, path, content)
+        except OSError as err:
+            if err.errno in DISK_FAULTS:
+                raise
+            raise RunError(f"cannot write {str(path)!r}: {err.strerror or err}") from None
         if why is not None and not (replace and why[1]):
             cure = ", ".join(filter(None, [hint, f"or replace it with {flag}" if why[1] and flag else ""]))
             raise RunError(f"{why[0]}; it is kept" + (f": {cure}" if cure else ""))
@@ -145,7 +151,8 @@ def _put(fd: int, name: str, content: Content) -> bool:
             except BaseException:
                 os.rename(old, name, src_dir_fd=fd, dst_dir_fd=fd)
                 raise
-            _remove(fd, old)
+            with contextlib.suppress(OSError):  # the new one is in place; a leftover is removed as a stale staging
+                _remove(fd, old)
     except BaseException:
         with contextlib.suppress(OSError):
             _remove(fd, staging)

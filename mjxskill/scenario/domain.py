@@ -84,10 +84,7 @@ FINITE = Domain()
 NONNEGATIVE = Domain(minimum=0.0)
 POSITIVE = Domain(minimum=0.0, exclusive_minimum=True)
 
-__all__ = ["Domain", "FINITE", "NONNEGATIVE", "POSITIVE"]
-
-
-# The domains of the world model's and the task's numbers (mjxskill.scenario.domain), checked
+# The domains of the world model's and the task's numbers, checked
 # when the scenario loads, before anything is written. Each lies far outside any scenario we know
 # of (the shipped ones: sizes 1.5 mm to 2.4 m, masses 0.2-2.5 kg, frictions 0.2-0.35, positions
 # within 1 m of the robot); what it keeps out is what MuJoCo or the math cannot honour.
@@ -96,6 +93,9 @@ POSITION = Domain(-MAX_DISTANCE, MAX_DISTANCE, unit="m", why="a place in the rob
 MIN_SIZE, MAX_SIZE = 1e-4, 100.0  # m
 SIZE = Domain(MIN_SIZE, MAX_SIZE, unit="m", why="MuJoCo cannot build a shape below 0.1 mm (a degenerate mesh) and "
               "the robot handles none beyond 100 m")
+# joint angles are checked against the robot's limits after this, which keeps out what no limit
+# can be compared with
+JOINT_ANGLE = Domain(-2 * math.pi, 2 * math.pi, unit="rad", why="a joint angle")
 ANGLE_DEG = Domain(-360.0, 360.0, unit="deg", why="an angle of the pose")
 JOINT_LIMIT_DEG = Domain(0.0, 360.0, exclusive_minimum=True, unit="deg", why="symmetric joint limits")
 MASS = Domain(1e-6, 1e4, unit="kg", why="MuJoCo's inertia of a lighter body is not positive definite, a heavier "
@@ -119,3 +119,8 @@ WEIGHT = Domain(-1e6, 1e6, why="a reward's weight; an objective sums it over eve
 # A prior narrower than this share of its parameter's bounds is a point the optimizer's
 # truncated Gaussian cannot be evaluated at (its density underflows to 0 next to the mean).
 MIN_PRIOR_STD_SHARE = 1e-6
+
+__all__ = ["Domain", "ANGLE_DEG", "ANGLE_TOLERANCE_DEG", "CLIP_SIGMAS", "DEPTH", "EXTRA", "FINITE", "FORCE",
+           "FRICTION", "FRICTION_RANGE", "JOINT_ANGLE", "JOINT_LIMIT_DEG", "MASS", "MAX_DISTANCE",
+           "MAX_PARAMETER", "MAX_SIZE", "MIN_PRIOR_STD_SHARE", "MIN_SIZE", "NONNEGATIVE", "PARAMETER",
+           "POSITION", "POSITIVE", "REGION_SIZE", "SIGMA", "SIZE", "STIFFNESS", "TOLERANCE", "WEIGHT"]

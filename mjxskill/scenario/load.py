@@ -17,7 +17,7 @@ from mjxskill.errors import GoalError, ScenarioError, listing, quote
 from mjxskill.planner.world_pddl import check_atom, goal_literals, parse_literal
 from mjxskill.scenario.fields import Field, compose_file
 from mjxskill.scenario.scene_refs import check_scene
-from mjxskill.scenario.domain import ANGLE_DEG, EXTRA, FRICTION, JOINT_LIMIT_DEG, MASS, POSITION, SIZE, STIFFNESS, Domain
+from mjxskill.scenario.domain import ANGLE_DEG, EXTRA, FRICTION, JOINT_ANGLE, JOINT_LIMIT_DEG, MASS, POSITION, SIZE, STIFFNESS
 from mjxskill.scenario.schema import MAX_EPISODE_SECONDS, Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping
 from mjxskill.scenario.vocabulary import SHAPES
 from mjxskill.scenario.sections import optimizer, pick, randomization, rewards, success
@@ -366,10 +366,6 @@ def _object(name: str, field: Field, types, predicates, names) -> WorldObject:
         mjcf_geom=geom,
     )
 
-
-# Joint angles (rad) are checked against the robot's limits; this keeps out what no limit can be
-# compared with (a number beyond a float's range) before that.
-JOINT_ANGLE = Domain(-2 * np.pi, 2 * np.pi, unit="rad", why="a joint angle")
 
 
 def _size(field: Field, shape: str, count: int, plane: bool) -> tuple[float, ...]:
