@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjxskill.errors import CommandError, RunError
+from mjxskill.errors import RunError
 from mjxskill.runs.bounds import call_episodes_problem
 from mjxskill.scenario.fields import read_text
 from mjxskill.runs.atomic_write import append_text, check_folder, make_folder, write_json
@@ -118,7 +118,7 @@ def evaluate_run(run: Run, config: RunConfig, rollout: Rollout, task: PlannedTas
     after each chunk. Returns (evaluation, tests of the box plot, whether it was reused)."""
     problem = call_problem(settings, rollout.scenario)
     if problem is not None:  # before anything is written
-        raise CommandError(problem)
+        raise RunError(problem)
     front = run.front(config)
     candidates = build_candidates(task, front.params, settings["random"], settings["seed"])
     folder = run.path / FOLDER
