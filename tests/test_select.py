@@ -137,6 +137,21 @@ def test_frames_match_the_scene_or_explain_how_to_get_gl():
     assert not np.array_equal(red(images[0]), red(images[1]))
 
 
+def test_frames_larger_than_the_models_framebuffer_are_drawn_and_the_model_is_left_as_it_was():
+    """A 1280 x 720 frame of a model whose offscreen framebuffer is MuJoCo's default 640 x 480:
+    drawn (the framebuffer follows the frame), not refused as if no OpenGL backend existed."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><light pos="0 0 3"/><geom type="plane" size="2 2 .1"/>'
+        '<body pos="0.5 0 0.1"><geom type="box" size=".1 .1 .1" rgba="1 0 0 1"/></body></worldbody></mujoco>'
+    )
+    assert (model.vis.global_.offwidth, model.vis.global_.offheight) == (640, 480)
+    images = frames_or_skip(model, np.zeros((1, 0)), width=1280, height=720)
+    assert images.shape == (1, 720, 1280, 3) and ((images[0, ..., 0] > 150) & (images[0, ..., 1] < 80)).any()
+    assert (model.vis.global_.offwidth, model.vis.global_.offheight) == (640, 480)
+
+
 def test_a_force_limit_on_a_run_without_measured_forces_is_refused():
     # a run written before contact forces were measured: its commanded force is no measure of
     # what the tool did, so --max-force says so instead of choosing by it

@@ -73,11 +73,18 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progres
     import mujoco  # lazy: after default_gl(), as in _camera
 
     data = mujoco.MjData(model)
+    # the offscreen framebuffer is the model's visual/global offwidth x offheight (640 x 480 unless
+    # the MJCF says more): as large as the frames for the context's creation, the model unchanged after
+    frame = model.vis.global_
+    kept = (frame.offwidth, frame.offheight)
+    frame.offwidth, frame.offheight = max(kept[0], width), max(kept[1], height)
     try:
         renderer = mujoco.Renderer(model, height, width)
     except Exception as err:  # the GL backends raise a variety of errors when no context exists
         raise RenderUnavailable(GL_HELP.format(gl=os.environ.get("MUJOCO_GL", ""), err=f"{type(err).__name__}: {err}"),
                                 AFTER_SELECT) from None
+    finally:
+        frame.offwidth, frame.offheight = kept
     images = []
     try:
         cam = None
