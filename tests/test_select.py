@@ -259,3 +259,15 @@ def test_select_out_into_a_users_folder_keeps_its_files(tmp_path, capsys):
     code, err = _select(capsys, run.path, "--pick", 0)
     error_line(code, err, "select", str(linked / "parameters.yaml"))
     assert outside.read_text() == "a file of the user's\n" and (linked / "parameters.yaml").is_symlink()
+
+
+def test_the_same_pick_exported_through_two_spellings_of_the_runs_path_is_the_same_export(tmp_path, capsys, monkeypatch):
+    """``select runs/push-0`` and ``select ./runs/push-0/`` (and the absolute path) write the
+    same document: the second is harmless, not refused as other content."""
+    from explore_runs import make_push_run
+
+    run = make_push_run(tmp_path / "push-0")
+    monkeypatch.chdir(tmp_path)
+    for spelling in ("push-0", "./push-0/", str(run.path)):
+        code, err = _select(capsys, spelling, "--pick", 1)
+        assert code == 0, (spelling, err)

@@ -24,6 +24,7 @@ refuse with one error naming it; writing the same content again is harmless.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -100,7 +101,9 @@ def export_document(config, front, k: int, run_path: Path, validation: tuple[flo
     return {
         "task": config.task,
         "goal": config.goal,
-        "run": str(run_path),
+        # one spelling of the run (absolute, normalized, links kept): the same pick exported again
+        # through another spelling of its path writes the same document
+        "run": os.path.abspath(run_path),
         "pareto_index": k,
         "parameters": {
             name: {"value": float(v), "unit": unit}
