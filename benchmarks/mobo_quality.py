@@ -138,7 +138,10 @@ def zdt2(x: np.ndarray) -> np.ndarray:
 
 
 def zdt3(x: np.ndarray) -> np.ndarray:
-    """BoTorch's ZDT3: a front of five disconnected pieces, f2 = 1 - sqrt(f1) - f1 sin(10 pi f1)."""
+    """ZDT3 as Zitzler, Deb and Thiele define it, f2 = g h(f1 / g): a front (g = 1) of five
+    disconnected pieces, f2 = 1 - sqrt(f1) - f1 sin(10 pi f1). BoTorch 0.18's ZDT3 returns h
+    alone, without the factor g; both have the same front, but off it BoTorch's can fall below
+    points of the front, which ours never does."""
     f1 = x[:, 0]
     g = 1.0 + 9.0 / (x.shape[1] - 1) * np.sum(x[:, 1:], axis=1)
     r = f1 / g

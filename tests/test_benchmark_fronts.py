@@ -254,7 +254,8 @@ def test_held_out_problems_equal_botorch():
     x = np.random.default_rng(0).random((500, 7))
     for ours, theirs, inputs in [
         (mq.zdt2, mo.ZDT2(dim=6), x[:, :6]),
-        (mq.zdt3, mo.ZDT3(dim=6), x[:, :6]),
+        # BoTorch's ZDT3 leaves out the factor g of f2 (mq.zdt3's docstring)
+        (lambda v: mq.zdt3(v) / np.c_[np.ones(len(v)), 1.0 + 9.0 * v[:, 1:].mean(axis=1)], mo.ZDT3(dim=6), x[:, :6]),
         (lambda v: mq.dtlz2(v, m=4), mo.DTLZ2(dim=6, num_objectives=4), x[:, :6]),
         (mq.car_side_impact, mo.CarSideImpact(), x),
     ]:
@@ -262,5 +263,7 @@ def test_held_out_problems_equal_botorch():
         expected = theirs(torch.from_numpy(lo + (hi - lo) * inputs)).numpy()
         np.testing.assert_allclose(ours(inputs), expected, rtol=1e-12, atol=1e-12)
     for name, cls in (("ZDT2 (d=6)", mo.ZDT2(dim=6)), ("CarSideImpact", mo.CarSideImpact()),
-                      ("DTLZ2 (d=6, m=4)", mo.DTLZ2(dim=6, num_objectives=4))):
+                      ("DTLZ2 (d=6, m=4)", mo.DTLZ2(dim=6, num_objectives=4)), ("ZDT3 (d=6), noisy", mo.ZDT3(dim=6))):
         assert mq.PROBLEMS[name]["ref"] == pytest.approx(cls.ref_point.tolist(), rel=1e-12)
+    # on the front g = 1, where the two ZDT3s agree, our sampled front's maximum is BoTorch's
+    assert mq.PROBLEMS["ZDT3 (d=6), noisy"]["max_hv"] == pytest.approx(mo.ZDT3._max_hv, abs=1e-4)
