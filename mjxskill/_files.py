@@ -32,9 +32,20 @@ def read_regular(path, limit: int | None = None) -> bytes:
     given, so that a caller sees a file over its bound). NotRegularFile for a FIFO, device,
     socket or directory, without reading from it; other OSErrors as ``open`` raises them."""
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        fd = os.open(path, OPEN_FLAGS)
     except IsADirectoryError:
         raise NotRegularFile(errno.EISDIR, "is a directory, not a regular file", str(path)) from None
+    return read_open(fd, path, limit)
+
+
+# Opening without blocking: a FIFO's open returns at once instead of waiting for a writer.
+OPEN_FLAGS = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
+
+
+def read_open(fd: int, path, limit: int | None = None) -> bytes:
+    """What ``read_regular`` returns, from ``fd`` opened with ``OPEN_FLAGS`` (and whatever else
+    the caller needs, as ``O_NOFOLLOW`` below a folder's descriptor), ``path`` naming it in the
+    error; ``fd`` is closed either way."""
     try:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
@@ -48,4 +59,4 @@ def read_regular(path, limit: int | None = None) -> bytes:
             os.close(fd)
 
 
-__all__ = ["NotRegularFile", "kind_of", "read_regular"]
+__all__ = ["OPEN_FLAGS", "NotRegularFile", "kind_of", "read_open", "read_regular"]

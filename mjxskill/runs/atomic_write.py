@@ -33,10 +33,10 @@ import re
 import secrets
 import shutil
 import socket
-import stat
 from pathlib import Path
 from typing import Callable
 
+from mjxskill._files import OPEN_FLAGS, NotRegularFile, read_open
 from mjxskill.errors import RunError
 
 
@@ -333,7 +333,7 @@ def read_below(root: Path, path: Path, limit: int | None = None) -> bytes:
         raise RunError(f"{path} is missing")
     try:
         try:
-            file = os.open(path.name, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK, dir_fd=fd)
+            file = os.open(path.name, OPEN_FLAGS | os.O_NOFOLLOW, dir_fd=fd)
         except FileNotFoundError:
             raise RunError(f"{path} is missing") from None
         except OSError as err:
@@ -342,14 +342,13 @@ def read_below(root: Path, path: Path, limit: int | None = None) -> bytes:
             raise
     finally:
         os.close(fd)
-    with os.fdopen(file, "rb") as fh:
-        info = os.fstat(fh.fileno())
-        if not stat.S_ISREG(info.st_mode):
-            raise RunError(f"{path} is not a regular file; mjxskill reads only regular files")
-        if limit is not None and info.st_size > limit:
-            raise RunError(f"{path} holds {info.st_size} bytes, more than the {limit} expected")
-        return fh.read()
-
+    try:
+        data = read_open(file, path, limit)
+    except NotRegularFile as err:
+        raise RunError(f"{path} {err.strerror}; mjxskill reads only regular files") from None
+    if limit is not None and len(data) > limit:
+        raise RunError(f"{path} holds more than the {limit} bytes expected")
+    return data
 
 __all__ = ["DIR_FLAGS", "DISK_FAULTS", "STAGING", "append_text", "check_folder", "created_whole", "make_folder", "open_folder",
            "open_nofollow", "read_below", "refuse_link", "refuse_links_out", "remove_stale_staging", "replace_whole",
