@@ -4,6 +4,7 @@
     python benchmarks/race_budget.py grid --out benchmarks/results/2026-12-06/peg_grid.json
     python benchmarks/race_budget.py matrix RUN_DIR --out benchmarks/results/2026-12-06/peg_front_matrix.npz
     python benchmarks/race_budget.py simulate benchmarks/results/2026-12-06/peg_front_matrix.npz
+    python benchmarks/race_budget.py pool docs/experiments/peg-robust-approach5mm --out DIR [--first-round-per-config N]
 
 ``grid``: the peg's success over a grid of force, spiral radius and path velocity, every set in
 the same 150 worlds (10 from each of the 15 start configurations, key 11): the shape of the
@@ -12,7 +13,14 @@ operators' sets, each in the same 600 worlds of the known start configurations (
 555), every world's success and time kept. ``simulate``: successive halving, as
 ``mjxskill.evaluation.racing`` runs it, replayed on that matrix (each round's worlds drawn
 without replacement per configuration) 400 times per race budget: the mean success of the
-winner over the matrix's worlds, and how often it is the best set.
+winner over the matrix's worlds, and how often it is the best set. ``pool``: each finished repetition of a robust experiment raced
+again as ``mjxskill.evaluation.racing`` races (same settings, episodes and race worlds), but over
+every current evaluation of its optimizer run instead of its front (the run's training is the
+same either way, so only the race and the confirmation are rolled out); the winner confirmed in
+the experiment's own confirmation worlds, beside ``operator_b`` (whose result must equal the
+experiment's: the same worlds). ``--first-round-per-config N`` races only as many contenders
+(best success bound first) as give the first round N worlds per known start configuration.
+Resumable: each repetition's race and confirmation are kept under ``DIR/seed-S/``.
 """
 
 from __future__ import annotations
@@ -123,6 +131,75 @@ def _race(rows, budget: int, success, seconds, per: int, n_configs: int, rng) ->
     return alive[0]
 
 
+def pool(exp_dir: Path, out: Path, first_round_per_config: int = 1) -> dict:
+    from mjxskill.engine.build import build_rollout
+    from mjxskill.evaluation import racing
+    from mjxskill.evaluation.baselines import Candidates
+    from mjxskill.evaluation.confirmation import confirm, load_confirmation
+    from mjxskill.experiment.directory import (
+        Experiment,
+        repetition_confirmation,
+        repetition_race,
+    )
+    from mjxskill.experiment.picks import picked_repetition
+    from mjxskill.runs.run_task import load_run_task
+
+    exp = Experiment(exp_dir)
+    config, protocol = exp.config(), exp.protocol()
+    scn, task = load_run_task(exp.optimizer, config)
+    n_known = len(scn.robot.start_configs)
+    rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds)
+    operator = np.asarray(task.manual_parameters["operator_b"], np.float64)
+    result = {"experiment": str(exp_dir), "first_round_per_config": first_round_per_config, "repetitions": []}
+    try:
+        for i, (opt, _) in enumerate(exp.runs(config)):
+            seed = config.seed + i
+            picked = picked_repetition(exp, config, protocol, i)
+            if picked is None:
+                continue
+            front, raced = picked[2], picked[6]
+            own = load_confirmation(opt.path, None, repetition_confirmation(config, protocol, seed))
+            if own is None:
+                continue
+            ev = opt.evaluations(opt.config())
+            current = ev.take(np.flatnonzero(ev.current()))
+            settings = repetition_race(config, protocol, seed, n_known)
+            rows = racing.contenders(current, settings["max_force"])
+            k = len(rows)
+            while k > 1 and k * n_known * first_round_per_config > settings["episodes"] // max(1, int(np.ceil(np.log2(k)))):
+                k -= 1
+            pool_of = current.take(np.array(sorted(rows[:k])))  # contenders() orders them again
+            here = out / f"seed-{seed}"
+            here.mkdir(parents=True, exist_ok=True)
+            won = racing.race(here, pool_of, rollout, settings, batch_size=6)
+            params = pool_of.params[won.winner]
+            candidates = Candidates(("picked", "operator_b"), ("picked", "manual"), np.stack([params, operator]))
+            conf, _ = confirm(here, rollout, candidates, repetition_confirmation(config, protocol, seed), batch_size=2)
+            b = own.candidates.names.index("operator_b")
+            assert np.array_equal(conf.success[1], own.success[b]), "not the experiment's confirmation worlds"
+            old = own.success[0]
+            row = {"seed": seed, "pool": len(rows), "contenders": len(won.contenders),
+                   "rounds": [[len(r.rows), r.worlds] for r in won.rounds], "episodes": won.episodes,
+                   "winner_params": params.tolist(), "winner_race": list(won.race_success(won.winner)),
+                   "winner_worlds_in_training": int(pool_of.worlds[won.winner]),
+                   "winner_on_front": bool(any(np.array_equal(params, p) for p in front.params)),
+                   "front_pick_params": front.params[raced.winner].tolist(),
+                   "known": float(conf.success[0, conf.known].mean()), "unseen": float(conf.success[0, ~conf.known].mean()),
+                   "front_pick_known": float(old[own.known].mean()), "front_pick_unseen": float(old[~own.known].mean()),
+                   "operator_b_known": float(conf.success[1, conf.known].mean()),
+                   "operator_b_unseen": float(conf.success[1, ~conf.known].mean())}
+            result["repetitions"].append(row)
+            print(json.dumps(row), flush=True)
+    finally:
+        rollout.close()
+    reps = result["repetitions"]
+    for key in ("known", "unseen", "front_pick_known", "front_pick_unseen", "operator_b_known", "operator_b_unseen"):
+        result[key] = float(np.mean([r[key] for r in reps])) if reps else None
+    print({k: v for k, v in result.items() if k != "repetitions"})
+    (out / "pool.json").write_text(json.dumps(result, indent=1) + "\n")
+    return result
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -134,8 +211,14 @@ def main(argv=None) -> int:
     s = sub.add_parser("simulate")
     s.add_argument("matrix", type=Path)
     s.add_argument("--save", type=Path)
+    p = sub.add_parser("pool")
+    p.add_argument("experiment", type=Path)
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--first-round-per-config", type=int, default=1)
     args = parser.parse_args(argv)
-    if args.command == "grid":
+    if args.command == "pool":
+        pool(args.experiment, args.out, args.first_round_per_config)
+    elif args.command == "grid":
         grid(args.out)
     elif args.command == "matrix":
         matrix(args.run, args.out)
