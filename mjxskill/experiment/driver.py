@@ -31,7 +31,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
-from typing import TYPE_CHECKING, Callable, Sequence, TypedDict
+from typing import TYPE_CHECKING, Callable, Sequence
 
 from mjxskill.evaluation.evaluate_run import evaluate_run
 from mjxskill.evaluation.confirmation import confirm, confirmation_candidates
@@ -59,41 +59,67 @@ if TYPE_CHECKING:  # pragma: no cover
     from mjxskill.task import PlannedTask
 
 
-class _Clock(TypedDict):
-    simulation: float  # seconds in the rollout
-    rows: int  # parameter sets evaluated
+class TrainClock:
+    """A run's training time, added to the experiment's state as each batch reaches the disk (the
+    training loop reports a batch once it is written): a process killed mid-run (SIGKILL, where
+    no ``finally`` runs) loses the seconds of the batch in flight, not the run's. It is the loop's
+    progress reporter, handing every report on to ``inner`` (None: none)."""
 
+    def __init__(self, exp: Experiment, key: str, inner=None):
+        self.exp, self.key, self.inner = exp, key, inner
+        self.mark = time.monotonic()
+        self.simulation, self.rows, self.recorded = 0.0, 0, False  # since the last record
 
-def _timed(evaluate, clock: _Clock) -> Callable[[object, int], BatchResult]:
-    """``evaluate`` that adds its seconds and rows to ``clock`` (the physics' share of a run)."""
+    def evaluator(self, evaluate) -> Callable[[object, int], BatchResult]:
+        """``evaluate`` that counts its seconds and rows (the physics' share of the run)."""
 
-    def wrapped(params, iteration):
-        t0 = time.monotonic()
-        result = evaluate(params, iteration)
-        clock["simulation"] += time.monotonic() - t0
-        clock["rows"] += len(params)
-        return result
+        def timed(params, iteration):
+            t0 = time.monotonic()
+            result = evaluate(params, iteration)
+            self.simulation += time.monotonic() - t0
+            self.rows += len(params)
+            return result
 
-    return wrapped
+        return timed
+
+    def record(self) -> None:
+        """Adds the seconds since the last record (and the rows and physics in them); only once
+        the run has evaluated something now (a run resumed with nothing to do adds nothing)."""
+        now = time.monotonic()
+        if self.rows:
+            self.exp.add_time(self.key, "train_seconds", now - self.mark, self.rows)
+            self.exp.add_time(self.key, "simulation_seconds", self.simulation, self.rows)
+            self.recorded = True
+        elif self.recorded:
+            self.exp.add_time(self.key, "train_seconds", now - self.mark)
+        self.mark, self.simulation, self.rows = now, 0.0, 0
+
+    def start(self, ev, reference) -> None:
+        if self.inner:
+            self.inner.start(ev, reference)
+
+    def update(self, new, ev, reference) -> None:
+        self.record()
+        if self.inner:
+            self.inner.update(new, ev, reference)
+
+    def close(self) -> None:
+        if self.inner:
+            self.inner.close()
 
 
 def train_timed(exp: Experiment, run: Run, rollout: Rollout, progress_for) -> bool:
-    """Trains (or finishes) one run, adding its wall and simulation time to the state; True
-    when it evaluated something now."""
+    """Trains (or finishes) one run, adding its wall and simulation time to the state batch by
+    batch (``TrainClock``); True when it evaluated something now."""
     config = run.config()
-    key = time_key(KINDS[config.optimizer], config.seed)
-    clock: _Clock = {"simulation": 0.0, "rows": 0}
-    t0 = time.monotonic()
+    clock = TrainClock(exp, time_key(KINDS[config.optimizer], config.seed), progress_for(config))
     try:
         with run.lock():
-            evaluate = _timed(rollout_evaluator(rollout, config.batch_size, config.seed), clock)
-            ev = train(run, config, evaluate, progress=progress_for(config))
+            ev = train(run, config, clock.evaluator(rollout_evaluator(rollout, config.batch_size, config.seed)), progress=clock)
             write_run_figures(run, config, ev)
     finally:
-        if clock["rows"]:
-            exp.add_time(key, "train_seconds", time.monotonic() - t0, clock["rows"])
-            exp.add_time(key, "simulation_seconds", clock["simulation"], clock["rows"])
-    return bool(clock["rows"])
+        clock.record()
+    return clock.recorded
 
 
 def evaluate_timed(exp: Experiment, run: Run, rollout: Rollout, task: PlannedTask, settings: dict, progress=None) -> bool:
