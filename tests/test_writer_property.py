@@ -170,14 +170,16 @@ def test_other_content_is_kept_unless_replace_and_the_same_content_is_harmless(t
 # -- a write that fails or is killed midway --------------------------------------------------------
 @FAST
 @given(files=st.integers(1, 6), fail_at=st.integers(0, 6), existing=st.booleans(),
-       errno_=st.sampled_from([errno.ENOSPC, errno.EIO, errno.EACCES]))
-def test_a_write_failing_midway_leaves_the_previous_state(tmp_path_factory, monkeypatch, files, fail_at, existing, errno_):
-    root = tmp_path_factory.mktemp("k")
+       errno_=st.sampled_from([errno.ENOSPC, errno.EIO, errno.EACCES]), depth=st.integers(0, 3))
+def test_a_write_failing_midway_leaves_the_previous_state(tmp_path_factory, monkeypatch, files, fail_at, existing, errno_,
+                                                          depth):
+    base = tmp_path_factory.mktemp("k")
+    root = base.joinpath(*["nested"] * depth)  # a root the user named whose folders are not there yet
     params = root / "selected-0" / "parameters.yaml"
     frames = root / "selected-0" / "frames"
     if existing:
         write_outputs(root, {params: b"old\n", frames: {f"frame_{i:04d}.png": b"old" for i in range(3)}})
-    before = tree(root)
+    before = tree(base)
     new = {params: b"new\n", frames: {f"frame_{i:04d}.png": b"new %d" % i for i in range(files)}}
     write_file, calls = outputs._write_file, []
 
@@ -200,15 +202,16 @@ def test_a_write_failing_midway_leaves_the_previous_state(tmp_path_factory, monk
         assert isinstance(raised.value, RunError) and "cannot write" in str(raised.value)
     else:  # the machine's fault: raised as it is (exit 1)
         assert isinstance(raised.value, OSError)
-    after = tree(root)
-    assert stagings(root) == []
-    if not existing:  # nothing of a new export stays
+    after = tree(base)
+    assert stagings(base) == []
+    if not existing:  # nothing of a new export stays, the folders made for it included
         assert after == before
     else:  # each output old or new, whole
-        assert after[str(params.relative_to(root))] in (b"old\n", b"new\n")
-        kept = {k: v for k, v in after.items() if k.startswith("selected-0/frames/")}
-        assert kept in ({k: v for k, v in before.items() if k.startswith("selected-0/frames/")},
-                        {f"selected-0/frames/{n}": d for n, d in new[frames].items()})
+        assert after[str(params.relative_to(base))] in (b"old\n", b"new\n")
+        at = str(frames.relative_to(base)) + "/"
+        kept = {k: v for k, v in after.items() if k.startswith(at)}
+        assert kept in ({k: v for k, v in before.items() if k.startswith(at)},
+                        {f"{at}{n}": d for n, d in new[frames].items()})
 
 
 KILLED_WHILE_WRITING = textwrap.dedent("""

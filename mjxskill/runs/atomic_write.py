@@ -259,13 +259,18 @@ def open_folder(root: Path, folder: Path, *, create: bool = False, made: list[Pa
     root = Path(root)
     parts = _parts(root, folder)
     if create and not os.path.isdir(root):
+        missing = []  # root and the folders above it that are not there yet, deepest first
+        for above in (root, *root.parents):
+            if os.path.lexists(above):
+                break
+            missing.append(above)
         try:
             root.mkdir(parents=True)
         except FileExistsError:
             pass
         else:
-            if made is not None:
-                made.append(root)
+            if made is not None:  # every folder made, so that a failed write can remove them all
+                made.extend(reversed(missing))
     try:
         fd = os.open(root, os.O_RDONLY | os.O_DIRECTORY | getattr(os, "O_CLOEXEC", 0))
     except FileNotFoundError:
