@@ -239,6 +239,16 @@ def test_dtlz2_with_four_objectives_lies_beyond_the_unit_sphere_and_its_maximum_
     assert abs(mq.dtlz2_m4_front_hypervolume([1.1] * 4) - mc) < 4 * se
 
 
+@pytest.mark.parametrize("ref", [[0.9, 1.2, 0.7, 1.05], [2.0, 0.3, 1.5, 0.8], [0.95, 0.95, 0.95, 0.95], [0.5] * 4])
+def test_dtlz2_with_four_objectives_cut_by_the_reference_against_monte_carlo(ref):
+    # a run's own reference (its warm-up's worst plus 10 %) may lie inside the ball in some objective
+    u = np.random.default_rng(8).random((400_000, 4)) * np.array(ref)
+    outside = np.linalg.norm(u, axis=1) >= 1.0
+    mc, se = np.prod(ref) * outside.mean(), np.prod(ref) * outside.std() / np.sqrt(len(u))
+    assert abs(mq.dtlz2_m4_front_hypervolume(ref) - mc) <= 4 * se + 1e-12
+    assert mq.dtlz2_m4_front_hypervolume(ref) <= np.prod(ref)
+
+
 def test_the_noisy_problem_sees_7_world_means_and_repeats_them_per_seed():
     problem = mq.PROBLEMS["ZDT3 (d=6), noisy"]
     x = np.random.default_rng(7).random((20_000, 6))
