@@ -158,23 +158,23 @@ def pool(exp_dir: Path, out: Path, first_round_per_config: int = 1) -> dict:
             if picked is None:
                 continue
             front, raced = picked[2], picked[6]
-            own = load_confirmation(opt.path, None, repetition_confirmation(config, protocol, seed))
+            confirmation = repetition_confirmation(config, protocol, seed)
+            own = load_confirmation(opt.path, None, confirmation)
             if own is None:
                 continue
             ev = opt.evaluations(opt.config())
             current = ev.take(np.flatnonzero(ev.current()))
             settings = repetition_race(config, protocol, seed, n_known)
             rows = racing.contenders(current, settings["max_force"])
-            k = len(rows)
-            while k > 1 and k * n_known * first_round_per_config > settings["episodes"] // max(1, int(np.ceil(np.log2(k)))):
-                k -= 1
+            # the race's own rule for K, with the first round's worlds per configuration asked for
+            k = max(1, schedule(len(rows), n_known * first_round_per_config, settings["episodes"])[0])
             pool_of = current.take(np.array(sorted(rows[:k])))  # contenders() orders them again
             here = out / f"seed-{seed}"
             here.mkdir(parents=True, exist_ok=True)
             won = racing.race(here, pool_of, rollout, settings, batch_size=6)
             params = pool_of.params[won.winner]
             candidates = Candidates(("picked", "operator_b"), ("picked", "manual"), np.stack([params, operator]))
-            conf, _ = confirm(here, rollout, candidates, repetition_confirmation(config, protocol, seed), batch_size=2)
+            conf, _ = confirm(here, rollout, candidates, confirmation, batch_size=2)
             b = own.candidates.names.index("operator_b")
             assert np.array_equal(conf.success[1], own.success[b]), "not the experiment's confirmation worlds"
             old = own.success[0]

@@ -27,6 +27,10 @@ def kind_of(mode: int) -> str:
     return next((name for test, name in KINDS if test(mode)), "not a regular file")
 
 
+# Opening without blocking: a FIFO's open returns at once instead of waiting for a writer.
+OPEN_FLAGS = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
+
+
 def read_regular(path, limit: int | None = None) -> bytes:
     """The bytes of the regular file ``path`` (the first ``limit + 1`` at most when ``limit`` is
     given, so that a caller sees a file over its bound). NotRegularFile for a FIFO, device,
@@ -36,10 +40,6 @@ def read_regular(path, limit: int | None = None) -> bytes:
     except IsADirectoryError:
         raise NotRegularFile(errno.EISDIR, "is a directory, not a regular file", str(path)) from None
     return read_open(fd, path, limit)
-
-
-# Opening without blocking: a FIFO's open returns at once instead of waiting for a writer.
-OPEN_FLAGS = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
 
 
 def read_open(fd: int, path, limit: int | None = None) -> bytes:

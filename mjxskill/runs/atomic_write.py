@@ -355,6 +355,7 @@ def read_below(root: Path, path: Path, limit: int | None = None) -> bytes:
         raise RunError(f"{path} holds more than the {limit} bytes expected")
     return data
 
+
 __all__ = ["DIR_FLAGS", "DISK_FAULTS", "STAGING", "append_text", "check_folder", "created_whole", "make_folder", "open_folder",
            "open_nofollow", "read_below", "refuse_link", "refuse_links_out", "remove_stale_staging", "replace_whole",
            "save_figure", "staging_name", "write_json", "write_text"]

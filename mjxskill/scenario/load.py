@@ -367,7 +367,6 @@ def _object(name: str, field: Field, types, predicates, names) -> WorldObject:
     )
 
 
-
 def _size(field: Field, shape: str, count: int, plane: bool) -> tuple[float, ...]:
     """``size``: ``count`` lengths in ``SIZE`` (m); an object that is a geom of the world body
     (``plane``) may have height 0: a plane (``mjxskill.sim.model`` checks which it is)."""
