@@ -23,7 +23,9 @@ the warm-up is shared by the methods of a seed, no method's proposals move the r
 
 Each run is a run directory under ``OUT/runs/<task>/<method>/seed-<s>`` (each batch on disk
 before the next; a killed benchmark started again with the same flags resumes the unfinished
-runs and skips the finished ones). After each finished run ``OUT/task_optimizers.jsonl`` is
+runs and skips the finished ones); the planned task's ``domain.pddl``, ``problem.pddl``,
+``plan.txt`` and ``bt.txt`` are written once per task, in ``OUT/runs/<task>/``, and the runs
+hold no copies of them. After each finished run ``OUT/task_optimizers.jsonl`` is
 rewritten whole, one line per finished run: ``task``, ``method``, ``seed``, ``budget``,
 ``batch_size``, ``n_init``, ``worlds``, ``episode_seconds``, ``hypervolume`` (final, about the
 task's reference), ``hypervolume_history`` (after each batch), ``reference`` (rewards, larger
@@ -150,6 +152,16 @@ def ask_seconds(run_path: Path) -> list[float]:
     return [by_rows[rows] for rows in sorted(by_rows)]
 
 
+def write_planning(folder: Path, task) -> None:
+    """The planned task's files in ``folder`` (``OUT/runs/<task>``), once for its runs as an
+    experiment writes them once for its own: a file there already is kept (that of the first
+    runs, which a later invocation adds to)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, text in planning_texts(task).items():
+        if not os.path.lexists(folder / name):
+            write_text(folder / name, text if text.endswith("\n") else text + "\n")
+
+
 def run_one(rollout, scn, task, method: str, seed: int, args, path: Path):
     """The run of ``method`` and ``seed`` in ``path``, created or resumed; its evaluations."""
     # The paper's protocol: the optimizers are compared on the same rows, each set once in its
@@ -161,7 +173,7 @@ def run_one(rollout, scn, task, method: str, seed: int, args, path: Path):
     config = new_run_config(scn, task, scn.name, settings, options)
     run = Run(path)
     if not (path / "config.yaml").is_file():
-        run.create(config, scn.source, planning_texts(task))
+        run.create(config, scn.source, {})  # the task's planning files: once, write_planning
     else:
         run.check(config)
     real, loop.propose = loop.propose, timed_propose(path)  # the loop calls it through the module
@@ -264,6 +276,7 @@ def benchmark(args) -> list[dict]:
     for task_name in args.task_list:
         scn = load_scenario(task_name)
         task = plan_task(scn)
+        write_planning(args.out / "runs" / task_name, task)
         seconds = args.episode_seconds or scn.episode_seconds
         print(f"{task_name}: native engine, {args.worlds} worlds, {seconds:g} s episodes, budget {args.budget} = "
               f"{args.init} warm-up + batches of {args.batch}, seeds {args.first_seed}..{args.first_seed + args.seeds - 1}",

@@ -15,6 +15,8 @@ import optuna  # noqa: E402,F401  (the test extra's; the benchmark imports it)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import task_optimizers as bench  # noqa: E402
 from mjxskill.runs.run_dir import EVALUATIONS, Run  # noqa: E402
+from mjxskill.scenario import load_scenario  # noqa: E402
+from mjxskill.task import plan_task  # noqa: E402
 
 METHODS = ("mjxskill.gp", "optuna-nsga2", "optuna-tpe", "random")
 
@@ -63,6 +65,17 @@ def test_methods_share_the_warm_up_and_the_reference_and_the_hypervolume_is_the_
             y = evs[r["method"]].objectives
             assert r["hypervolume"] == pytest.approx(hypervolume_2d(y, ref), rel=1e-9)
             assert r["hypervolume_history"][0] == pytest.approx(hypervolume_2d(y[:6], ref), rel=1e-9)
+
+
+def test_the_planning_files_are_written_once_per_task_beside_its_runs(quick):
+    out, _ = quick
+    planning = ("domain.pddl", "problem.pddl", "plan.txt", "bt.txt")
+    for task in ("push", "peg"):
+        where = out / "runs" / task
+        assert sorted(p.relative_to(where).as_posix() for name in planning for p in where.rglob(name)) == sorted(planning)
+        task_plan = plan_task(load_scenario(task))
+        assert (where / "domain.pddl").read_text().rstrip("\n") == task_plan.domain_pddl.rstrip("\n")
+        assert (where / "plan.txt").read_text() == f"; goal: {task_plan.goal}\n" + "\n".join(task_plan.plan) + "\n"
 
 
 def test_started_again_it_resumes_the_unfinished_run_and_keeps_the_finished(quick):

@@ -110,6 +110,21 @@ def test_an_experiment_is_created_only_where_nothing_is(experiment, tmp_path):
     assert (tmp_path / "mine" / "notes.txt").read_text() == "mine"
 
 
+def test_the_planning_files_are_written_once_at_the_experiments_root(experiment):
+    exp, _ = experiment
+    planning = ("domain.pddl", "problem.pddl", "plan.txt", "bt.txt")
+    # nowhere below the root: not in optimizer/ or random_search/, not in a seed's run
+    assert sorted(p.relative_to(exp.path).as_posix() for name in planning for p in exp.path.rglob(name)) == sorted(planning)
+    on_disk = {name: (exp.path / name).read_text() for name in planning}
+    # the planned task, each file ended by one newline
+    assert on_disk["domain.pddl"].rstrip("\n") == TASK.domain_pddl.rstrip("\n")
+    assert on_disk["problem.pddl"].rstrip("\n") == TASK.problem_pddl.rstrip("\n")
+    assert on_disk["plan.txt"] == f"; goal: {TASK.goal}\n" + "\n".join(TASK.plan) + "\n"
+    assert {name: text.rstrip("\n") for name, text in on_disk.items()} == {
+        name: text.rstrip("\n") for name, text in planning_texts(TASK).items()}
+    assert all(text.endswith("\n") and not text.endswith("\n\n") for text in on_disk.values())
+
+
 def test_the_report_covers_the_finished_repetitions_with_the_stated_pick(experiment):
     exp, rollout = experiment
     report = json.loads((exp.path / "report.json").read_text())

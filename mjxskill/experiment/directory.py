@@ -1,6 +1,8 @@
 """An experiment directory: its protocol (``experiment.yaml``), its two repeated runs, its state.
 
-Layout: ``mjxskill.runs.layout``. ``experiment.yaml`` holds what the runs' ``config.yaml``
+Layout: ``mjxskill.runs.layout``. The planned task's files (``domain.pddl``, ``problem.pddl``,
+``plan.txt``, ``bt.txt``) are written once, in the experiment directory: its runs, all of one
+task, hold no copies of them. ``experiment.yaml`` holds what the runs' ``config.yaml``
 files do not: how each repetition is evaluated (worlds per start configuration, random sets,
 the pick's force bound and its validation; the validation alone may be changed when the
 experiment is resumed, ``Experiment.set_validation``). The training settings are the runs' own: ``optimizer/config.yaml``
@@ -30,7 +32,7 @@ from mjxskill.errors import RunError
 from mjxskill.scenario.fields import compose_text, read_text
 from mjxskill.runs.atomic_write import write_json, write_text
 from mjxskill.evaluation.evaluate_run import evaluation_settings
-from mjxskill.runs.run_dir import Run, RunConfig, created_whole
+from mjxskill.runs.run_dir import Run, RunConfig, created_whole, write_texts
 from mjxskill.runs.run_lock import RunLock, lock_run
 from mjxskill.evaluation.pooled import GIVEN, force_bound
 from mjxskill.evaluation.confirmation import confirmation_settings
@@ -120,16 +122,18 @@ class Experiment:
         self._state_lock = threading.RLock()  # one read-modify-write of state.json at a time
 
     def create(self, config: RunConfig, protocol: Protocol, scenario_source: str, texts: dict[str, str]) -> None:
-        """Writes experiment.yaml and the two repeated runs of ``config`` (optimizer "mobo");
-        all or nothing, and only where nothing is (a missing or empty folder)."""
+        """Writes experiment.yaml, the planning artefacts ``texts`` (file name -> text) and the
+        two repeated runs of ``config`` (optimizer "mobo"), which get none of their own; all or
+        nothing, and only where nothing is (a missing or empty folder)."""
         if (self.path / EXPERIMENT).exists():
             raise RunError(f"{self.path} already holds an experiment; continue it with --resume {self.path}")
         if self.path.exists() and (not self.path.is_dir() or os.listdir(self.path)):
             raise RunError(f"{self.path} is not empty and holds no mjxskill experiment; refusing to write into it: "
                            f"choose another --out")
         with created_whole(self.path, "experiment directory") as staging:
-            Run(staging / OPTIMIZER_RUNS).create(replace(config, optimizer="mobo"), scenario_source, texts)
-            Run(staging / RANDOM_RUNS).create(random_search_config(config), scenario_source, texts)
+            write_texts(staging, texts)
+            Run(staging / OPTIMIZER_RUNS).create(replace(config, optimizer="mobo"), scenario_source, {})
+            Run(staging / RANDOM_RUNS).create(random_search_config(config), scenario_source, {})
             (staging / EXPERIMENT).write_text(protocol.to_yaml(config.task))
 
     def protocol(self) -> Protocol:

@@ -15,6 +15,7 @@ evaluations of its own, one run per seed::
 An **experiment** (``python -m mjxskill.experiment``; ``mjxskill.experiment``)::
 
     EXP/experiment.yaml                                  the evaluation protocol
+    EXP/domain.pddl, problem.pddl, plan.txt, bt.txt      the planned task, once (its runs hold none)
     EXP/optimizer/                                       a repeated run, optimizer mobo
     EXP/random_search/                                   a repeated run, optimizer random
     EXP/state.json                                       wall times per repetition

@@ -5,6 +5,9 @@ Layout of a run directory::
     config.yaml          resolved scenario summary and flags (the run's identity)
     scenario.yaml        verbatim copy of the scenario file that was trained
     domain.pddl, problem.pddl, plan.txt, bt.txt
+                         the planned task (``mjxskill.task.planning_texts``), for the reader: nothing
+                         reads them back; a run of an experiment has none (the experiment holds
+                         them once, ``mjxskill.runs.layout``)
     evaluations.csv      one row per evaluation, appended and flushed batch by batch
     pareto.csv           the non-dominated rows of evaluations.csv
     optimizer_state.npz  the GP optimizer's state (``mjxskill.gp.save_state``)
@@ -78,7 +81,8 @@ class Run:
     # -- creation and identity -----------------------------------------------------------------
     def create(self, config: RunConfig, scenario_source: str, texts: dict[str, str]) -> None:
         """Writes config.yaml, the scenario copy, the planning artefacts ``texts`` (file name ->
-        text) and the header of evaluations.csv (with ``repeats`` > 1: one sub-run per seed).
+        text; {} for the runs of an experiment, which holds them once) and the header of
+        evaluations.csv (with ``repeats`` > 1: one sub-run per seed, each with ``texts`` too).
         Refuses a directory that holds a run or anything else; writes all or nothing."""
         self._check_free()
         # on a failure, another process may have got there first: say so
@@ -188,10 +192,16 @@ class Run:
         return subs
 
 
-def _write_run(folder: Path, config: RunConfig, scenario_text: str, texts: dict[str, str]) -> None:
-    (folder / SCENARIO_COPY).write_text(scenario_text)
+def write_texts(folder: Path, texts: dict[str, str]) -> None:
+    """Writes each text of ``texts`` (file name -> text, ended by a newline) into ``folder``, a
+    staging folder being created (``created_whole``): a run's or an experiment's planning files."""
     for name, text in texts.items():
         (folder / name).write_text(text if text.endswith("\n") else text + "\n")
+
+
+def _write_run(folder: Path, config: RunConfig, scenario_text: str, texts: dict[str, str]) -> None:
+    (folder / SCENARIO_COPY).write_text(scenario_text)
+    write_texts(folder, texts)
     if config.repeats == 1:
         write_csv(folder / EVALUATIONS, config.columns(), Evaluations.empty(len(config.parameter_names), len(config.objective_names),
                                                                          config.pooled))
@@ -200,4 +210,4 @@ def _write_run(folder: Path, config: RunConfig, scenario_text: str, texts: dict[
 
 __all__ = ["CONFIG", "EVALUATIONS", "FORMAT", "LOCK_FILE", "OPTIMIZER_STATE", "PARETO", "RUN_STATE", "SCENARIO_COPY",
            "Evaluations", "Run", "RunConfig", "batch_sizes", "created_whole", "evaluation_columns", "read_csv", "remove_stale_staging",
-           "write_csv"]
+           "write_csv", "write_texts"]
