@@ -70,7 +70,7 @@ def test_peg_tree_matches_skireil(peg):
     assert dict(leaves["overlay_spiral"].params) == {
         "radius": "PegInsertion.radius", "path_velocity": "PegInsertion.path_velocity",
     }
-    assert leaves["overlay_spiral"].args == {"pitch": 0.002}  # a constant of the skill
+    assert leaves["overlay_spiral"].args == {"pitch": 0.0015}  # a constant: the library's, as peg.yaml sets it
     # the insertion goal is the box's origin (SkiREIL: its centre); with the hole's opening
     # 0.05 m above it, the 0.04 m distance check succeeds once the peg is 0.01 m deep (success)
     goal = leaves["set_goal_from_object"]
@@ -181,7 +181,7 @@ def test_a_parameter_not_marked_learnable_becomes_a_fixed_argument(peg):
     tree, parameters = plan_to_tree(scn, plan_task(peg).steps)
     assert [p.name for p in parameters] == ["PegInsertion.force", "PegInsertion.path_velocity"]
     spiral = next(n for n in tree.leaves() if n.primitive == "overlay_spiral")
-    assert spiral.args == {"radius": 0.0, "pitch": 0.002} and "radius" not in spiral.params
+    assert spiral.args == {"radius": 0.0, "pitch": 0.0015} and "radius" not in spiral.params
 
 
 @pytest.mark.parametrize(

@@ -45,8 +45,8 @@ DATA = Path(__file__).resolve().parent / "data"
 def test_the_trees_from_the_yaml_skill_library_are_the_trees_python_built(task):
     # tests/data/plan_<task>.txt: the command's output (after its first line, which names the
     # scenario's path) when the skills' trees were built in Python (commit f26d09d); the peg's
-    # with the spiral's pitch a constant of the library (2 mm), as the paper learns three
-    # parameters, and its approach done 5 mm from its pose (peg.yaml's skill_parameters)
+    # with the spiral's pitch a constant (the paper learns three parameters), and its approach
+    # done 5 mm from its pose and its pitch 1.5 mm (peg.yaml's skill_parameters)
     run = cli("mjxskill.plan", task)
     assert run.returncode == 0, run.stderr
     assert run.stdout.splitlines()[1:] == (DATA / f"plan_{task}.txt").read_text().splitlines()
