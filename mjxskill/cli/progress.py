@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from mjxskill.gp.pareto import hypervolume
 from mjxskill.runs.run_dir import Evaluations
 
 
@@ -24,10 +25,6 @@ class Progress:
         self.t0 = time.monotonic()
 
     def _fields(self, ev: Evaluations, ref) -> dict:
-        # lazy: mjxskill.gp imports jax and scipy (~2 s); train's and experiment's --help and
-        # bad-input errors import this module
-        from mjxskill.gp import hypervolume
-
         current = ev.current()
         hv = hypervolume(-ev.objectives[current], ref) if ref is not None and len(ev) else float("nan")
         best = float(np.max(ev.success_rate[current])) if len(ev) else float("nan")
