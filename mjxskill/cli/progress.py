@@ -10,6 +10,7 @@ import time
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from mjxskill.gp.pareto import hypervolume
 from mjxskill.runs.run_dir import Evaluations
@@ -33,9 +34,6 @@ class Progress:
     def start(self, ev: Evaluations, ref) -> None:
         if self.quiet:
             return
-        # lazy: tqdm costs ~0.025 s (6 % of train --help and of its bad-input errors), and --quiet never draws a bar
-        from tqdm import tqdm
-
         self.bar = tqdm(total=self.total, initial=len(ev), desc=self.label or "evaluations", unit="eval", file=sys.stderr, dynamic_ncols=True)
         self.bar.set_postfix(self._fields(ev, ref))
 

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Callable, NamedTuple, Protocol
 import numpy as np
 
 from mjxskill import gp
+from mjxskill.engine.common.keys import stream_key
 from mjxskill.runs.atomic_write import replace_whole
 from mjxskill.training.front import pareto_mask_of, reference_from
 from mjxskill.runs.evaluations_csv import FORCE_COLUMNS
@@ -63,9 +64,7 @@ class Progress(Protocol):
 def rollout_key(seed: int, iteration: int):
     """PRNG key of batch ``iteration``'s worlds: depends only on (seed, batch index), so a
     resumed run draws the same worlds. A stream separate from the optimizer's keys."""
-    import jax  # lazy: ~1 s; train's and experiment's --help and bad-input errors import this module
-
-    return jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), 0x0ED0), iteration)
+    return stream_key(seed, 0x0ED0, iteration)
 
 
 def rollout_evaluator(rollout: Rollout, batch_size: int, seed: int) -> BatchEvaluator:
@@ -171,11 +170,9 @@ def _pooled_batch(optimizer: Optimizer, state, config: RunConfig, earlier: Evalu
     roll out again the sets ``replication.choose`` names (the Bayesian optimizer's runs only:
     what it is compared with proposes as it would alone), the others new proposals; the rows of
     the first pool their earlier worlds."""
-    import jax  # lazy, as rollout_key's
-
     again = np.zeros(0, int)
     if optimizer.name == "mobo" and len(state.x) >= config.n_init and size > 1:
-        key = jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(config.seed), REPLICATION_STREAM), batch)
+        key = stream_key(config.seed, REPLICATION_STREAM, batch)
         again = replication.choose(earlier, min(REPLICATIONS_PER_BATCH, size - 1), config.worlds, config.bounds, key)
     x = optimizer.ask(state, size - len(again))
     result = evaluate(np.concatenate([x, earlier.params[again]]), batch)
