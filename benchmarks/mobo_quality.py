@@ -503,7 +503,7 @@ def run_botorch(problem, seed, method="qLogNEHVI"):
     from botorch.optim.optimize import optimize_acqf_list
     from botorch.sampling import SobolQMCNormalSampler
 
-    from mjxskill.training.botorch_search import MAX_ITER, MC_SAMPLES, RAW_SAMPLES, RESTARTS, qlognehvi_batch, tutorial_model
+    from mjxskill.training.botorch_tutorial import MAX_ITER, MC_SAMPLES, RAW_SAMPLES, RESTARTS, qlognehvi_batch, tutorial_model
 
     # BoTorch warns on every jittered Cholesky and restarted L-BFGS-B; they change nothing here.
     warnings.filterwarnings("ignore", module=r"(botorch|linear_operator|gpytorch)(\.|$)")

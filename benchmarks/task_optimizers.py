@@ -77,6 +77,7 @@ from mjxskill.task import plan_task, planning_texts  # noqa: E402
 from mjxskill.training import loop  # noqa: E402
 from mjxskill.training.configure import new_run_config  # noqa: E402
 from mjxskill.training.front import hypervolume_reference  # noqa: E402
+from mjxskill.training.optimizers import Optimizer, make_optimizer  # noqa: E402
 
 METHODS = {"mjxskill.gp": "mobo", "optuna-nsga2": "optuna-nsga2", "optuna-tpe": "optuna-tpe",
            "optuna-gp": "optuna-gp", "botorch-qlognehvi": "botorch-qlognehvi", "random": "random"}
@@ -126,21 +127,28 @@ def parse(argv=None) -> argparse.Namespace:
     return args
 
 
-def timed_propose(run_path: Path):
-    """``loop.propose`` timed, each proposal after the warm-up appended to the run's ASK_TIMES
-    (rows so far, seconds) before its batch is evaluated: the optimizer's own time per ask."""
-    propose = loop.propose
+class TimedOptimizer:
+    """The run's optimizer, each proposal after the warm-up timed and appended to the run's
+    ASK_TIMES (rows so far, seconds) before its batch is evaluated: the optimizer's own time per ask."""
 
-    def timed(gp, state, config, size):
+    def __init__(self, optimizer: Optimizer, run_path: Path, n_init: int):
+        self.optimizer, self.run_path, self.n_init = optimizer, run_path, n_init
+        self.name = optimizer.name
+
+    def init(self):
+        return self.optimizer.init()
+
+    def ask(self, state, size: int) -> np.ndarray:
         started = time.perf_counter()
-        x = propose(gp, state, config, size)
+        x = self.optimizer.ask(state, size)
         seconds = time.perf_counter() - started
-        if len(state.x) >= config.n_init:
-            with open(run_path / ASK_TIMES, "a", newline="") as fh:
+        if len(state.x) >= self.n_init:
+            with open(self.run_path / ASK_TIMES, "a", newline="") as fh:
                 fh.write(f"{len(state.x)},{seconds:.6f}\n")
         return x
 
-    return timed
+    def tell(self, state, x, y, noise=None):
+        return self.optimizer.tell(state, x, y, noise)
 
 
 def ask_seconds(run_path: Path) -> list[float]:
@@ -176,12 +184,9 @@ def run_one(rollout, scn, task, method: str, seed: int, args, path: Path):
         run.create(config, scn.source, {})  # the task's planning files: once, write_planning
     else:
         run.check(config)
-    real, loop.propose = loop.propose, timed_propose(path)  # the loop calls it through the module
-    try:
-        with run.lock():
-            return loop.train(run, config, loop.rollout_evaluator(rollout, config.batch_size, seed))
-    finally:
-        loop.propose = real
+    optimizer = TimedOptimizer(make_optimizer(config.optimizer, config), path, config.n_init)
+    with run.lock():
+        return loop.train(run, config, loop.rollout_evaluator(rollout, config.batch_size, seed), optimizer=optimizer)
 
 
 def validated_pick(run: Run, rollout, scn, seed: int, per_config: int, fresh_per_config: int) -> dict:

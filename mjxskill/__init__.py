@@ -9,8 +9,7 @@ the command line (``cli``).
     from mjxskill import load_scenario, plan_task, build_model, compile_rollout
 """
 
-import importlib
-
+from mjxskill._lazy import lazy_getattr
 from mjxskill._runtime import configure_xla_flags as _configure_xla_flags
 
 # Must run before anything creates a JAX backend (see mjxskill/_runtime.py). Importing the
@@ -29,9 +28,4 @@ _EXPORTS = {
 }
 
 __all__ = ["__version__", *_EXPORTS]
-
-
-def __getattr__(name):
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module 'mjxskill' has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _EXPORTS)

@@ -125,7 +125,7 @@ def test_no_import_cycles():
     assert cycles == []
 
 
-CORE = ("scenario", "planner", "ebt", "task", "bt_compiled", "sim", "engine", "gp", "errors", "_runtime")
+CORE = ("scenario", "planner", "ebt", "task", "bt_compiled", "sim", "engine", "gp", "errors", "_runtime", "_lazy", "_headless")
 # the applications over the core, each only importing those before it: the run directory, the
 # optimizer loop, what follows training, the experiment and the explore page, the command line
 APPLICATIONS = ("runs", "training", "evaluation", "experiment", "explore", "cli")
@@ -313,6 +313,18 @@ def test_every_function_local_import_says_why_it_is_local():
         if not _not_yet_checked(name):
             bad += uncommented_local_imports(path.read_text(), str(path.relative_to(PACKAGE.parent)))
     assert bad == [], "function-local imports without a comment saying why:\n" + "\n".join(bad)
+
+
+# Imports sit at the top of their module; a function-local one is kept only where importing it
+# at the top would make a light command (plan, select, --help, bad input) import jax, mujoco,
+# torch, optuna, ray or matplotlib, or an order or cycle requires it (issue 45: 75 then)
+MAX_LOCAL_IMPORTS = 30
+
+
+def test_few_imports_are_function_local():
+    found = [f"{path.relative_to(PACKAGE.parent)}:{node.lineno}" for path in modules().values()
+             for node in _local_imports(ast.parse(path.read_text(), str(path)))]
+    assert len(found) <= MAX_LOCAL_IMPORTS, "\n".join(found)
 
 
 def test_not_yet_checked_names_modules_that_exist():

@@ -54,9 +54,10 @@ def test_without_the_extra_train_says_how_to_install_it(monkeypatch, capsys, tmp
 
 def test_it_proposes_after_the_shared_warm_up_improves_and_resumes_to_the_same_rows(tmp_path, monkeypatch):
     require("botorch")  # not in the test extra: torch is a multi-GB download
+    tutorial = require("mjxskill.training.botorch_tutorial")  # imports BoTorch: only with the extra
     # a smaller search than the tutorial's: the same code, a fraction of the time
     for name, value in (("RESTARTS", 2), ("RAW_SAMPLES", 64), ("MAX_ITER", 30), ("MC_SAMPLES", 32)):
-        monkeypatch.setattr(botorch_search, name, value)
+        monkeypatch.setattr(tutorial, name, value)
     random_config = replace(TOY, optimizer="random")
     random_rows = train(new_run(tmp_path, "random", random_config), random_config, toy_objective)
     full = new_run(tmp_path, "full", TOY)

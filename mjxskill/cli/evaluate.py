@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Sequence
 
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
+from mjxskill.cli.experiment import change_validation, settle_bound
 from mjxskill.engine.build import CHOICES, build_rollout, resolve_engine
 from mjxskill.errors import CommandError
 from mjxskill.evaluation.baselines import table
@@ -34,6 +35,9 @@ from mjxskill.evaluation.pooled import force_bound, group_means, pick, plot_pool
 from mjxskill.evaluation import racing
 from mjxskill.evaluation.validation import in_contention, validate, validation_settings
 from mjxskill.experiment.directory import Experiment, is_done, repetition_settings, runs_of
+from mjxskill.experiment.driver import confirm_timed, evaluate_timed, race_timed, validate_timed
+from mjxskill.experiment.picks import repetition_pick
+from mjxskill.experiment.report import write_report
 from mjxskill.runs.atomic_write import make_folder, refuse_links_out, write_text
 from mjxskill.runs.layout import directory_kind, experiment_holding
 from mjxskill.runs.run_dir import Run
@@ -226,13 +230,6 @@ def _pool(run, config, results, bound) -> str:
 
 
 def _experiment(args: argparse.Namespace) -> int:
-    # lazy: an experiment's driver and report, and the experiment command's flags, cost evaluate
-    # --help and its bad-input errors ~0.03 s (+7 %); only an experiment directory needs them
-    from mjxskill.cli.experiment import change_validation, settle_bound
-    from mjxskill.experiment.driver import confirm_timed, evaluate_timed, race_timed, validate_timed
-    from mjxskill.experiment.picks import repetition_pick
-    from mjxskill.experiment.report import write_report
-
     exp = Experiment(args.run)
     config, protocol = exp.config(), exp.protocol()
     exp.state()  # the wall times the report shows: a damaged file is said before anything is written

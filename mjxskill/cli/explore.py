@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Sequence
 
 from mjxskill import cli
+from mjxskill._headless import default_gl
 from mjxskill.cli import args as cli_args
 from mjxskill.errors import CommandError
 from mjxskill.runs.atomic_write import refuse_links_out
@@ -37,9 +38,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _main(args: argparse.Namespace) -> int:
-    # lazy: render imports numpy (~0.06 s), and explore --help takes 0.13 s without it
-    from mjxskill.evaluation.render import default_gl
-
     default_gl()  # before anything imports mujoco (the on-demand rendering)
     # lazy: these import mujoco, which reads MUJOCO_GL once, when imported (and ~0.35 s)
     from mjxskill.explore.server import Explorer, make_explore_server

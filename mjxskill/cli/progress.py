@@ -10,7 +10,9 @@ import time
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
+from mjxskill.gp.pareto import hypervolume
 from mjxskill.runs.run_dir import Evaluations
 
 
@@ -24,10 +26,6 @@ class Progress:
         self.t0 = time.monotonic()
 
     def _fields(self, ev: Evaluations, ref) -> dict:
-        # lazy: mjxskill.gp imports jax and scipy (~2 s); train's and experiment's --help and
-        # bad-input errors import this module
-        from mjxskill.gp import hypervolume
-
         current = ev.current()
         hv = hypervolume(-ev.objectives[current], ref) if ref is not None and len(ev) else float("nan")
         best = float(np.max(ev.success_rate[current])) if len(ev) else float("nan")
@@ -36,9 +34,6 @@ class Progress:
     def start(self, ev: Evaluations, ref) -> None:
         if self.quiet:
             return
-        # lazy: tqdm costs ~0.025 s (6 % of train --help and of its bad-input errors), and --quiet never draws a bar
-        from tqdm import tqdm
-
         self.bar = tqdm(total=self.total, initial=len(ev), desc=self.label or "evaluations", unit="eval", file=sys.stderr, dynamic_ncols=True)
         self.bar.set_postfix(self._fields(ev, ref))
 

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, NamedTuple, Sequence
 
 import numpy as np
 
-from mjxskill.training.report import pyplot
+from mjxskill._headless import pyplot
 from mjxskill.runs.atomic_write import replace_whole, save_figure
 
 if TYPE_CHECKING:  # pragma: no cover

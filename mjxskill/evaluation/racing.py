@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from mjxskill.engine.common.keys import stream_key
 from mjxskill.errors import RunError
 from mjxskill.evaluation.baselines import evaluate_chunk
 from mjxskill.runs.atomic_write import write_json
@@ -177,10 +178,8 @@ def _survivors(rounds: list[Round], front: Evaluations, alive, done: int, plan) 
 def _roll(rollout: Rollout, params: np.ndarray, per_config: int, settings: dict, index: int, batch_size: int):
     """(worlds succeeded, summed seconds to success with failures as whole episodes) per row of
     ``params``, in round ``index``'s worlds."""
-    import jax  # lazy: ~1 s; train's --help imports this module
-
     known = np.asarray(rollout.scenario.robot.start_configs)
-    key = jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(settings["seed"]), STREAM), index)
+    key = stream_key(settings["seed"], STREAM, index)
     worlds = rollout.worlds_per_config(key, per_config, known)
     # MJX compiles one shape: calls of batch_size rows, padded; the native engine takes every
     # contender of the round in one call (padding would roll out copies for nothing)

@@ -5,7 +5,8 @@ mocap bodies at every BT tick, 10 Hz) and replayed into the native ``MjModel`` f
 each frame shows the world as that world had it: the object where the world started it, the
 goal and its fixture (mocap bodies) where the world put them. MuJoCo needs an OpenGL backend
 chosen *before* ``mujoco`` is imported: ``MUJOCO_GL=egl`` (headless GPU or Mesa's EGL),
-``osmesa`` (software) or ``glfw`` (a display). ``python -m mjxskill.select`` defaults to egl.
+``osmesa`` (software) or ``glfw`` (a display). ``python -m mjxskill.select`` defaults to egl
+(``default_gl``, from ``mjxskill._headless``: importing this module imports no mujoco).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
+from mjxskill._headless import default_gl, pyplot  # noqa: F401  (default_gl: callers import it from here too)
 from mjxskill.errors import UserError
 from mjxskill.runs.outputs import write_outputs
 
@@ -42,15 +44,9 @@ class RenderUnavailable(UserError):
         self.reason = reason
 
 
-def default_gl() -> None:
-    """Picks the headless EGL backend unless the user chose one (call before importing mujoco)."""
-    if "DISPLAY" not in os.environ:
-        os.environ.setdefault("MUJOCO_GL", "egl")
-
-
 def _camera(model, data):
-    # lazy: mujoco reads MUJOCO_GL once, when imported; default_gl() above must come first, and
-    # select and explore import this module before they call it
+    # lazy: mujoco reads MUJOCO_GL once, when imported; default_gl() (mjxskill._headless) must
+    # come first, and select and explore import this module before they call it
     import mujoco
 
     cam = mujoco.MjvCamera()
@@ -107,12 +103,7 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progres
 
 def png_frames(images: np.ndarray) -> dict[str, bytes]:
     """The frames as PNG files (``frame_0000.png`` -> its bytes), for the writer to put in place."""
-    # lazy: matplotlib.pyplot ~0.4 s, for the frames only (select --no-render, the explore page's other jobs)
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # lazy, as matplotlib: and after the backend is chosen
-
+    plt = pyplot()
     files = {}
     for t, image in enumerate(images):
         buffer = io.BytesIO()
@@ -126,12 +117,8 @@ def mp4_bytes(images: np.ndarray, fps: float) -> bytes:
     temporary folder: the writer puts the bytes in place."""
     if shutil.which("ffmpeg") is None:
         raise RenderUnavailable("MP4 needs ffmpeg on the PATH (apt-get install ffmpeg); use --format png for PNG frames")
-    # lazy: matplotlib.pyplot ~0.4 s, for the frames only (select --no-render, the explore page's other jobs)
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # lazy, as matplotlib: and after the backend is chosen
-    from matplotlib.animation import FFMpegWriter
+    plt = pyplot()
+    from matplotlib.animation import FFMpegWriter  # lazy: after pyplot() chose the backend, as pyplot
 
     h, w = images.shape[1:3]
     fig = plt.figure(figsize=(w / 100, h / 100), dpi=100)

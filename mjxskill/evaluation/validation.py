@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, NamedTuple, Sequence
 
 import numpy as np
 
+from mjxskill.engine.common.keys import stream_key
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
 from mjxskill.runs.atomic_write import make_folder, write_json
@@ -85,10 +86,8 @@ def in_contention(front: Evaluations, max_force: float | None, n: int) -> list[i
 
 def validation_worlds(rollout: Rollout, per_config: int, seed: int):
     """``per_config`` worlds from each known start configuration, from ``seed``'s own stream."""
-    import jax  # lazy: ~1 s; evaluate's and select's --help and bad-input errors import this module
-
     known = np.asarray(rollout.scenario.robot.start_configs)
-    return rollout.worlds_per_config(jax.random.fold_in(jax.random.PRNGKey(seed), STREAM), per_config, known), len(known)
+    return rollout.worlds_per_config(stream_key(seed, STREAM), per_config, known), len(known)
 
 
 def validate_rows(rollout: Rollout, params: np.ndarray, per_config: int, seed: int, pad_to: int = 0,

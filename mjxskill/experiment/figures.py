@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from mjxskill.training.front import pareto_mask_of
-from mjxskill.training.report import objective_label, pyplot
+from mjxskill._headless import pyplot
+from mjxskill.training.report import objective_label
 from mjxskill.runs.atomic_write import save_figure
 
 FRONTS = "fronts.png"

@@ -12,39 +12,40 @@ lie: it shapes the warm-up and weights the acquisition (piBO); ``pareto_mask`` a
 ``hypervolume`` to read the result. Objectives are minimized.
 
 The GP computes in float64 inside local ``jax.enable_x64(True)`` scopes; importing this
-package does not change ``jax_enable_x64`` for the rest of the process.
+package does not change ``jax_enable_x64`` for the rest of the process. The names above load
+lazily (as ``mjxskill.engine.mjx``'s): importing the package imports no jax, and
+``pareto_mask``, ``hypervolume`` and the settings (``mjxskill.gp.pareto``, ``mjxskill.gp.settings``)
+never do.
 """
 
-from mjxskill.gp.optimizer import (
-    MOBOConfig,
-    MOBOResult,
-    MOBOState,
-    ask,
-    init,
-    load_state,
-    minimize,
-    observed,
-    save_state,
-    tell,
-)
-from mjxskill.gp.pareto import hypervolume, pareto_mask
-from mjxskill.gp.prior import Prior
-from mjxskill.gp.settings import AcquisitionSettings, acquisition_settings
+from typing import TYPE_CHECKING
 
-__all__ = [
-    "AcquisitionSettings",
-    "MOBOConfig",
-    "MOBOResult",
-    "MOBOState",
-    "Prior",
-    "acquisition_settings",
-    "ask",
-    "hypervolume",
-    "init",
-    "load_state",
-    "minimize",
-    "observed",
-    "pareto_mask",
-    "save_state",
-    "tell",
-]
+from mjxskill._lazy import lazy_getattr
+
+if TYPE_CHECKING:  # what __getattr__ below gives, for the type checker
+    from mjxskill.gp.optimizer import (
+        MOBOConfig,
+        MOBOResult,
+        MOBOState,
+        ask,
+        init,
+        load_state,
+        minimize,
+        observed,
+        save_state,
+        tell,
+    )
+    from mjxskill.gp.pareto import hypervolume, pareto_mask
+    from mjxskill.gp.prior import Prior
+    from mjxskill.gp.settings import AcquisitionSettings, acquisition_settings
+
+_EXPORTS = {
+    **dict.fromkeys(("MOBOConfig", "MOBOResult", "MOBOState", "ask", "init", "load_state", "minimize", "observed",
+                     "save_state", "tell"), "mjxskill.gp.optimizer"),
+    **dict.fromkeys(("hypervolume", "pareto_mask"), "mjxskill.gp.pareto"),
+    "Prior": "mjxskill.gp.prior",
+    **dict.fromkeys(("AcquisitionSettings", "acquisition_settings"), "mjxskill.gp.settings"),
+}
+
+__all__ = sorted(_EXPORTS)
+__getattr__ = lazy_getattr(__name__, _EXPORTS)

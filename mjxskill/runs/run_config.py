@@ -17,7 +17,9 @@ from typing import Iterator
 
 import yaml
 
+from mjxskill import gp
 from mjxskill.errors import RunError
+from mjxskill.gp.settings import DEFAULTS_BY_GENERATION, GENERATION, acquisition_defaults, acquisition_settings
 from mjxskill.scenario.fields import Field, compose_text
 from mjxskill.runs.evaluations_csv import FORCE_COLUMNS, POOLING_COLUMNS, SPREAD_PREFIX
 from mjxskill.runs.settings import NO_DEFAULT, SETTINGS, cross_problems, optimizer_option_value
@@ -56,8 +58,8 @@ class RunConfig:
     repeats: int = 1
     optimizer_options: dict = field(default_factory=dict)  # {acquisition setting: value}, see optimizer_config
     engine: str = "mjx"  # the physics engine its batches run on (mjxskill.engine.build); "mjx" before the setting
-    # "random": uniform random search after the warm-up; "optuna-*": one of Optuna's samplers
-    # (mjxskill.training.loop)
+    # "random": uniform random search after the warm-up; "optuna-*": one of Optuna's samplers; ...
+    # (mjxskill.training.optimizers)
     optimizer: str = "mobo"
     # How the run spends its episodes (mjxskill.runs.training_protocol); "paper" before the setting.
     protocol: str = "paper"
@@ -210,9 +212,7 @@ def gp_prior(prior: dict | None):
     """The ``mjxskill.gp.Prior`` of a run's stored prior (None: none); ValueError if it is none."""
     if prior is None:
         return None
-    from mjxskill.gp import Prior  # lazy: gp imports jax and scipy (~2 s), see optimizer_config
-
-    return Prior(mean=prior["mean"], std=prior["std"], weights=prior["weights"])
+    return gp.Prior(mean=prior["mean"], std=prior["std"], weights=prior["weights"])
 
 
 def _texts(field: Field) -> tuple[str, ...]:
@@ -235,23 +235,16 @@ def _names(field: Field, what: str) -> tuple[str, ...]:
 
 
 def _optimizer_generations():
-    """(the known generations of gp's acquisition defaults, the current one); imported when
-    needed, as gp's settings are elsewhere here."""
-    # lazy: gp imports jax and scipy (~2 s), see optimizer_config
-    from mjxskill.gp.settings import DEFAULTS_BY_GENERATION, GENERATION
-
+    """(the known generations of gp's acquisition defaults, the current one)."""
     return tuple(DEFAULTS_BY_GENERATION), GENERATION
 
 
 def optimizer_config(config: RunConfig):
     """The ``mjxskill.gp.MOBOConfig`` of a run: its parameter space, batches and seed, and the
-    acquisition settings its optimizer options name (gp's defaults for the others)."""
-    # lazy: mjxskill.gp imports jax and scipy (~2 s); every command imports this module (through
-    # runs.run_dir), and its --help and bad-input errors must not pay for them
-    from mjxskill.gp import MOBOConfig, acquisition_settings
-    from mjxskill.gp.settings import acquisition_defaults
-
-    return MOBOConfig(
+    acquisition settings its optimizer options name (gp's defaults for the others). Builds gp's
+    ``MOBOConfig``, which imports jax (``mjxskill.gp`` loads its names lazily): every command
+    imports this module (through runs.run_dir), and its --help must not pay for that."""
+    return gp.MOBOConfig(
         bounds=config.bounds,
         n_objectives=len(config.objective_names),
         batch_size=config.batch_size,

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from mjxskill.errors import QUOTE_CHARS, quote
+from mjxskill.gp.settings import setting_value
 from mjxskill.runs.bounds import call_episodes_problem
 from mjxskill.scenario.schema import (MAX_BATCH, MAX_BUDGET, MAX_EPISODE_SECONDS, MAX_REPEATS,
                                      MAX_SEED, MAX_WORLDS, MIN_N_INIT)
@@ -171,10 +172,6 @@ def optimizer_option_value(key: str, value):
     ``AcquisitionSettings`` fields; the run's parameter space, batches and seed are no option.
     gp checks what several options must satisfy together when the run's ``MOBOConfig`` is
     built (``run_config.optimizer_problem``)."""
-    # lazy: mjxskill.gp imports jax and scipy (~2 s); --seed of evaluate and select reads this
-    # module while their parser is built (--help, bad input)
-    from mjxskill.gp.settings import setting_value
-
     return setting_value(key, value)
 
 

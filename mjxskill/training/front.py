@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from mjxskill.errors import RunError
+from mjxskill.gp.pareto import hypervolume, pareto_mask
 from mjxskill.runs.run_dir import RUN_STATE, Evaluations, Run, RunConfig, batch_sizes
 
 HV_MARGIN = 0.1  # reference point = worst warm-up value + this fraction of the warm-up range
@@ -29,10 +30,6 @@ def hypervolume_reference(warmup_objectives: np.ndarray) -> np.ndarray:
 def hypervolume_history(ev: Evaluations, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Hypervolume after each batch: (evaluations done (k,), hypervolume (k,)), of the rows
     current then (``Evaluations.current``)."""
-    # lazy: mjxskill.gp imports jax and scipy (~2 s); the commands' --help and bad-input errors
-    # import this module (through training.loop and training.report), which must not pay for them
-    from mjxskill.gp import hypervolume
-
     ends = np.flatnonzero(np.diff(np.append(ev.iteration, -1)) != 0) + 1
     return ends, np.array([hypervolume(-ev.objectives[:e][ev.current(e)[:e]], ref) for e in ends])
 
@@ -66,8 +63,6 @@ def _warmup_batches(config: RunConfig) -> int:
 def pareto_mask_of(ev: Evaluations) -> np.ndarray:
     """(n,) bool: the non-dominated rows (objectives maximized) among the current ones (a row
     that a later one pooling more worlds of its parameter set replaces is no longer one)."""
-    from mjxskill.gp import pareto_mask  # lazy: gp imports jax and scipy (~2 s), see hypervolume_history
-
     mask = np.zeros(len(ev), bool)
     current = ev.current()
     if current.any():

@@ -1,7 +1,8 @@
 """The optimizer loop of a run: propose a batch, evaluate it, write it, repeat to the budget.
 
 Scenario -> plan -> eBT -> compiled rollout -> optimizer loop (the Bayesian optimizer, or what it
-is compared with: uniform random search or one of Optuna's samplers, ``propose``). Every batch is appended to
+is compared with: uniform random search, Optuna's samplers or BoTorch's qLogNEHVI, each an
+``Optimizer`` of ``mjxskill.training.optimizers``). Every batch is appended to
 ``evaluations.csv`` and flushed before the next proposal; the optimizer state is replayed from
 that file on resume (see ``mjxskill.runs.run_dir``), so an interrupted run continues to the
 same budget and ends with the results of an uninterrupted one.
@@ -13,15 +14,16 @@ from typing import TYPE_CHECKING, Callable, NamedTuple, Protocol
 
 import numpy as np
 
+from mjxskill import gp
+from mjxskill.engine.common.keys import stream_key
 from mjxskill.runs.atomic_write import replace_whole
 from mjxskill.training.front import pareto_mask_of, reference_from
 from mjxskill.runs.evaluations_csv import FORCE_COLUMNS
 from mjxskill.runs.resume import resume_batches
-from mjxskill.runs.run_config import optimizer_config
 from mjxskill.runs.run_dir import EVALUATIONS, OPTIMIZER_STATE, Evaluations, Run, RunConfig, batch_sizes, concat_all
-from mjxskill.runs.settings import BOTORCH_OPTIMIZERS, OPTUNA_OPTIMIZERS
 from mjxskill.runs.training_protocol import REPLICATIONS_PER_BATCH
-from mjxskill.training import botorch_search, optuna_search, replication
+from mjxskill.training import replication
+from mjxskill.training.optimizers import Optimizer, make_optimizer
 
 if TYPE_CHECKING:  # pragma: no cover
     from mjxskill.engine.protocol import Rollout
@@ -62,9 +64,7 @@ class Progress(Protocol):
 def rollout_key(seed: int, iteration: int):
     """PRNG key of batch ``iteration``'s worlds: depends only on (seed, batch index), so a
     resumed run draws the same worlds. A stream separate from the optimizer's keys."""
-    import jax  # lazy: ~1 s; train's and experiment's --help and bad-input errors import this module
-
-    return jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), 0x0ED0), iteration)
+    return stream_key(seed, 0x0ED0, iteration)
 
 
 def rollout_evaluator(rollout: Rollout, batch_size: int, seed: int) -> BatchEvaluator:
@@ -97,19 +97,24 @@ def world_objectives(rollout: Rollout, out) -> np.ndarray:
     return values
 
 
-def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Progress | None = None) -> Evaluations:
+def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Progress | None = None,
+          optimizer: Optimizer | None = None) -> Evaluations:
     """Runs (or continues) the optimizer loop of ``run`` to ``config.training_rows`` evaluations.
 
     The complete batches on disk are kept (``mjxskill.runs.resume``: what cannot be used is
     set aside, never dropped) and only the missing ones are evaluated. The optimizer state is
     replayed batch by batch in batch order, so every proposal is the one an uninterrupted run
-    makes; each new batch is on disk before the next proposal. Returns all evaluations.
+    makes; each new batch is on disk before the next proposal. ``optimizer``: what proposes the
+    batches (default: ``make_optimizer(config.optimizer, config)``; one of another name is refused,
+    the run's rows being its optimizer's). Returns all evaluations.
     """
-    from mjxskill import gp  # lazy: gp imports jax and scipy (~2 s), as rollout_key's jax
-
     done = resume_batches(run, config)
     shape = (len(config.parameter_names), len(config.objective_names), config.pooled)
-    state = gp.init(optimizer_config(config))
+    if optimizer is None:
+        optimizer = make_optimizer(config.optimizer, config)
+    elif optimizer.name != config.optimizer:
+        raise ValueError(f"train: the optimizer {optimizer.name!r} is not the run's, {config.optimizer!r}")
+    state = optimizer.init()
     sizes = list(batch_sizes(config.training_rows, config.batch_size, config.n_init))
     known = lambda: concat_all((done[b] for b in sorted(done)), *shape)  # noqa: E731  (in batch order)
     ev = known()
@@ -121,14 +126,14 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
             if batch in done:
                 continue
             earlier = concat_all((done[b] for b in range(batch)), *shape)
-            state = _pooled_state(gp, state.config, earlier)
-            new = done[batch] = _pooled_batch(gp, state, config, earlier, batch, size, evaluate)
+            state = _pooled_state(optimizer, earlier)
+            new = done[batch] = _pooled_batch(optimizer, state, config, earlier, batch, size, evaluate)
             x = new.params
         elif batch in done:  # replayed: the optimizer sees it where the uninterrupted run did
-            state = gp.tell(state, done[batch].params, -done[batch].objectives)
+            state = optimizer.tell(state, done[batch].params, -done[batch].objectives)
             continue
         else:
-            x = propose(gp, state, config, size)
+            x = optimizer.ask(state, size)
             result = evaluate(x, batch)
             new = done[batch] = Evaluations(np.full(len(x), batch), x, *(np.asarray(a, np.float64) for a in result[:5]))
         ev = known()
@@ -136,8 +141,8 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
             run.append(new)  # on disk before anything else happens
         else:  # filled in before batches already on disk: the file stays in batch order
             run.write_evaluations(config, ev)
-        state = _pooled_state(gp, state.config, ev) if config.pooled else gp.tell(state, x, -new.objectives)
-        _save_state(gp, state, run.path / OPTIMIZER_STATE)
+        state = _pooled_state(optimizer, ev) if config.pooled else optimizer.tell(state, x, -new.objectives)
+        _save_state(state, run.path / OPTIMIZER_STATE)
         run.write_pareto(config, ev, pareto_mask_of(ev))
         if progress:
             progress.update(new, ev, reference_from(run, config, ev))
@@ -147,32 +152,29 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
     return ev
 
 
-RANDOM_SEARCH_STREAM = 0x5EA2C  # separates random search's draws from every other use of the seed
 REPLICATION_STREAM = 0x2E911  # the success model's fits that choose what to roll out again
 
 
-def _pooled_state(gp, cfg, ev: Evaluations):
+def _pooled_state(optimizer: Optimizer, ev: Evaluations):
     """The optimizer state of a pooled run's current rows: their objectives and success rates,
     each with its noise variance (``replication.model_view``)."""
     if not len(ev):
-        return gp.init(cfg)
+        return optimizer.init()
     x, values, noise = replication.model_view(ev)
-    return gp.tell(gp.init(cfg), x, -values, noise=noise)
+    return optimizer.tell(optimizer.init(), x, -values, noise=noise)
 
 
-def _pooled_batch(gp, state, config: RunConfig, earlier: Evaluations, batch: int, size: int,
+def _pooled_batch(optimizer: Optimizer, state, config: RunConfig, earlier: Evaluations, batch: int, size: int,
                   evaluate: BatchEvaluator) -> Evaluations:
     """Batch ``batch`` of a pooled run: after the warm-up, REPLICATIONS_PER_BATCH of its places
     roll out again the sets ``replication.choose`` names (the Bayesian optimizer's runs only:
     what it is compared with proposes as it would alone), the others new proposals; the rows of
     the first pool their earlier worlds."""
-    import jax  # lazy, as rollout_key's
-
     again = np.zeros(0, int)
-    if config.optimizer == "mobo" and len(state.x) >= config.n_init and size > 1:
-        key = jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(config.seed), REPLICATION_STREAM), batch)
+    if optimizer.name == "mobo" and len(state.x) >= config.n_init and size > 1:
+        key = stream_key(config.seed, REPLICATION_STREAM, batch)
         again = replication.choose(earlier, min(REPLICATIONS_PER_BATCH, size - 1), config.worlds, config.bounds, key)
-    x = propose(gp, state, config, size - len(again))
+    x = optimizer.ask(state, size - len(again))
     result = evaluate(np.concatenate([x, earlier.params[again]]), batch)
     k = len(x)
     objectives = np.asarray(result.objectives, np.float64)
@@ -186,27 +188,6 @@ def _pooled_batch(gp, state, config: RunConfig, earlier: Evaluations, batch: int
     return new.concat(replication.pooled_rows(batch, earlier, again, parts[1])) if len(again) else new
 
 
-def propose(gp, state, config: RunConfig, size: int) -> np.ndarray:
-    """The next batch of ``size`` parameter sets. During the warm-up every optimizer takes the
-    Bayesian optimizer's own uniform warm-up (``gp.ask``), so runs of one seed share their first
-    ``n_init`` rows and their curves part where the optimizers take over. After it, random search
-    (``config.optimizer == "random"``) draws uniformly from the bounds with a generator seeded by
-    (seed, rows so far), and Optuna's samplers (``optuna-*``) propose from a study rebuilt from the
-    rows so far (``mjxskill.training.optuna_search``), and BoTorch's qLogNEHVI
-    (``botorch-qlognehvi``) from models fitted on them (``mjxskill.training.botorch_search``):
-    either way a resumed run proposes the same batches."""
-    n = len(state.x)
-    if config.optimizer == "mobo" or n < config.n_init:
-        return gp.ask(state, num=size)
-    if config.optimizer in OPTUNA_OPTIMIZERS:
-        return optuna_search.ask(config, state.x, -state.y, size)
-    if config.optimizer in BOTORCH_OPTIMIZERS:
-        return botorch_search.ask(config, state.x, -state.y, size)
-    lo, hi = np.asarray(config.bounds, np.float64)
-    u = np.random.default_rng([config.seed, RANDOM_SEARCH_STREAM, n]).random((size, len(lo)))
-    return lo + u * (hi - lo)
-
-
-def _save_state(gp, state, path) -> None:
+def _save_state(state, path) -> None:
     """The optimizer state, replaced in one step (a kill mid-write leaves the previous one)."""
     replace_whole(path, lambda tmp: gp.save_state(state, tmp))

@@ -1,10 +1,11 @@
 """Optuna's multi-objective samplers as a run's optimizer (``optimizer: optuna-nsga2``,
 ``optuna-tpe`` or ``optuna-gp``), driven by ask/tell in the run's own loop and batches.
 
-The loop (``mjxskill.training.loop``) asks this module for a batch only after the warm-up. The
-warm-up is the same for every optimizer: its first ``n_init`` rows are the Bayesian
-optimizer's own uniform draws (``mjxskill.gp.ask``, with the run's prior if it has one), so runs
-of one seed with different optimizers share those rows and part where the optimizers take over.
+The run's optimizer (``mjxskill.training.optimizers.optuna_sampler``) asks this module for a
+batch only after the warm-up. The warm-up is the same for every optimizer: its first ``n_init``
+rows are the Bayesian optimizer's own uniform draws (``mjxskill.gp.ask``, with the run's prior if
+it has one), so runs of one seed with different optimizers share those rows and part where the
+optimizers take over.
 Each sampler's own start-up (random trials before its model) is set to ``n_init``, so that it
 models from the first batch after the warm-up, as ours does.
 

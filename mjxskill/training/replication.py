@@ -16,7 +16,7 @@ posterior mean of a scaled-inverse-chi-square variance): a lucky set's mean keep
 its neighbours can overrule.
 
 Which sets are rolled out again (``choose``): the current ones the success model (a GP of the
-success rate with those noises, ``success_model``) believes most successful, each up to
+success rate with those noises, ``mjxskill.training.success_gp``) believes most successful, each up to
 ``MAX_WORLDS_FACTOR`` x ``worlds`` worlds. The model pools what the neighbours of a set did, so
 a set that passed its 7 worlds in a region where most sets fail is not believed; rolling the
 believed-best sets out again tightens the estimates where the pick will be made.
@@ -33,11 +33,6 @@ from mjxskill.runs.evaluations_csv import FORCE_COLUMNS, Evaluations
 from mjxskill.runs.training_protocol import MAX_WORLDS_FACTOR, pooled_moments, success_lower_bound
 
 SPREAD_PRIOR_WORLDS = 7.0  # the weight, in worlds, of a column's mean spread in each row's noise
-MODEL_BUCKET = 64  # the success model's rows are padded to a multiple of this (one compile per size)
-# Its hyperparameters are fitted on a random subset of at most this many rows (the posterior
-# conditions on all of them), as the optimizer's own GPs are (gp.settings fit_max_rows): a fit
-# on every row of a 300-row run took 0.9 s a batch, a fifth of a push batch's episodes.
-MODEL_FIT_ROWS = 128
 
 
 class PooledResult(NamedTuple):
@@ -143,63 +138,14 @@ def choose(ev: Evaluations, count: int, worlds: int, bounds, key) -> np.ndarray:
     eligible = (rows.worlds < MAX_WORLDS_FACTOR * worlds) & np.all(np.isfinite(rows.objectives), axis=1)  # type: ignore[operator]
     if count < 1 or not eligible.any():
         return np.zeros(0, int)
+    # lazy: jax and gp's GP (~2 s); train's --help and bad-input errors import this module
+    from mjxskill.training.success_gp import success_model
+
     _, values, noise = model_view(ev)
     believed = success_model(rows.params, values[:, -1], noise[:, -1], bounds, key)
     order = np.lexsort((np.arange(len(rows)), -rows.objectives[:, 0], -believed))
     return current[[i for i in order if eligible[i]][:count]]
 
 
-def success_model(params: np.ndarray, rate: np.ndarray, noise: np.ndarray, bounds, key) -> np.ndarray:
-    """(c,) the GP posterior mean of the success rate at ``params`` (c, P), fitted to ``rate``
-    with the per-row noise variances ``noise`` (a Matern 5/2 GP on the unit cube, gp.fit's MAP
-    hyperparameters on at most MODEL_FIT_ROWS of the rows; the rows padded to a multiple of
-    MODEL_BUCKET)."""
-    import jax  # lazy: jax costs ~1 s; train's --help imports this module
-
-    lo, hi = np.asarray(bounds, np.float64)
-    n = len(params)
-    size = MODEL_BUCKET * -(-n // MODEL_BUCKET)
-    x = np.full((size, params.shape[1]), 0.5)
-    x[:n] = (params - lo) / (hi - lo)
-    mean, sd = rate.mean(), rate.std()
-    sd = sd if sd > 1e-12 else 1.0
-    y, obs = np.zeros(size), np.zeros(size)
-    y[:n], obs[:n] = (rate - mean) / sd, noise / sd**2
-    mask = np.arange(size) < n
-    with jax.enable_x64(True):
-        fitted = _posterior_mean_at_rows(x, y, mask, obs, key)
-    return np.asarray(fitted, np.float64)[:n] * sd + mean
-
-
-def _posterior_mean_at_rows(x, y, mask, obs, key):
-    return _compiled_posterior_mean()(x, y, mask, obs, key)
-
-
-_COMPILED: dict = {}
-
-
-def _compiled_posterior_mean():
-    """The jitted fit-and-predict of ``success_model`` (built once per process)."""
-    if "fn" not in _COMPILED:
-        import jax  # lazy, as success_model's
-        import jax.numpy as jnp  # lazy, as jax
-
-        from mjxskill.gp import gp as gpm  # lazy: gp imports jax and scipy (~2 s), as loop.train's gp
-
-        @jax.jit
-        def fn(x, y, mask, obs, key):
-            k_subset, k_fit = jax.random.split(key)
-            rows = jnp.arange(x.shape[0])
-            if x.shape[0] > MODEL_FIT_ROWS:  # static: a random subset of the real rows (padding scores -inf)
-                rows = jax.lax.top_k(jnp.where(mask, jax.random.uniform(k_subset, mask.shape), -jnp.inf), MODEL_FIT_ROWS)[1]
-            params = gpm.fit(x[rows], y[rows], mask[rows], k_fit, n_starts=2, n_steps=50, prior="lognormal",
-                             obs_noise=obs[rows])
-            post = gpm.condition(params, x, y, mask, obs_noise=obs)
-            return gpm.predict(post, x)[0]
-
-        _COMPILED["fn"] = fn
-    return _COMPILED["fn"]
-
-
-__all__ = ["MODEL_BUCKET", "MODEL_FIT_ROWS", "PooledResult", "SPREAD_PRIOR_WORLDS", "check_pointers", "choose", "model_view",
-           "new_rows", "noise_variances", "pooled_rows", "success_model"]
+__all__ = ["PooledResult", "SPREAD_PRIOR_WORLDS", "check_pointers", "choose", "model_view", "new_rows", "noise_variances",
+           "pooled_rows"]

@@ -12,23 +12,12 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from mjxskill._headless import pyplot
 from mjxskill.runs.run_dir import Evaluations, Run, RunConfig
 from mjxskill.training.front import hypervolume_history, pareto_mask_of, reference_from
 from mjxskill.runs.atomic_write import save_figure, write_text
 
 OBJECTIVE_UNIT = "reward, larger is better"
-
-
-def pyplot():
-    """matplotlib.pyplot on the Agg backend (files only, no display needed)."""
-    # lazy: pyplot costs ~0.4 s; train, select and evaluate import this module for --help and
-    # bad-input errors too
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # lazy, as matplotlib: and after the backend is chosen
-
-    return plt
 
 
 def objective_label(name: str) -> str:

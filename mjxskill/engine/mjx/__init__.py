@@ -10,7 +10,7 @@ shares with the native engine is in ``mjxskill.engine.common``. The names below 
 so importing this package does not import MJX.
 """
 
-import importlib
+from mjxskill._lazy import lazy_getattr
 
 _EXPORTS = {
     "MJXRollout": "mjxskill.engine.mjx.compiled",
@@ -20,9 +20,4 @@ _EXPORTS = {
 }
 
 __all__ = sorted(_EXPORTS)
-
-
-def __getattr__(name):
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module 'mjxskill.engine.mjx' has no attribute {name!r}")
+__getattr__ = lazy_getattr(__name__, _EXPORTS)

@@ -35,6 +35,7 @@ from mjxskill.engine.native.batched import run_batched
 from mjxskill.engine.native.episode import NativeEpisode
 from mjxskill.engine.native.lockstep import run_lockstep
 from mjxskill.engine.native.pool import WorkerPool
+from mjxskill.engine.native.ray_pool import RayPool, connect
 from mjxskill.sim.model import build_model
 from mjxskill.scenario import load_scenario
 from mjxskill.scenario.schema import Scenario
@@ -116,8 +117,6 @@ class NativeRollout(RolloutBase):
         self.actors = None if actors is None else max(1, int(actors))  # Ray actors (None: one per CPU of the cluster)
         self.cluster = None  # the ClusterInfo of the Ray cluster the calls run on
         if cluster is not None:
-            from mjxskill.engine.native.ray_pool import connect  # lazy: Ray is an optional extra
-
             self.cluster = connect(cluster)
         # The scenario and skill library files as this engine read them: workers rebuild from
         # them and check they are unchanged.
@@ -214,8 +213,6 @@ class NativeRollout(RolloutBase):
         """Starts the worker processes (or the Ray actors) now (a call starts them when it first
         needs them: a few seconds of imports each). Returns the pool."""
         if self._pool is None and self.cluster is not None:
-            from mjxskill.engine.native.ray_pool import RayPool  # lazy: Ray is an optional extra
-
             self._pool = RayPool(self, self.cluster.address, build=engine_from_recipe, actors=self.actors)
         elif self._pool is None and self.workers > 1:
             self._pool = WorkerPool(self, self.workers)

@@ -15,16 +15,18 @@ import traceback
 
 import numpy as np
 
+from mjxskill.engine.common.types import EpisodeResult
+from mjxskill.engine.common.worlds import Worlds
+from mjxskill.engine.native.batched import run_batched
+from mjxskill.engine.native.pool import pack_arrays, read_frame, unpack_arrays, write_frame
+from mjxskill.engine.native.rollout import engine_from_recipe
+
 
 def main() -> int:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops us
-    # Imported only now, with SIGINT set aside: a Ctrl-C during the seconds these imports take
-    # reaches the parent, which stops us, not a traceback from every worker.
-    from mjxskill.engine.native.batched import run_batched
-    from mjxskill.engine.native.pool import pack_arrays, read_frame, unpack_arrays, write_frame
-    from mjxskill.engine.native.rollout import engine_from_recipe
-    from mjxskill.engine.common.types import EpisodeResult
-    from mjxskill.engine.common.worlds import Worlds
+    # The parent handles Ctrl-C and stops us. Set aside only now, after the imports: ``python -m``
+    # imports the package mjxskill.engine.native (NativeRollout, and with it every module above)
+    # before this module, so importing them here first changes nothing.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr  # anything printed by accident must not corrupt the frames
