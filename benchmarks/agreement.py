@@ -78,13 +78,13 @@ def main(argv=None) -> dict:
     import numpy as np
 
     from mjxskill import compile_rollout, load_scenario, plan_task
-    from mjxskill.engine.native.rollout import NativeRollout
+    from mjxskill.engine.build import build_rollout
 
     scn = load_scenario(args.task)
     task = plan_task(scn)
     sets = parameter_sets(scn, task, args.run)
     names, params = list(sets), np.stack(list(sets.values()))
-    native = NativeRollout(scn, task, worlds=args.worlds, episode_seconds=args.seconds)
+    native = build_rollout(scn, task, "native", worlds=args.worlds, episode_seconds=args.seconds)  # one process per core
     worlds = jax.tree.map(lambda x: x[0], native.sample_worlds(jax.random.key(args.key), 1))  # (W,): one set of worlds for all
     print(f"# agreement: {scn.name}, {len(names)} parameter sets x {args.worlds} worlds, {native.episode_seconds:g} s "
           f"episodes, key {args.key}, load average {os.getloadavg()[0]:.2f}", flush=True)

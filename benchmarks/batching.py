@@ -29,7 +29,20 @@ from mujoco import mjx  # noqa: E402
 from mjxskill.sim import load_scene, postures  # noqa: E402
 from mjxskill.engine.mjx.batching import STRATEGIES, control_step, over_worlds, put_worlds  # noqa: E402
 from mjxskill.engine.mjx.controller import ControllerConfig, init_controller_state, make_command  # noqa: E402
-from mjxskill.engine.native.controller import native_rollout  # noqa: E402
+from mjxskill.engine.native.controller import NativeControllerState, native_impedance_control  # noqa: E402
+from mjxskill.sim.controller_config import N_ARM  # noqa: E402
+
+
+def native_rollout(cfg, model, data, command, nullspace_target, n_steps: int):
+    """Steps ``data`` in place ``n_steps`` times under a constant command (Python loop:
+    controller then mj_step). Returns the final NativeControllerState."""
+    mujoco.mj_forward(model, data)
+    state = NativeControllerState(data.qfrc_bias[:N_ARM], np.asarray(command)[13:19], np.zeros(6))
+    for _ in range(n_steps):
+        tau, state = native_impedance_control(cfg, model, data, command, nullspace_target, state)
+        data.ctrl[:N_ARM] = tau
+        mujoco.mj_step(model, data)
+    return state
 
 
 def native_steps_per_second(model, cfg, qpos, command, n_steps):

@@ -18,7 +18,7 @@ import jax
 import numpy as np
 
 from mjxskill import load_scenario, plan_task
-from mjxskill.engine.native.rollout import NativeRollout
+from mjxskill.engine.build import build_rollout, connect_cluster
 
 
 def timed(rollout, params, worlds, repeats: int):
@@ -45,12 +45,12 @@ def main() -> None:
     params = lower + (upper - lower) * np.random.default_rng(0).random((args.sets, len(lower)))
     episodes = args.sets * args.worlds
     results = {}
-    for name, kwargs in (("local (default workers)", {}), ("ray", {"cluster": args.address})):
-        with NativeRollout(scn, task, worlds=args.worlds, episode_seconds=args.seconds, **kwargs) as rollout:
+    for name, cluster in (("local (default workers)", None), ("ray", connect_cluster(args.address))):
+        with build_rollout(scn, task, "native", worlds=args.worlds, episode_seconds=args.seconds, cluster=cluster) as rollout:
             worlds = rollout.sample_worlds(jax.random.key(0), args.sets)
             seconds, out = timed(rollout, params, worlds, args.repeats)
             steps = episodes * rollout.setup.ticks * rollout.setup.steps_per_tick  # control steps, diverged ones counted whole
-            where = "" if rollout.cluster is None else f" ({rollout.cluster.describe()})"
+            where = "" if cluster is None else f" ({cluster.describe()})"
             results[name] = out
             print(f"{name}{where}: {episodes} episodes of {args.seconds:g} s in {seconds:.2f} s (median of "
                   f"{args.repeats}): {episodes / seconds:.2f} episodes/s"

@@ -11,9 +11,10 @@ worlds from key 0), and prints as a table with the load average of each row:
 * ``loop``: the plain single-process loop over native MuJoCo (``NativeRollout.run_episode``:
   the numpy controller, the reference BT interpreter and ``mj_step`` one control step at a
   time): the baseline, measured before and after everything else (ratios use the mean);
-* ``native``: the native engine (episodes on MuJoCo batches with the compiled law, ``--workers``
-  processes, or one process whose batch steps on ``--threads`` threads); with one process and
-  one thread, the share of the call spent in MuJoCo's step;
+* ``native``: the native engine (episodes on MuJoCo batches with the compiled law: the
+  one-process ``NativeRollout`` wrapped by ``ProcessPoolRollout`` over ``--workers`` processes,
+  or alone, its batch stepped on ``--threads`` threads); with one process and one thread, the
+  share of the call spent in MuJoCo's step;
 * ``mjx``: the compiled MJX rollout on 1 and on ``--devices`` host devices (a fresh process
   each: the device count is fixed when jax starts), at ``--batches`` parameter sets per call;
   compile time and XLA's buffers;
@@ -78,7 +79,7 @@ def workload(task_name: str, seconds: float | None, sets: int, worlds: int | Non
     known = list(task.manual_parameters.values()) + ([np.array(HAND_FOUND_PUSH)] if scn.name == "push" else [])
     for i, values in enumerate(known[:sets]):  # sets known to succeed (sometimes) first
         params[i] = values
-    sampler = NativeRollout(scn, task, worlds=worlds, episode_seconds=seconds, workers=1)
+    sampler = NativeRollout(scn, task, worlds=worlds, episode_seconds=seconds)
     return scn, task, params, sampler.sample_worlds(jax.random.key(0), sets), sampler
 
 
@@ -154,20 +155,22 @@ def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1) -
     share of the time spent in MuJoCo's step (``physics_share``)."""
     import numpy as np
 
-    from mjxskill.engine.native.rollout import NativeRollout
+    from mjxskill.engine.native import NativeRollout, ProcessPoolRollout
 
-    engine = NativeRollout(scn, task, worlds=worlds.config_index.shape[1], episode_seconds=seconds, workers=workers,
-                           threads=threads)
+    inner = NativeRollout(scn, task, worlds=worlds.config_index.shape[1], episode_seconds=seconds)
+    inner.threads = threads
+    engine = ProcessPoolRollout(inner, workers) if workers > 1 else inner
     b, w = worlds.config_index.shape
     t0 = time.perf_counter()
-    engine.start_workers()
+    if isinstance(engine, ProcessPoolRollout):
+        engine.start()
     # One parameter set first: each process loads the compiled law from numba's cache on its
     # first call (~0.5 s), which a training run pays once, not per batch.
     engine.run_worlds(params[:1], type(worlds)(*(x[:1] for x in worlds)))
     start_s = time.perf_counter() - t0
     timing = {}
     if workers == 1 and threads == 1:  # time MuJoCo's step inside the call
-        engine.timing = timing
+        inner.timing = timing
     t0 = time.perf_counter()
     out = engine.run_worlds(params, worlds)
     run_s = time.perf_counter() - t0
@@ -175,7 +178,7 @@ def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1) -
     return dict(engine="native", workers=workers, threads=threads, episodes=b * w, start_s=start_s, run_s=run_s,
                 physics_share=timing["physics_s"] / run_s if timing else None,
                 steps_per_s=b * w * engine.control_steps_per_episode / run_s,
-                memory_per_episode_mb=engine.memory_per_episode() / 2**20, load_avg=os.getloadavg()[0],
+                memory_per_episode_mb=inner.memory_per_episode() / 2**20, load_avg=os.getloadavg()[0],
                 success=np.asarray(out.success).tolist(), objectives=np.asarray(out.objectives).tolist())
 
 
@@ -250,7 +253,7 @@ def main(argv=None) -> dict | None:
     import jax
     import mujoco
 
-    from mjxskill.engine.native.rollout import default_workers
+    from mjxskill.engine.native.pool import default_workers
 
     cores = default_workers()
     sets = int(args.batches.split(",")[0])

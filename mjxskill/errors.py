@@ -98,8 +98,9 @@ class ResumeConflict(RunError):
 
 class ClusterError(UserError):
     """A Ray cluster that cannot be used: not found (``auto``), not reachable at the address
-    given, or refusing the connection; or Ray not installed (``mjxskill.engine.native.ray_pool``).
-    The message names the address."""
+    given, or refusing the connection; Ray not installed (``mjxskill.engine.native.ray_pool``); or
+    asked of an engine other than the native one (``mjxskill.engine.build.connect_cluster``).
+    The message names the address or the engine."""
 
 
 class RequestError(UserError, ValueError):

@@ -22,10 +22,11 @@ def params_of(task, *rows) -> np.ndarray:
 
 
 def native_like(rollout):
-    """The native engine with the compiled ``rollout``'s task and settings."""
-    from mjxskill.engine.native import NativeRollout
+    """The native engine (its default worker processes) with the compiled ``rollout``'s task and settings."""
+    from mjxskill.engine.build import build_rollout
 
-    return NativeRollout(rollout.scenario, rollout.task, worlds=rollout.worlds, episode_seconds=rollout.episode_seconds)
+    return build_rollout(rollout.scenario, rollout.task, "native", worlds=rollout.worlds,
+                         episode_seconds=rollout.episode_seconds)
 
 
 def placed_worlds(rollout, cases) -> Worlds:

@@ -260,7 +260,7 @@ def test_what_the_simulator_cannot_honour_is_an_error_naming_the_entry(tmp_path,
 def _final_object(scn, params, seconds: float):
     """Final position (3,) and quaternion (4,) of the pushed prism after ``seconds`` of the push in
     the nominal world of start configuration 0 (friction as the model holds it)."""
-    engine = NativeRollout(scn, plan_task(scn), worlds=1, episode_seconds=seconds, workers=1)
+    engine = NativeRollout(scn, plan_task(scn), worlds=1, episode_seconds=seconds)
     world = jax.tree.map(lambda x: np.asarray(x)[0], engine.worlds_per_config(jax.random.key(0), 1))
     world = world._replace(object_pos=engine.sampler.nominal_pos.copy(), friction=np.float32(np.nan))
     _, record = engine.trace(params, world)
@@ -292,7 +292,7 @@ def test_a_tighter_hole_changes_the_insertion(tmp_path):
     depths = []
     for clearance in ("0.0015", "0.0003"):
         scn = edited(tmp_path / clearance, "peg", ("hole_clearance: 0.0015", f"hole_clearance: {clearance}"))
-        engine = NativeRollout(scn, plan_task(scn), worlds=1, episode_seconds=4.0, workers=1)
+        engine = NativeRollout(scn, plan_task(scn), worlds=1, episode_seconds=4.0)
         world = jax.tree.map(lambda x: np.asarray(x)[0], engine.worlds_per_config(jax.random.key(0), 1))
         world = world._replace(object_pos=engine.sampler.nominal_pos.copy())
         out = engine.run_worlds(np.array([[-5.0, 0.0, 0.0]]), jax.tree.map(lambda x: np.asarray(x)[None], world))

@@ -59,7 +59,7 @@ def test_the_sensors_sum_mj_contact_force_and_carry_a_resting_weight():
 def test_no_contact_no_force_and_the_reward_is_the_mean_force_per_tick(tmp_path):
     # The peg's first half second is the approach in free space: nothing touches the tool.
     peg = load_scenario("peg")
-    free = NativeRollout(peg, plan_task(peg), worlds=2, episode_seconds=0.5, workers=1)
+    free = NativeRollout(peg, plan_task(peg), worlds=2, episode_seconds=0.5)
     out = free(np.array([[-5.0, 0.0, 0.0]]), jax.random.key(0))
     assert np.all(out.metrics["peak_contact_force"] == 0) and np.all(out.metrics["mean_contact_force"] == 0)
     # The push presses the prism: a contact_force reward totals the mean force of each tick.
@@ -68,7 +68,7 @@ def test_no_contact_no_force_and_the_reward_is_the_mean_force_per_tick(tmp_path)
         "  - {name: gentle, kind: contact_force, objective: applied_force, weight: -1.0, constants: {cap: 1000.0}}\n"
         "  - {name: reference_tracking,")
     push = load_scenario(write_copy(tmp_path, "push", text))
-    engine = NativeRollout(push, plan_task(push), worlds=2, episode_seconds=6.0, workers=1)
+    engine = NativeRollout(push, plan_task(push), worlds=2, episode_seconds=6.0)
     out = engine(np.array([[-0.05, -0.15, 0.07, -0.10]]), jax.random.key(1))
     mean, peak = out.metrics["mean_contact_force"][0], out.metrics["peak_contact_force"][0]
     assert np.all(mean > 0.5) and np.all(peak > mean)

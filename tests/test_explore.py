@@ -237,14 +237,14 @@ class NativeStandIn:
         self.gate, self.calls, self.built = gate, 0, None
 
     def __call__(self, entry):
-        from mjxskill.engine.native import NativeRollout
+        from mjxskill.engine.build import build_rollout
         from mjxskill.runs.run_task import scenario_and_task
 
         self.calls += 1
         if self.gate is not None:
             assert self.gate.wait(60)
         scn, task = scenario_and_task("push")
-        self.built = NativeRollout(scn, task, worlds=1, episode_seconds=0.5)
+        self.built = build_rollout(scn, task, "native", worlds=1, episode_seconds=0.5)
         return self.built
 
 

@@ -175,12 +175,25 @@ def test_the_optimizer_knows_no_robot():
 def test_the_native_engine_is_independent_of_the_compiled_one():
     # directly or through another module: the fidelity reference must not run what it checks
     for m in modules():
-        if in_stage(m, ("engine.native",)):
+        if in_stage(m, ("engine.native", "engine.native_reference")):
             reached = closure(m) | {m}
             assert not any(in_stage(r, ("engine.mjx",)) for r in reached), (m, sorted(r for r in reached if in_stage(r, ("engine.mjx",))))
             assert not any("mujoco.mjx" in graph()[r] for r in reached), m
             mjx_from = [r for r in reached if "mjx" in {a.name for a in _mjx_aliases(r)}]
             assert mjx_from == [], (m, mjx_from)
+
+
+def test_the_native_references_serve_the_tests_and_benchmarks_only():
+    # engine/native/ is the production engine; what it is checked against (the plain loop over a
+    # call, the numpy lockstep law) is engine/native_reference.py, which no module of the package imports
+    assert "mjxskill.engine.native_reference" in modules()
+    assert [m for m in modules() if "mjxskill.engine.native_reference" in internal(m)] == []
+
+
+def test_parallelism_wraps_the_one_process_native_engine():
+    # worker processes and Ray are wrappers around NativeRollout (pool, ray_pool), which imports neither
+    assert closure("mjxskill.engine.native.rollout") & {"mjxskill.engine.native.pool", "mjxskill.engine.native.ray_pool"} == set()
+    assert "ray" not in graph()["mjxskill.engine.native.rollout"]
 
 
 def test_the_shared_engine_modules_and_the_simulated_model_import_no_engine():

@@ -55,7 +55,7 @@ def test_batches_that_fill_a_large_device_are_accepted():
     scn = load_scenario("push")
     task = plan_task(scn)
     params = np.tile(task.defaults, (32, 1))
-    native = NativeRollout(scn, task, worlds=64, episode_seconds=0.1, workers=1)
+    native = NativeRollout(scn, task, worlds=64, episode_seconds=0.1)
     out = native(params, jax.random.key(0))
     assert out.objectives.shape == (32, 2) and out.success.shape == (32, 64)
     assert np.all(np.isfinite(out.objectives))

@@ -1,13 +1,14 @@
 """The native engine's batched stepping (``mjxskill.engine.native.batched``: MuJoCo batches and the
 compiled law of ``mjxskill.engine.native.kernels``) against its references.
 
-- The compiled law against the numpy law (``batched_impedance_control``, written operation for
-  operation as the kernel, and itself tested against the plain loop's ``mj_jacSite``/``mju_*``
-  law with BLAS and LAPACK, to rounding) on states MuJoCo produced: the same torques bit for
-  bit, the Jacobian assembled as ``mj_jac`` does; its ``mju_mat2Quat`` against MuJoCo's on
-  random rotations, bit for bit.
-- Whole episodes against the numpy lockstep on push and on the round peg (whose mesh contacts
-  turn a last-bit difference into a visible one within seconds): every result bit for bit.
+- The compiled law against the numpy law (``batched_impedance_control`` of
+  ``mjxskill.engine.native_reference``, written operation for operation as the kernel, and
+  itself tested against the plain loop's ``mj_jacSite``/``mju_*`` law with BLAS and LAPACK, to
+  rounding) on states MuJoCo produced: the same torques bit for bit, the Jacobian assembled as
+  ``mj_jac`` does; its ``mju_mat2Quat`` against MuJoCo's on random rotations, bit for bit.
+- Whole episodes against the numpy lockstep (the reference's ``run_lockstep``) on push and on
+  the round peg (whose mesh contacts turn a last-bit difference into a visible one within
+  seconds): every result bit for bit.
 - Results bit-identical whatever the threads of the batch, and whichever episodes share it.
 - The references of a tick at once (the spiral compiled, the ended motion cached) bit-identical
   to the uncompiled, uncached code.
@@ -26,11 +27,10 @@ from mjxskill import load_scenario, plan_task
 from mjxskill.engine.common.types import EpisodeResult
 from mjxskill.engine.native import NativeRollout
 from mjxskill.engine.native.batched import kinematic_chain, run_batched, start_batch
-from mjxskill.engine.native.controller import BatchedControllerState, batched_impedance_control
 from mjxskill.engine.native.kernels import _mat2quat, impedance_rows
 from mjxskill.engine.native.leaves import NativeBlackboard
-from mjxskill.engine.native.lockstep import run_lockstep
 from mjxskill.engine.native.motion import LinearMotion, spiral_step
+from mjxskill.engine.native_reference import BatchedControllerState, batched_impedance_control, run_lockstep
 from mjxskill.sim.controller_config import N_ARM
 
 def flat_worlds(engine, n_sets, seed):
@@ -46,7 +46,7 @@ def fields_of(results):
 @pytest.fixture(scope="module", params=["push", "peg"])
 def engine(request):
     scn = load_scenario(request.param)
-    return NativeRollout(scn, plan_task(scn), worlds=3, episode_seconds=3.0, workers=1)
+    return NativeRollout(scn, plan_task(scn), worlds=3, episode_seconds=3.0)
 
 
 def params_for(engine, n, seed=0):

@@ -1,12 +1,12 @@
 """The native engine against its plain loop, and its worker processes against one process:
 the same episodes, the same numbers.
 
-The plain loop (``NativeRollout.run_episode``: one control step at a time, the scalar numpy
-controller) is the reference. The engine's own stepping (``mjxskill.engine.native.batched``: MuJoCo
-batches and the compiled law) and the numpy lockstep evaluate the same law in a different order
-of floating-point operations, so they may differ in the last bits (tests/test_native_batched.py
-bounds it). Worker processes run the batched code on slices of the episodes, which never
-interact: bit-identical.
+The plain loop (``mjxskill.engine.native_reference.run_plain``: every episode in
+``NativeRollout.run_episode``, one control step at a time, the scalar numpy controller) is the
+reference. The engine's own stepping (``mjxskill.engine.native.batched``: MuJoCo batches and the
+compiled law) evaluates the same law in a different order of floating-point operations, so the
+two may differ in the last bits. The worker processes of ``ProcessPoolRollout`` run the engine
+on slices of the episodes, which never interact: bit-identical.
 """
 
 import json
@@ -17,7 +17,8 @@ import pytest
 
 from mjxskill import load_scenario, plan_task
 from mjxskill.engine.build import ENGINES, build_rollout, resolve_engine
-from mjxskill.engine.native import NativeRollout
+from mjxskill.engine.native import NativeRollout, ProcessPoolRollout
+from mjxskill.engine.native_reference import run_plain
 from scenario_texts import shipped_text
 
 HAND_FOUND = [-0.05, -0.15, 0.07, -0.10]  # the push into the goal corner (test_rollout_push.py)
@@ -41,33 +42,33 @@ def push():
     return scn, task, params
 
 
-def test_lockstep_equals_the_plain_loop_on_the_push(push):
+def test_the_engine_equals_the_plain_loop_on_the_push(push):
     scn, task, params = push
-    engine = NativeRollout(scn, task, worlds=2, episode_seconds=3.0, workers=1)
+    engine = NativeRollout(scn, task, worlds=2, episode_seconds=3.0)
     worlds = engine.sample_worlds(jax.random.key(2), len(params))
-    plain = engine.run_worlds(params, worlds, stepping="plain")
-    lockstep = engine.run_worlds(params, worlds)
-    assert_same_outputs(plain, lockstep, atol=1e-9)
+    plain = run_plain(engine, params, worlds)
+    batched = engine.run_worlds(params, worlds)
+    assert_same_outputs(plain, batched, atol=1e-9)
     for name in ("bt_status", "bt_done_tick", "diverged", "config_index"):
-        np.testing.assert_array_equal(plain.metrics[name], lockstep.metrics[name])
+        np.testing.assert_array_equal(plain.metrics[name], batched.metrics[name])
 
 
-def test_lockstep_equals_the_plain_loop_with_the_search_spiral():
+def test_the_engine_equals_the_plain_loop_with_the_search_spiral():
     # The peg's spiral overlay is the part of the references computed step by step. On the
     # square peg: the round one's mesh-box contacts amplify the vectorized controller's last-bit
     # differences (one reward total of 34 differed by 0.01 after 4 s, the others agreed to 1e-9).
     scn = load_scenario("peg_square")
     task = plan_task(scn)
     params = np.array([[-6.0, 0.01, 0.05], [-9.0, 0.05, 0.2]])
-    engine = NativeRollout(scn, task, worlds=2, episode_seconds=4.0, workers=1)
+    engine = NativeRollout(scn, task, worlds=2, episode_seconds=4.0)
     worlds = engine.sample_worlds(jax.random.key(1), len(params))
-    assert_same_outputs(engine.run_worlds(params, worlds, stepping="plain"), engine.run_worlds(params, worlds), atol=1e-9)
+    assert_same_outputs(run_plain(engine, params, worlds), engine.run_worlds(params, worlds), atol=1e-9)
 
 
 def test_worker_processes_give_one_process_results_bit_for_bit(push):
     scn, task, params = push
-    one = NativeRollout(scn, task, worlds=3, episode_seconds=1.0, workers=1)
-    with NativeRollout(scn, task, worlds=3, episode_seconds=1.0, workers=2) as two:
+    one = NativeRollout(scn, task, worlds=3, episode_seconds=1.0)
+    with ProcessPoolRollout(NativeRollout(scn, task, worlds=3, episode_seconds=1.0), workers=2) as two:
         key = jax.random.key(7)
         assert_same_outputs(one(params, key), two(params, key))
         # an episode's result does not depend on which episodes share its call
@@ -82,8 +83,8 @@ def test_an_engine_dropped_without_close_stops_its_workers(push):
     import gc
 
     scn, task, _ = push
-    engine = NativeRollout(scn, task, worlds=1, episode_seconds=0.2, workers=2)
-    pool = engine.start_workers()
+    engine = ProcessPoolRollout(NativeRollout(scn, task, worlds=1, episode_seconds=0.2), workers=2)
+    pool = engine.start()
     procs = list(pool.procs)
     assert all(p.poll() is None for p in procs)
     del engine, pool
@@ -96,7 +97,7 @@ def test_a_worker_that_cannot_start_says_why(tmp_path, push):
     copy = tmp_path / "push.yaml"
     copy.write_text(shipped_text("push"))
     moved = load_scenario(copy)
-    engine = NativeRollout(moved, plan_task(moved), worlds=1, episode_seconds=0.2, workers=2)
+    engine = ProcessPoolRollout(NativeRollout(moved, plan_task(moved), worlds=1, episode_seconds=0.2), workers=2)
     copy.write_text(copy.read_text() + "\n# edited after the engine was built\n")
     with pytest.raises(RuntimeError, match="changed since the engine was built"):
         engine(params[:2], jax.random.key(0))
@@ -124,7 +125,7 @@ def test_auto_picks_mjx_on_accelerators_and_native_on_a_cpu():
 
 def test_bad_params_are_refused_as_by_the_compiled_rollout(push):
     scn, task, _ = push
-    engine = NativeRollout(scn, task, worlds=1, episode_seconds=0.2, workers=1)
+    engine = NativeRollout(scn, task, worlds=1, episode_seconds=0.2)
     with pytest.raises(ValueError, match=r"shape \(B, 4\)"):
         engine(np.zeros((2, 3)), jax.random.key(0))
     with pytest.raises(ValueError, match="finite"):
@@ -132,23 +133,23 @@ def test_bad_params_are_refused_as_by_the_compiled_rollout(push):
     json.dumps(engine.task.goal)  # plain data: what the worker recipe sends
 
 
-def test_a_diverging_world_is_contained_in_lockstep_as_in_the_loop():
-    # A NaN start posture diverges at the first tick; its companions in the same lockstep call
-    # are untouched and it is charged the worst rewards, as the plain loop and MJX do.
+def test_a_diverging_world_is_contained_by_the_engine_as_in_the_loop():
+    # A NaN start posture diverges at the first tick; its companions in the same call are
+    # untouched and it is charged the worst rewards, as the plain loop and MJX do.
     scn = load_scenario("peg")
     task = plan_task(scn)
     params = np.array([[-6.0, 0.01, 0.05]] * 2)
-    engine = NativeRollout(scn, task, worlds=2, episode_seconds=0.5, workers=1)
+    engine = NativeRollout(scn, task, worlds=2, episode_seconds=0.5)
     worlds = engine.sample_worlds(jax.random.key(3), 2)
     broken = worlds._replace(arm_qpos=worlds.arm_qpos.copy())
     broken.arm_qpos[1, 0] = np.nan
-    plain, lockstep, clean = (engine.run_worlds(params, broken, stepping="plain"), engine.run_worlds(params, broken),
-                              engine.run_worlds(params, worlds))
-    assert bool(lockstep.metrics["diverged"][1, 0]) and int(np.sum(lockstep.metrics["diverged"])) == 1
-    assert not bool(lockstep.success[1, 0])
+    plain, batched, clean = (run_plain(engine, params, broken), engine.run_worlds(params, broken),
+                             engine.run_worlds(params, worlds))
+    assert bool(batched.metrics["diverged"][1, 0]) and int(np.sum(batched.metrics["diverged"])) == 1
+    assert not bool(batched.success[1, 0])
     for term in engine.terms:
-        assert float(lockstep.metrics[f"reward_{term.name}"][1, 0]) == pytest.approx(term.worst_raw * engine.setup.ticks)
-    assert_same_outputs(plain, lockstep, atol=1e-9)
-    for name in lockstep.metrics:  # the other episodes of the call: as without the broken one
-        np.testing.assert_array_equal(np.asarray(lockstep.metrics[name])[0], np.asarray(clean.metrics[name])[0])
-        np.testing.assert_array_equal(np.asarray(lockstep.metrics[name])[1, 1], np.asarray(clean.metrics[name])[1, 1])
+        assert float(batched.metrics[f"reward_{term.name}"][1, 0]) == pytest.approx(term.worst_raw * engine.setup.ticks)
+    assert_same_outputs(plain, batched, atol=1e-9)
+    for name in batched.metrics:  # the other episodes of the call: as without the broken one
+        np.testing.assert_array_equal(np.asarray(batched.metrics[name])[0], np.asarray(clean.metrics[name])[0])
+        np.testing.assert_array_equal(np.asarray(batched.metrics[name])[1, 1], np.asarray(clean.metrics[name])[1, 1])

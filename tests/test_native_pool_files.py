@@ -15,18 +15,18 @@ SCRIPT = """
 import sys
 import jax, numpy as np
 import mjxskill
-from mjxskill.engine.native import NativeRollout
+from mjxskill.engine.native import NativeRollout, ProcessPoolRollout
 from mjxskill.runs.run_task import scenario_and_task
 
 scn, task = scenario_and_task("push")
 params = np.asarray(task.bounds).mean(axis=0)[None].repeat(2, axis=0)
-pooled = NativeRollout(scn, task, worlds=2, episode_seconds=0.3, workers=2)
-alone = NativeRollout(scn, task, worlds=2, episode_seconds=0.3, workers=1)
+pooled = ProcessPoolRollout(NativeRollout(scn, task, worlds=2, episode_seconds=0.3), workers=2)
+alone = NativeRollout(scn, task, worlds=2, episode_seconds=0.3)
 key = jax.random.key(0)
 a, b = pooled(params, key), alone(params, key)
 assert np.array_equal(np.asarray(a.objectives), np.asarray(b.objectives)), (a.objectives, b.objectives)
-print("equal", " ".join(str(p.pid) for p in pooled._pool.procs), flush=True)
-long = NativeRollout(scn, task, worlds=8, episode_seconds=30.0, workers=2)
+print("equal", " ".join(str(p.pid) for p in pooled.start().procs), flush=True)
+long = ProcessPoolRollout(NativeRollout(scn, task, worlds=8, episode_seconds=30.0), workers=2)
 long(params, key)
 """
 

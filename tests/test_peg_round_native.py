@@ -18,7 +18,7 @@ SPIRAL = {"PegInsertion.force": -5.0, "PegInsertion.radius": 0.012, "PegInsertio
 @pytest.fixture(scope="module")
 def peg():
     scn = load_scenario("peg")
-    engine = NativeRollout(scn, plan_task(scn), worlds=2, episode_seconds=10.0, workers=1)
+    engine = NativeRollout(scn, plan_task(scn), worlds=2, episode_seconds=10.0)
     yield scn, engine
     engine.close()
 

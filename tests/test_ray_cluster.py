@@ -1,8 +1,9 @@
 """The native engine on a Ray cluster: a local two-node cluster on loopback (head and
 one node, 1 CPU each, no dashboard, a small object store).
 
-- the library: ``NativeRollout(cluster=...)`` gives the results one process gives, bit for bit,
-  and a call during which one of its actors is killed finishes with those same results;
+- the library: ``RayRollout`` around a ``NativeRollout``, on the cluster ``connect_cluster``
+  connected, gives the results one process gives, bit for bit, and a call during which one of
+  its actors is killed finishes with those same results;
 - must-hold 1: ``train ... --engine native --ray-address ADDRESS`` writes the evaluations.csv of
   the same run without Ray, and its header says ``ray: 2 nodes``;
 - must-hold 3: ``experiment push --repeats 2 ... --ray-address ADDRESS`` runs its two repetitions
@@ -75,17 +76,19 @@ def _same(a, b) -> None:
 
 
 def test_cluster_results_are_one_process_results_even_when_an_actor_dies(cluster, push):
-    from mjxskill.engine.native.rollout import NativeRollout
+    from mjxskill.engine.build import connect_cluster
+    from mjxskill.engine.native import NativeRollout, RayRollout
     import jax
 
     scn, task = push
     params = _params(task, 6)
-    with NativeRollout(scn, task, worlds=2, episode_seconds=1.0, workers=1) as local:
+    with NativeRollout(scn, task, worlds=2, episode_seconds=1.0) as local:
         worlds = local.sample_worlds(jax.random.key(3), len(params))
         expected = local.run_worlds(params, worlds)
-    with NativeRollout(scn, task, worlds=2, episode_seconds=1.0, cluster=cluster.address) as remote:
+    info = connect_cluster(cluster.address)
+    with RayRollout(NativeRollout(scn, task, worlds=2, episode_seconds=1.0), info) as remote:
         assert (remote.cluster.nodes, remote.cluster.cpus) == (2, 2)
-        pool = remote.start_workers()
+        pool = remote.start()
         assert len(pool.actors) == 2
         _same(remote.run_worlds(params, worlds), expected)
 

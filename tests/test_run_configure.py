@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from mjxskill.errors import PlanError, ResumeConflict, RunError, SettingError
+from mjxskill.runs.run_config import RunConfig
 from mjxskill.runs.run_task import scenario_and_task
 from mjxskill.training.configure import new_run_config, resumed_run_config, stored_scenario
 from test_run_dir import make_config, make_run
@@ -24,7 +25,11 @@ def test_settings_over_the_scenarios_defaults(push):
     assert (config.budget, config.n_init, config.seed, config.engine) == (12, 6, scn.optimizer.seed, "native")
     assert config.optimizer_options == {"n_raw": 64}  # typed by gp, as --optimizer-option types it
     assert config.scenario == "push" and config.parameter_names == tuple(task.parameter_names)
-    assert new_run_config(scn, task, "push").engine in ("mjx", "native")  # auto, resolved
+    assert config.engine_reason == "as asked"
+    auto = new_run_config(scn, task, "push")
+    assert auto.engine in ("mjx", "native") and auto.engine_reason.startswith("auto: ")  # resolved once, and why
+    # why is the header's, not the run's: config.yaml does not keep it, and a run read back equals its own
+    assert "engine_reason" not in auto.to_yaml() and RunConfig.from_yaml(auto.to_yaml(), "run/config.yaml") == auto
 
 
 def test_a_value_refused_says_which_setting_and_whether_it_was_given(push):

@@ -173,7 +173,7 @@ def test_a_rendered_episode_shows_the_worlds_randomized_poses(tmp_path):
     from mjxskill.evaluation.render import render_episode
 
     scn = load_scenario("push")
-    engine = NativeRollout(scn, plan_task(scn), worlds=1, episode_seconds=0.2, workers=1)
+    engine = NativeRollout(scn, plan_task(scn), worlds=1, episode_seconds=0.2)
     world = jax.tree.map(lambda x: np.asarray(x)[0], engine.worlds_per_config(jax.random.key(0), 1))
     slots = engine.setup.bindings.slot_of
     moved = world.object_pos.copy()

@@ -22,10 +22,11 @@ def test_the_table_is_the_run_configuration_and_the_flags():
     assert {s.name for s in SETTINGS} <= fields  # each setting is a RunConfig field
     assert fields - {s.name for s in SETTINGS} == {"task", "scenario", "parameter_names", "parameter_units", "bounds",
                                                    "objective_names", "optimizer_options", "prior",
-                                                   "optimizer_defaults", "cluster", "scenario_changes"}  # the rest: the plan's
+                                                   "optimizer_defaults", "cluster", "scenario_changes",
+                                                   "engine_reason"}  # the rest: the plan's
     # (the prior: the scenario's or --prior-from's, mjxskill.training.priors; the generation of
     # gp's defaults the run began with; cluster: "ray" when made to run on a Ray cluster; the
-    # scenario changes a resume accepted)
+    # scenario changes a resume accepted; why the engine, said by the header, not stored)
     options = {a.dest: a for a in build_parser()._actions}
     for s in SETTINGS:
         assert options[s.name].option_strings == [s.flag]

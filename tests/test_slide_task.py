@@ -64,7 +64,7 @@ def test_a_pusher_turned_toward_the_fence_seats_the_block_from_every_start(slide
     # arm's tracking leaves it turned either way, and it mostly jams. So the task has something
     # to learn.
     scn, task = slide
-    native = NativeRollout(scn, task, worlds=8, workers=1)
+    native = NativeRollout(scn, task, worlds=8)
     worlds = native.worlds_per_config(jax.random.key(1), 2)  # 2 worlds from each of the 4 starts
     params = np.stack([STEERING_PUSH, task.defaults])
     out = native.run_worlds(params, jax.tree.map(lambda a: np.broadcast_to(a, (2,) + a.shape), worlds))

@@ -7,7 +7,7 @@ import argparse
 import math
 from typing import Any, Callable
 
-from mjxskill.errors import QUOTE_CHARS, CommandError, quote
+from mjxskill.errors import QUOTE_CHARS, quote
 from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_VALIDATION_CANDIDATES, workers_problem
 
 
@@ -43,20 +43,6 @@ def add_cluster_argument(parser: argparse.ArgumentParser) -> None:
                         help="native engine: run a call's episodes on the Ray cluster at this address, one actor per "
                              "CPU of the cluster (auto: the one `ray start` started here, or $RAY_ADDRESS; pip install "
                              "'mjxskill[ray]'). Results do not depend on it")
-
-
-def connect_cluster(args: argparse.Namespace, engine: str):
-    """The ``ClusterInfo`` of ``--ray-address`` (None without it), connected now: before a run
-    directory is made, so that a cluster that cannot be reached writes nothing (ClusterError,
-    naming the address). Only the native engine runs on a cluster."""
-    if getattr(args, "ray_address", None) is None:
-        return None
-    if engine != "native":
-        raise CommandError(f"--ray-address runs the native engine's episodes; this run's engine is {engine} "
-                           "(MJX across hosts is jax.distributed's: docs/engines.md, Scaling)")
-    from mjxskill.engine.native.ray_pool import connect  # lazy: Ray is an optional extra
-
-    return connect(args.ray_address)
 
 
 def describe_cluster(info, at_a_time: int = 1, actors: int | None = None) -> str:

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Sequence
 from mjxskill import cli
 from mjxskill.cli import args as cli_args
 from mjxskill.cli.experiment import change_validation, settle_bound
-from mjxskill.engine.build import CHOICES, build_rollout, resolve_engine
+from mjxskill.engine.build import CHOICES, build_rollout, connect_cluster, resolve_engine
 from mjxskill.errors import CommandError
 from mjxskill.evaluation.baselines import table
 from mjxskill.evaluation.evaluate_run import FOLDER, call_problem, differences_from_earlier, evaluate_run, evaluation_settings
@@ -47,6 +47,7 @@ from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_RANDOM_SETS
 from mjxskill.scenario.schema import MAX_BATCH
 
 if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.native.ray_pool import ClusterInfo
     from mjxskill.engine.protocol import Rollout
     from mjxskill.scenario.schema import Scenario
     from mjxskill.task import PlannedTask
@@ -75,8 +76,10 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _settings(args, config, seed: int) -> dict:
-    engine = resolve_engine(args.engine)[0] if args.engine else config.engine
+def _settings(args, config, seed: int, asked: tuple[str, str] | None) -> dict:
+    """The evaluation's settings for a run of ``config`` in the worlds of ``seed``, on the engine
+    ``asked`` (``--engine`` resolved: (engine, why)) or the run's."""
+    engine = asked[0] if asked else config.engine
     return evaluation_settings(args.per_config or 5, 10 if args.random is None else args.random, seed,
                                args.batch_size or config.batch_size, engine, args.episode_seconds or config.episode_seconds)
 
@@ -87,13 +90,14 @@ def _refuse_large_calls(settings: dict, scn: Scenario) -> None:
         raise CommandError(problem)
 
 
-def _rollout(args, scn: Scenario, task: PlannedTask, settings: dict, config) -> Rollout:
-    why = resolve_engine(args.engine)[1] if args.engine else "the run's"
+def _rollout(args, scn: Scenario, task: PlannedTask, settings: dict, asked: tuple[str, str] | None,
+             cluster: ClusterInfo | None) -> Rollout:
+    why = asked[1] if asked else "the run's"
     print(f"engine: {settings['engine']} ({why})", flush=True)
-    if args.cluster is not None:
-        print(cli_args.describe_cluster(args.cluster), flush=True)
+    if cluster is not None:
+        print(cli_args.describe_cluster(cluster), flush=True)
     return build_rollout(scn, task, settings["engine"], worlds=1, episode_seconds=settings["episode_seconds"],
-                         workers=args.workers, cluster=args.ray_address)
+                         workers=args.workers, cluster=cluster)
 
 
 def _say(scn: Scenario, settings: dict, run, config, task: PlannedTask) -> None:
@@ -109,9 +113,10 @@ def _progress(done: int, total: int) -> None:
 
 def _main(args: argparse.Namespace) -> int:
     refuse_links_out(args.run)  # before anything in it is read
+    asked = resolve_engine(args.engine) if args.engine else None  # (engine, why), once
     kind = directory_kind(args.run)
     if kind == "experiment":
-        return _experiment(args)
+        return _experiment(args, asked)
     exp = experiment_holding(args.run)
     if exp is not None:
         # Its runs' evaluation/ folders are the experiment's, made in its protocol's worlds: an
@@ -119,10 +124,10 @@ def _main(args: argparse.Namespace) -> int:
         raise CommandError(f"{args.run} belongs to the experiment {exp}: evaluate that (python -m mjxskill.evaluate {exp}), "
                            f"whose protocol its runs' evaluations follow; to evaluate them otherwise, copy {args.run} "
                            "out of the experiment first (evaluating it here would replace the evaluations its report is built on)")
-    return _runs(args, repeated=kind == "repeated")
+    return _runs(args, kind == "repeated", asked)
 
 
-def _runs(args: argparse.Namespace, repeated: bool) -> int:
+def _runs(args: argparse.Namespace, repeated: bool, asked: tuple[str, str] | None) -> int:
     run = Run(args.run)
     config = run.config()
     subs = runs_of(run, config)
@@ -132,17 +137,18 @@ def _runs(args: argparse.Namespace, repeated: bool) -> int:
     bound = force_bound(args.max_force, scn.pick)
     seed = 0 if args.seed is None else args.seed
     for i, sub in enumerate(subs):  # a call the machine cannot hold is refused before anything is written
-        _refuse_large_calls(_settings(args, sub.config(), seed + i), scn)
+        _refuse_large_calls(_settings(args, sub.config(), seed + i, asked), scn)
     if not args.replace:
         for i, sub in enumerate(subs):
-            _keep_earlier(sub, _settings(args, sub.config(), seed + i))
-    args.cluster = cli_args.connect_cluster(args, _settings(args, config, seed)["engine"])  # before anything is written
-    rollout = _rollout(args, scn, task, _settings(args, config, seed), config)
+            _keep_earlier(sub, _settings(args, sub.config(), seed + i, asked))
+    settings = _settings(args, config, seed, asked)
+    cluster = connect_cluster(args.ray_address, settings["engine"])  # before anything is written
+    rollout = _rollout(args, scn, task, settings, asked, cluster)
     results = []
     try:
         for i, sub in enumerate(subs):
             sub_config = sub.config()
-            settings = _settings(args, sub_config, seed + i)
+            settings = _settings(args, sub_config, seed + i, asked)
             _say(scn, settings, sub, sub_config, task)
             with sub.lock():
                 ev, tests, reused = evaluate_run(sub, sub_config, rollout, task, settings, progress=_progress)
@@ -229,13 +235,13 @@ def _pool(run, config, results, bound) -> str:
     return "\n".join([*lines, "", pooled_table(samples, tests), f"wrote {out / 'success.png'} and {out / 'pooled.json'}"])
 
 
-def _experiment(args: argparse.Namespace) -> int:
+def _experiment(args: argparse.Namespace, asked: tuple[str, str] | None) -> int:
     exp = Experiment(args.run)
     config, protocol = exp.config(), exp.protocol()
     exp.state()  # the wall times the report shows: a damaged file is said before anything is written
     given = {"--per-config": (args.per_config, protocol.per_config), "--random": (args.random, protocol.random_sets),
              "--max-force": (args.max_force, protocol.max_force), "--episode-seconds": (args.episode_seconds, config.episode_seconds),
-             "--engine": (args.engine and resolve_engine(args.engine)[0], config.engine)}
+             "--engine": (asked and asked[0], config.engine)}
     conflicts = [f"{flag} {value} (the experiment has {own})" for flag, (value, own) in given.items()
                  if value is not None and value != own]
     if args.seed is not None:
@@ -244,7 +250,7 @@ def _experiment(args: argparse.Namespace) -> int:
         conflicts.append("--replace (an experiment keeps the evaluations of its protocol)")
     if conflicts:
         raise CommandError(f"{exp.path} is evaluated with its own protocol; drop {', '.join(conflicts)}")
-    args.cluster = cli_args.connect_cluster(args, config.engine)  # before anything is written
+    cluster = connect_cluster(args.ray_address, config.engine)  # before anything is written
     scn, task = load_run_task(exp.optimizer, config)
     ready = [(config.seed + i, opt) for i, (opt, rnd) in enumerate(exp.runs(config))
              if is_done(opt, opt.config()) and is_done(rnd, rnd.config())]
@@ -257,10 +263,10 @@ def _experiment(args: argparse.Namespace) -> int:
     with exp.lock():
         protocol = change_validation(args, exp, protocol)
         protocol = settle_bound(exp, scn)
-        if args.cluster is not None:
-            print(cli_args.describe_cluster(args.cluster), flush=True)
+        if cluster is not None:
+            print(cli_args.describe_cluster(cluster), flush=True)
         rollout = build_rollout(scn, task, config.engine, worlds=1, episode_seconds=config.episode_seconds,
-                                workers=args.workers, cluster=args.ray_address)
+                                workers=args.workers, cluster=cluster)
         try:
             for seed, opt in ready:
                 settings = repetition_settings(config, protocol, seed)

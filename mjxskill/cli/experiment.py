@@ -24,7 +24,7 @@ from mjxskill.cli import args as cli_args
 from mjxskill.cli.progress import Progress
 from mjxskill.cli.run_settings import (accept_scenario, add_accept_scenario_change, add_setting_arguments, new_config,
                                         resumed_config)
-from mjxskill.engine.build import build_rollout, resolve_engine
+from mjxskill.engine.build import build_rollout, connect_cluster
 from mjxskill.errors import CommandError
 from mjxskill.experiment.directory import Experiment, Protocol, random_search_config
 from mjxskill.experiment.driver import pending_repetitions, run_experiment, share_cluster
@@ -36,6 +36,7 @@ from mjxskill.runs.bounds import MAX_PER_CONFIG, MAX_RANDOM_SETS
 from mjxskill.task import describe, planning_texts
 
 if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.native.ray_pool import ClusterInfo
     from mjxskill.scenario.schema import Scenario
     from mjxskill.task import PlannedTask
 
@@ -139,7 +140,7 @@ def _main(args: argparse.Namespace) -> int:
         exp = Experiment(args.resume)
         protocol = exp.protocol()
         config = resumed_config(args, exp.optimizer.path)
-        args.cluster = cli_args.connect_cluster(args, config.engine)
+        cluster = connect_cluster(args.ray_address, config.engine)
         conflicts = _protocol_conflicts(args, protocol)
         if conflicts:
             raise CommandError(f"--resume continues {args.resume} with its own protocol; drop {', '.join(conflicts)}")
@@ -159,13 +160,13 @@ def _main(args: argparse.Namespace) -> int:
                                    "drop --validation-per-config and --validation-candidates")
             change_validation(args, exp, protocol)  # after every check: a refused resume changes nothing
             settle_bound(exp, scn)
-            return _run(args, exp, config, scn, task, started)
+            return _run(args, exp, config, scn, task, started, cluster)
     scn, task = scenario_and_task(args.task, args.goal)
     if args.repeats is None:
         args.repeats = scn.optimizer.repetitions
     config = new_config(args, scn, task)
-    args.cluster = cli_args.connect_cluster(args, config.engine)  # before the experiment directory is made
-    if args.cluster is not None:
+    cluster = connect_cluster(args.ray_address, config.engine)  # before the experiment directory is made
+    if cluster is not None:
         config = dataclasses.replace(config, cluster="ray")
     bound, source = force_bound(args.max_force, scn.pick)
     validation = {field: getattr(args, field) for field in VALIDATION if getattr(args, field) is not None}
@@ -182,10 +183,12 @@ def _main(args: argparse.Namespace) -> int:
     exp = Experiment(args.out or Path("runs") / f"{scn.name}-experiment-{time.strftime('%Y%m%d-%H%M%S')}")
     exp.create(config, protocol, scn.source, planning_texts(task))
     with exp.lock():
-        return _run(args, exp, config, scn, task, started)
+        return _run(args, exp, config, scn, task, started, cluster)
 
 
-def _run(args: argparse.Namespace, exp, config, scn: Scenario, task: PlannedTask, started: float) -> int:
+def _run(args: argparse.Namespace, exp, config, scn: Scenario, task: PlannedTask, started: float,
+         cluster: ClusterInfo | None) -> int:
+    """Runs the experiment's repetitions left, on ``cluster`` if given (several at a time there)."""
     protocol = exp.protocol()
     print(describe(scn, task))
     print(f"experiment: {config.repeats} repetitions (seeds {config.seed}..{config.seed + config.repeats - 1}) of the "
@@ -197,12 +200,12 @@ def _run(args: argparse.Namespace, exp, config, scn: Scenario, task: PlannedTask
           + (f"; the pick and the operators' sets confirmed in {protocol.confirm_per_config} worlds per start "
              "configuration" if protocol.confirm_per_config else ""))
     print(f"experiment directory: {exp.path}", flush=True)
-    why = "the experiment's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
+    why = config.engine_reason or "the experiment's own"  # resolved with the configuration; a resumed one's is its own
     print(f"engine: {config.engine} ({why})", flush=True)
     at_a_time, actors = 1, None
-    if args.cluster is not None:  # the repetitions left share the cluster's CPUs (one rollout each)
-        at_a_time, actors = share_cluster(args.cluster.cpus, pending_repetitions(exp))
-        print(cli_args.describe_cluster(args.cluster, at_a_time, actors), flush=True)
+    if cluster is not None:  # the repetitions left share the cluster's CPUs (one rollout each)
+        at_a_time, actors = share_cluster(cluster.cpus, pending_repetitions(exp))
+        print(cli_args.describe_cluster(cluster, at_a_time, actors), flush=True)
     cli.interrupt.set_message(f"interrupted: every finished batch and evaluated chunk is in {exp.path}; continue with "
                               f"python -m mjxskill.experiment {args.task} --resume {exp.path}")
     # A Ctrl-C while it is built: nothing new is trained yet, and mjxskill.cli.run says where the experiment is
@@ -211,13 +214,13 @@ def _run(args: argparse.Namespace, exp, config, scn: Scenario, task: PlannedTask
         for _ in range(at_a_time):
             rollouts.append(build_rollout(scn, task, config.engine, worlds=config.worlds,
                                           episode_seconds=config.episode_seconds, workers=args.workers,
-                                          cluster=args.ray_address, actors=actors))
+                                          cluster=cluster, actors=actors))
     except BaseException:
         for rollout in rollouts:
             rollout.close()
         raise
     try:
-        exp.add_session(time.monotonic() - started, config.engine, args.cluster, at_a_time)
+        exp.add_session(time.monotonic() - started, config.engine, cluster, at_a_time)
 
         def progress_for(run_config):
             kind = "random search" if run_config.optimizer == "random" else "optimizer"

@@ -29,7 +29,7 @@ from mjxskill.cli import args as cli_args
 from mjxskill.cli.progress import Progress
 from mjxskill.cli.run_settings import (accept_scenario, add_accept_scenario_change, add_setting_arguments, new_config,
                                         resumed_config)
-from mjxskill.engine.build import build_rollout, resolve_engine
+from mjxskill.engine.build import build_rollout, connect_cluster
 from mjxskill.evaluation import racing
 from mjxskill.runs.training_protocol import race_episodes
 from mjxskill.task import describe, planning_texts
@@ -41,6 +41,7 @@ from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.run_task import load_run_task, scenario_and_task
 
 if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.engine.native.ray_pool import ClusterInfo
     from mjxskill.scenario.schema import Scenario
     from mjxskill.task import PlannedTask
 
@@ -78,7 +79,7 @@ def _main(args: argparse.Namespace) -> int:
             refuse_links_out(folder)  # before anything in it is read
     if args.resume is not None:
         config = resumed_config(args)
-        args.cluster = cli_args.connect_cluster(args, config.engine)
+        cluster = connect_cluster(args.ray_address, config.engine)
         run = Run(args.resume)
         lock = run.lock()  # before anything is read for resuming: one writer per run
         with lock:
@@ -86,19 +87,21 @@ def _main(args: argparse.Namespace) -> int:
             scn, task = load_run_task(run, config, scenario=args.task)
             if accept_scenario(args, run, scn):
                 config = run.config()
-            return _train(args, run, config, scn, task)
+            return _train(args, run, config, scn, task, cluster)
     scn, task = scenario_and_task(args.task, args.goal)
     config = new_config(args, scn, task)
-    args.cluster = cli_args.connect_cluster(args, config.engine)  # before the run directory is made
-    if args.cluster is not None:
+    cluster = connect_cluster(args.ray_address, config.engine)  # before the run directory is made
+    if cluster is not None:
         config = dataclasses.replace(config, cluster="ray")
     run = Run(args.out or Path("runs") / f"{scn.name}-{time.strftime('%Y%m%d-%H%M%S')}")
     run.create(config, scn.source, planning_texts(task))
     with run.lock():
-        return _train(args, run, config, scn, task)
+        return _train(args, run, config, scn, task, cluster)
 
 
-def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn: Scenario, task: PlannedTask) -> int:
+def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn: Scenario, task: PlannedTask,
+           cluster: ClusterInfo | None) -> int:
+    """Trains ``run`` (its repeats one after another) on one rollout, on ``cluster`` if given."""
     print(describe(scn, task))
     print(f"objectives (larger is better): {', '.join(config.objective_names)}")
     print(f"budget {config.budget} evaluations, batches of {config.batch_size}, {config.n_init} random warm-up, "
@@ -110,17 +113,17 @@ def _train(args: argparse.Namespace, run: Run, config: RunConfig, scn: Scenario,
           + AFTER_WARM_UP.get(config.optimizer, ""))
     print(describe_prior(config.prior) + (" (the run's own)" if args.resume is not None and config.prior else ""))
     print(f"run directory: {run.path}", flush=True)
-    why = "the run's own" if args.resume is not None else resolve_engine(args.engine or "auto")[1]
+    why = config.engine_reason or "the run's own"  # resolved with the configuration; a resumed run's is its own
     print(f"engine: {config.engine} ({why})", flush=True)
-    if args.cluster is not None:
-        print(cli_args.describe_cluster(args.cluster), flush=True)
+    if cluster is not None:
+        print(cli_args.describe_cluster(cluster), flush=True)
     cli.interrupt.set_message(f"interrupted: every finished batch is in {run.path}; continue with "
                               f"python -m mjxskill.train {args.task} --resume {run.path}")
     runs = run.sub_runs(config) if config.repeats > 1 else [run]
     sub, sub_config = run, config
     # A Ctrl-C while it is built: nothing is trained yet, and mjxskill.cli.run says where the run is
     rollout = build_rollout(scn, task, config.engine, worlds=config.worlds, episode_seconds=config.episode_seconds,
-                            workers=args.workers, cluster=args.ray_address)
+                            workers=args.workers, cluster=cluster)
     started = time.monotonic()
     try:
         for sub in runs:

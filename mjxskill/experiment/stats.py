@@ -208,7 +208,8 @@ def summarize(exp: Experiment) -> dict:
         "task": config.task,
         "status": {"repetitions_done": len(reps), "repetitions": config.repeats},
         "protocol": {**{k: v for k, v in asdict(config).items() if k not in ("parameter_names", "parameter_units", "bounds",
-                                                                          "objective_names", "optimizer", "scenario")},
+                                                                          "objective_names", "optimizer", "scenario",
+                                                                          "engine_reason")},
                      "parameters": {n: {"bounds": [lo, hi], "unit": u} for n, lo, hi, u in
                                     zip(config.parameter_names, *config.bounds, config.parameter_units)},
                      "objectives": list(config.objective_names), "scenario": config.scenario,

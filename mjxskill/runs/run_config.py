@@ -78,9 +78,14 @@ class RunConfig:
     # (mjxskill.runs.run_task.record_scenario_change): ({"scenario": what it was resumed with,
     # "evaluations": rows before it, "difference": the first one, "previous_copy": file}, ...).
     scenario_changes: tuple = ()
+    # Why the run uses ``engine``, as ``mjxskill.engine.build.resolve_engine`` said when this
+    # configuration was made ("as asked", "auto: ..."): what a command's header prints. Not stored
+    # (config.yaml, report.json): "" for a configuration read from its run, whose engine is its own.
+    engine_reason: str = field(default="", compare=False)
 
     def to_yaml(self) -> str:
         data = {"format": FORMAT, **asdict(self)}
+        del data["engine_reason"]
         data["parameter_names"] = list(self.parameter_names)
         data["parameter_units"] = list(self.parameter_units)
         data["bounds"] = [list(self.bounds[0]), list(self.bounds[1])]

@@ -72,14 +72,14 @@ def new_run_config(scn: Scenario, task: PlannedTask, scenario: str, settings: Ma
                    prior_from: Path | str | None = None) -> RunConfig:
     """The configuration of a new run of ``task`` (planned in ``scn``, loaded from ``scenario``,
     a scenario name or a YAML path): ``settings`` over the scenario's defaults, the engine
-    ``auto`` resolved, ``optimizer_options``, and the prior of the run ``prior_from`` (over the
-    scenario's ``parameter_priors``). Raises SettingError for a value the run cannot take, and
+    ``auto`` resolved (and why, ``engine_reason``), ``optimizer_options``, and the prior of the
+    run ``prior_from`` (over the scenario's ``parameter_priors``). Raises SettingError for a value the run cannot take, and
     the RunError of ``prior_from_run`` for a run that cannot give a prior."""
     given = _given(settings or {})
     options = _options(optimizer_options)
     values = {s.name: given[s.name] if s.name in given else s.default_for(scn) for s in SETTINGS}
     values["goal"] = task.goal
-    values["engine"] = resolve_engine(values["engine"])[0]
+    values["engine"], engine_reason = resolve_engine(values["engine"])  # resolved once: the header says why
     problem: str | None
     for name, problem in cross_problems(values):
         origin = f"{name} {values[name]}" + ("" if name in given else " (the scenario's default)")
@@ -97,6 +97,7 @@ def new_run_config(scn: Scenario, task: PlannedTask, scenario: str, settings: Ma
         objective_names=objective_names(scn.objective_names, values["protocol"]),
         optimizer_options=options,
         prior=run_prior(scn, task, prior_from),
+        engine_reason=engine_reason,
         **values,
     )
     if not config.parameter_names:

@@ -7,8 +7,9 @@ as (N, ...) arrays. Each control step is two calls for all episodes: the compile
 law (``mjxskill.engine.native.kernels``) writes every row's torques, then ``Batch.step`` runs
 ``mj_step`` per row in C with the GIL released; the contact-force sensors are read as one
 array. What ``mj_step`` leaves in a row is what it leaves in an ``MjData`` (MuJoCo's batch is
-bit-identical to a loop over one ``MjData`` each), so the law sees what the lockstep's numpy law
-sees, and agrees with it to rounding (tests/test_native_batched.py).
+bit-identical to a loop over one ``MjData`` each), so the law sees what the numpy lockstep
+(``mjxskill.engine.native_reference``, its reference) sees, and whole episodes equal its results
+bit for bit (tests/test_native_batched.py).
 
 A row MuJoCo resets after its state went bad (``mj_step`` then only counts a warning, which a
 batch does not report) is found by its clock: a reset sets ``time`` to 0, so the row falls

@@ -1,10 +1,11 @@
-"""One native episode as state that advances tick by tick, shared by the two ways of stepping it.
+"""One native episode as state that advances tick by tick, shared by every way of stepping it.
 
 Per BT tick (``begin_tick``): every leaf's status in Python (``mjxskill.engine.native.leaves``), one tick
 of the reference interpreter, the active leaves' effects on the blackboard. Then
 ``steps_per_tick`` control steps, either ``plain_steps`` here (a user's Python loop: the numpy
 controller and ``mujoco.mj_step`` one step at a time, the baseline the benchmarks measure
-against) or many episodes at once in ``mjxskill.engine.native.lockstep``. Then ``end_tick``: the
+against) or many episodes at once: on a MuJoCo batch (``mjxskill.engine.native.batched``, the
+engine's) or in the numpy lockstep (``mjxskill.engine.native_reference``). Then ``end_tick``: the
 divergence check and the tick's rewards.
 """
 

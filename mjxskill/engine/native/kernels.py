@@ -1,4 +1,4 @@
-"""The impedance law of ``mjxskill.engine.native.controller.batched_impedance_control`` as one
+"""The impedance law of ``mjxskill.engine.native_reference.batched_impedance_control`` as one
 compiled loop over the rows of a ``mujoco.batch.Batch``, with numba.
 
 Why numba: the law is ~40 small operations on 6x7 matrices per arm; as numpy over 42 rows it

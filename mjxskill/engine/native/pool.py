@@ -1,11 +1,13 @@
-"""The native engine's worker processes: a call's episodes split over one process per core.
+"""The native engine's worker processes: ``ProcessPoolRollout``, a ``Rollout`` around the
+one-process ``NativeRollout`` whose calls' episodes are split over one process per core.
 
 A native episode is single-threaded Python and C, so a 2-core machine runs two at once only in
 two processes. Each worker (``python -m mjxskill.engine.native.worker``, a fresh interpreter: nothing
 inherited from a parent that has started JAX's threads, and no re-import of the user's main
 script as ``multiprocessing``'s spawn would do) rebuilds the engine once from a recipe: the
 scenario file and its skill libraries (checked by their sha256), the goal, the settings and the MuJoCo model (MJB
-bytes in a frame of their own: no temporary file, so a killed pool leaves nothing on disk). It then runs contiguous slices of the episodes in lockstep (``mjxskill.engine.native.lockstep``).
+bytes in a frame of their own: no temporary file, so a killed pool leaves nothing on disk). It
+then runs contiguous slices of the episodes, each on one MuJoCo batch (``NativeRollout.run_episodes``).
 Episodes are deterministic and never interact, so the results equal one process's bit for bit
 (tests/test_native_engine.py).
 
@@ -29,6 +31,8 @@ import mujoco
 import numpy as np
 
 from mjxskill.engine.common.types import EpisodeResult
+from mjxskill.engine.common.worlds import Worlds
+from mjxskill.engine.native.rollout import NativeRollout, PooledRollout
 
 
 # -- framing (both sides) -----------------------------------------------------------------------
@@ -60,7 +64,15 @@ def unpack_arrays(payload: bytes) -> dict:
 
 
 # -- the parent's side --------------------------------------------------------------------------
-def recipe(engine) -> dict:
+def default_workers() -> int:
+    """One worker process per core this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def recipe(engine: NativeRollout) -> dict:
     """What a worker needs to rebuild ``engine`` (a ``NativeRollout``), as JSON data."""
     source = Path(engine.scenario.source)
     configs = engine.start_configs
@@ -100,7 +112,7 @@ class WorkerPool:
     them; so does the pool's garbage collection or the interpreter's exit, for an engine
     dropped without ``close`` (a finalizer)."""
 
-    def __init__(self, engine, n: int):
+    def __init__(self, engine: NativeRollout, n: int):
         self.n = n
         self.procs: list[subprocess.Popen] = []
         self._stop = weakref.finalize(self, _stop_workers, self.procs)
@@ -148,3 +160,22 @@ class WorkerPool:
 
     def close(self) -> None:
         self._stop()  # runs _stop_workers once, however often close is called
+
+
+class ProcessPoolRollout(PooledRollout):
+    """``inner``'s episodes (a one-process ``NativeRollout``) split over ``workers`` worker
+    processes on this machine (``mjxskill.engine.build.build_rollout``'s default: one per core);
+    a call of one episode, or ``workers`` 1, runs in this process. Results are ``inner``'s, bit
+    for bit (tests/test_native_engine.py)."""
+
+    def __init__(self, inner: NativeRollout, workers: int):
+        super().__init__(inner)
+        self.workers = max(1, int(workers))
+
+    def make_pool(self) -> WorkerPool:
+        return WorkerPool(self.inner, self.workers)
+
+    def run_episodes(self, params: np.ndarray, worlds: Worlds) -> list[EpisodeResult]:
+        if min(self.workers, len(params)) <= 1:
+            return self.inner.run_episodes(params, worlds)
+        return self.start().run(params, worlds)

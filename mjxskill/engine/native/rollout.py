@@ -1,15 +1,15 @@
-"""The native MuJoCo engine: the episodes of a planned task on native MuJoCo, numpy and the
-reference BT interpreter, without MJX.
+"""The native MuJoCo engine in one process: the episodes of a planned task on native MuJoCo,
+numpy and the reference BT interpreter, without MJX.
 
-Three ways of stepping the same episodes (``mjxskill.engine.native.episode``): ``run_episode``, a
-plain single-process Python loop one control step at a time (how a user without this project
-would write it: the baseline the benchmarks measure against, and the reference in tests); the
-numpy lockstep (``mjxskill.engine.native.lockstep``: one vectorized numpy law per control step for
-all episodes, the reference of the compiled law); and the engine's own, ``run_worlds`` and
-``__call__``: all episodes of a call on MuJoCo batches with the compiled law
-(``mjxskill.engine.native.batched``), split over ``workers`` processes
-(``mjxskill.engine.native.pool``) or over the actors of a Ray cluster (``cluster``,
-``mjxskill.engine.native.ray_pool``), each batch stepped by ``threads`` threads. Same MJCF model and timestep as the compiled rollout,
+``NativeRollout`` runs all episodes of a call on one MuJoCo batch with the compiled law
+(``mjxskill.engine.native.batched``), in this process. Parallelism is a wrapper around it that
+satisfies the same ``Rollout``: ``ProcessPoolRollout`` (``mjxskill.engine.native.pool``: worker
+processes on this machine) and ``RayRollout`` (``mjxskill.engine.native.ray_pool``: the actors of a
+Ray cluster); both rebuild this engine from a recipe (``engine_from_recipe``) where the episodes
+run, and ``build_rollout`` (``mjxskill.engine.build``) composes them. ``run_episode`` is one
+episode in a plain Python loop, one control step at a time (what ``trace`` records); the
+references the tests and benchmarks check this engine against are
+``mjxskill.engine.native_reference``'s. Same MJCF model and timestep as the compiled rollout,
 same worlds (``mjxskill.engine.common.worlds``), same world-model poses for the skills, same
 divergence containment (``mjxskill.engine.common.types``); float64 throughout where MJX runs float32.
 Nothing of the compiled rollout or of MJX is imported: this engine is the independent reference
@@ -23,8 +23,8 @@ the compiled one is tested against.
 from __future__ import annotations
 
 import hashlib
-import os
 from pathlib import Path
+from typing import Callable, Protocol
 
 import jax
 import mujoco
@@ -33,9 +33,6 @@ import numpy as np
 from mjxskill.ebt.interpreter import Interpreter
 from mjxskill.engine.native.batched import run_batched
 from mjxskill.engine.native.episode import NativeEpisode
-from mjxskill.engine.native.lockstep import run_lockstep
-from mjxskill.engine.native.pool import WorkerPool
-from mjxskill.engine.native.ray_pool import RayPool, connect
 from mjxskill.sim.model import build_model
 from mjxskill.scenario import load_scenario
 from mjxskill.scenario.schema import Scenario
@@ -48,13 +45,13 @@ from mjxskill.engine.common.types import EpisodeResult, EpisodeSetup, RolloutOut
 from mjxskill.engine.protocol import RolloutBase
 from mjxskill.engine.common.worlds import Worlds, make_sampler, sample_worlds, worlds_per_config
 
-
-STEPPINGS = ("batch", "lockstep", "plain")
+# (params (N, P), worlds of leading shape (N,)) -> the N episodes' results, in order
+EpisodeRunner = Callable[[np.ndarray, Worlds], list[EpisodeResult]]
 
 
 def engine_from_recipe(spec: dict, model: bytes) -> "NativeRollout":
     """The engine of a recipe (``mjxskill.engine.native.pool.recipe``) and MJB bytes, in this
-    process (workers=1): what a worker process or a Ray actor runs its slices on. RuntimeError
+    process: what a worker process or a Ray actor runs its slices on. RuntimeError
     if the scenario's files are not those the recipe was made from."""
     source = Path(spec["scenario"])
     scn = load_scenario(source)
@@ -64,7 +61,7 @@ def engine_from_recipe(spec: dict, model: bytes) -> "NativeRollout":
     return NativeRollout(scn, plan_task(scn, spec["goal"]), worlds=spec["worlds"],
                          episode_seconds=spec["episode_seconds"],
                          start_configs=None if configs is None else np.asarray(configs),
-                         mj_model=mujoco.MjModel.from_binary_path("model.mjb", {"model.mjb": model}), workers=1)
+                         mj_model=mujoco.MjModel.from_binary_path("model.mjb", {"model.mjb": model}))
 
 
 def sources_sha256(scn: Scenario) -> str:
@@ -75,32 +72,19 @@ def sources_sha256(scn: Scenario) -> str:
     return digest.hexdigest()
 
 
-def default_workers() -> int:
-    """One worker process per core this process may run on."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not Linux
-        return max(1, os.cpu_count() or 1)
-
-
 class NativeRollout(RolloutBase):
-    """The episodes of ``task`` in ``scn`` on native MuJoCo (arguments as ``compile_rollout``;
-    nothing is compiled). workers: processes ``run_worlds`` splits a call's episodes over
-    (default: one per core; 1 runs them in this process); threads: the threads that step the
-    batch of a call run in this process (workers == 1). cluster: the address of a Ray cluster
-    ("auto" or HOST:PORT) whose CPUs run the calls' episodes instead of local workers (one actor
-    per CPU, or ``actors``: an experiment's repetitions that run at the same time share the
-    cluster's CPUs; ``pip install 'mjxskill[ray]'``); connected at once, ClusterError if it
-    cannot be. Results depend on none of these."""
+    """The episodes of ``task`` in ``scn`` on native MuJoCo, in this process (arguments as
+    ``compile_rollout``; nothing is compiled). ``threads``: the threads that step a call's batch
+    (1; ``benchmarks/throughput.py`` measures more); ``timing``: a dict that a call adds its
+    seconds in ``Batch.step`` to under "physics_s" (None: not measured). Results depend on
+    neither."""
 
     scenario: Scenario
     task: PlannedTask
     setup: EpisodeSetup
 
     def __init__(self, scn: Scenario, task: PlannedTask | None = None, *, worlds: int | None = None, episode_seconds: float | None = None,
-                 start_configs: np.ndarray | None = None, mj_model: mujoco.MjModel | None = None,
-                 workers: int | None = None, threads: int = 1, cluster: str | None = None,
-                 actors: int | None = None):
+                 start_configs: np.ndarray | None = None, mj_model: mujoco.MjModel | None = None):
         if task is None:
             task = plan_task(scn)
         if mj_model is None:
@@ -108,16 +92,8 @@ class NativeRollout(RolloutBase):
         seconds = scn.episode_seconds if episode_seconds is None else float(episode_seconds)
         self.scenario, self.task = scn, task
         self.start_configs = None if start_configs is None else np.asarray(start_configs)
-        self.workers = default_workers() if workers is None else max(1, int(workers))
-        self.threads = max(1, int(threads))
-        # a dict that a call in this process (workers == 1) adds its seconds in Batch.step to
-        # under "physics_s" (benchmarks/throughput.py); None: not measured
+        self.threads = 1
         self.timing: dict | None = None
-        self._pool = None
-        self.actors = None if actors is None else max(1, int(actors))  # Ray actors (None: one per CPU of the cluster)
-        self.cluster = None  # the ClusterInfo of the Ray cluster the calls run on
-        if cluster is not None:
-            self.cluster = connect(cluster)
         # The scenario and skill library files as this engine read them: workers rebuild from
         # them and check they are unchanged.
         self.scenario_sha256 = sources_sha256(scn)
@@ -175,16 +151,22 @@ class NativeRollout(RolloutBase):
         params = self.check_params(params)
         return self.run_worlds(params, self.sample_worlds(key, len(params)))
 
-    def run_worlds(self, params, worlds: Worlds, *, stepping: str = "batch") -> RolloutOutput:
+    def run_worlds(self, params, worlds: Worlds) -> RolloutOutput:
         """Rolls out (B, P) ``params`` in ``worlds`` of leading shape (B, W) or (W,) (the same
-        worlds for every parameter set). ``stepping``: "batch", the engine's own way (the B x W
-        episodes on MuJoCo batches with the compiled law, split over the worker processes);
-        "lockstep", the numpy law for all episodes at once (the law's reference); "plain", one
-        episode after another in the plain loop (the baseline). The last two run in this
-        process. Returns a RolloutOutput of numpy arrays with the compiled rollout's fields and
+        worlds for every parameter set): the B x W episodes on one MuJoCo batch with the compiled
+        law. Returns a RolloutOutput of numpy arrays with the compiled rollout's fields and
         metric names."""
-        if stepping not in STEPPINGS:
-            raise ValueError(f"stepping must be one of {', '.join(STEPPINGS)}, got {stepping!r}")
+        return self.gather(params, worlds, self.run_episodes)
+
+    def run_episodes(self, params: np.ndarray, worlds: Worlds) -> list[EpisodeResult]:
+        """The results of the episodes ``params`` (N, P) in ``worlds`` (leading shape (N,)), in
+        order: what a wrapper runs elsewhere (a worker process, a Ray actor) on a slice."""
+        return run_batched(self, params, worlds, threads=self.threads, timing=self.timing)
+
+    def gather(self, params, worlds: Worlds, run: EpisodeRunner) -> RolloutOutput:
+        """``run_worlds`` with the episodes run by ``run`` (this engine's ``run_episodes``, a
+        wrapper's, or a reference's): (B, P) ``params`` in ``worlds`` of leading shape (B, W) or
+        (W,), flattened to B x W episodes and summarized as the compiled rollout does."""
         params = self.check_params(params)
         worlds = jax.tree.map(np.asarray, worlds)
         if worlds.config_index.ndim == 1:
@@ -194,29 +176,10 @@ class NativeRollout(RolloutBase):
         b, w = worlds.config_index.shape
         flat_params = np.repeat(params, w, axis=0)
         flat_worlds = jax.tree.map(lambda x: np.ascontiguousarray(x.reshape((b * w,) + x.shape[2:])), worlds)
-        if stepping == "plain":
-            results = [self.run_episode(flat_params[i], jax.tree.map(lambda x: x[i], flat_worlds)) for i in range(b * w)]
-        elif stepping == "lockstep":
-            results = run_lockstep(self, flat_params, flat_worlds)
-        else:
-            results = self._run_batched(flat_params, flat_worlds)
+        results = run(flat_params, flat_worlds)
         res = EpisodeResult(*(np.array([getattr(r, f) for r in results]).reshape((b, w) + np.shape(getattr(results[0], f)))
                               for f in EpisodeResult._fields))
         return summarize(res, worlds.config_index, self.objective_matrix, self.reward_names, xp=np)
-
-    def _run_batched(self, params: np.ndarray, worlds: Worlds) -> list[EpisodeResult]:
-        if self.cluster is None and min(self.workers, len(params)) <= 1:
-            return run_batched(self, params, worlds, threads=self.threads, timing=self.timing)
-        return self.start_workers().run(params, worlds)
-
-    def start_workers(self):
-        """Starts the worker processes (or the Ray actors) now (a call starts them when it first
-        needs them: a few seconds of imports each). Returns the pool."""
-        if self._pool is None and self.cluster is not None:
-            self._pool = RayPool(self, self.cluster.address, build=engine_from_recipe, actors=self.actors)
-        elif self._pool is None and self.workers > 1:
-            self._pool = WorkerPool(self, self.workers)
-        return self._pool
 
     def memory_per_episode(self) -> int:
         """Bytes one episode holds while it runs: its model copy and its MjData (buffer and the
@@ -230,7 +193,82 @@ class NativeRollout(RolloutBase):
         return int(mujoco.mj_sizeModel(episode.model) + episode.data.nbuffer + episode.data.maxuse_arena)
 
     def close(self) -> None:
-        """Stops the worker processes or the Ray actors (they also stop when this process exits)."""
+        """Nothing to release: the episodes ran in this process (``Rollout.close``)."""
+
+
+class EpisodePool(Protocol):
+    """Where a wrapper's episodes run: ``run`` (params (N, P), worlds (N,)) -> the N results in
+    order, as ``NativeRollout.run_episodes``; ``close`` stops it (``WorkerPool``, ``RayPool``)."""
+
+    def run(self, params: np.ndarray, worlds: Worlds) -> list[EpisodeResult]: ...
+
+    def close(self) -> None: ...
+
+
+class PooledRollout(RolloutBase):
+    """A ``Rollout`` around a one-process ``NativeRollout`` (``inner``, as Brax wraps an env)
+    whose calls' episodes run on a pool elsewhere: ``ProcessPoolRollout``
+    (``mjxskill.engine.native.pool``) and ``RayRollout`` (``mjxskill.engine.native.ray_pool``).
+    What a caller reads, the worlds a key gives and ``trace`` are ``inner``'s; the pool
+    (``make_pool``) starts with the first call that needs it, or ``start``, and ``close`` stops
+    it. Episodes are deterministic and never interact, so the results are ``inner``'s bit for bit."""
+
+    def __init__(self, inner: NativeRollout):
+        self.inner = inner
+        self._pool: EpisodePool | None = None
+
+    @property
+    def scenario(self) -> Scenario:
+        return self.inner.scenario
+
+    @property
+    def task(self) -> PlannedTask:
+        return self.inner.task
+
+    @property
+    def setup(self) -> EpisodeSetup:
+        return self.inner.setup
+
+    @property
+    def worlds(self) -> int:
+        return self.inner.worlds
+
+    @property
+    def mj_model(self) -> mujoco.MjModel:
+        return self.inner.mj_model
+
+    def sample_worlds(self, key, batch: int) -> Worlds:
+        return self.inner.sample_worlds(key, batch)
+
+    def worlds_per_config(self, key, per_config: int, configs: np.ndarray | None = None) -> Worlds:
+        return self.inner.worlds_per_config(key, per_config, configs)
+
+    def trace(self, params, world: Worlds):
+        return self.inner.trace(params, world)
+
+    def __call__(self, params, key) -> RolloutOutput:
+        params = self.check_params(params)
+        return self.run_worlds(params, self.sample_worlds(key, len(params)))
+
+    def run_worlds(self, params, worlds: Worlds) -> RolloutOutput:
+        """As ``NativeRollout.run_worlds``, the episodes run by ``run_episodes``."""
+        return self.inner.gather(params, worlds, self.run_episodes)
+
+    def run_episodes(self, params: np.ndarray, worlds: Worlds) -> list[EpisodeResult]:
+        return self.start().run(params, worlds)
+
+    def make_pool(self) -> EpisodePool:
+        raise NotImplementedError
+
+    def start(self) -> EpisodePool:
+        """Starts the pool now (a call starts it when it first needs it: a few seconds of
+        imports per worker or actor). Returns it."""
+        if self._pool is None:
+            self._pool = self.make_pool()
+        return self._pool
+
+    def close(self) -> None:
+        """Stops the pool (it also stops when this process exits); twice is harmless."""
         if self._pool is not None:
             self._pool.close()
             self._pool = None

@@ -2,7 +2,7 @@
 
 Reads a recipe frame (JSON) and a model frame (MJB bytes), builds the engine, answers ``K``;
 then for every job frame (NPZ: params and world fields) runs the episodes on one single-threaded
-MuJoCo batch and answers an ``O`` frame (NPZ: the
+MuJoCo batch (``NativeRollout.run_episodes``) and answers an ``O`` frame (NPZ: the
 EpisodeResult fields). Any failure is answered with an ``E`` frame holding the traceback.
 """
 
@@ -17,7 +17,6 @@ import numpy as np
 
 from mjxskill.engine.common.types import EpisodeResult
 from mjxskill.engine.common.worlds import Worlds
-from mjxskill.engine.native.batched import run_batched
 from mjxskill.engine.native.pool import pack_arrays, read_frame, unpack_arrays, write_frame
 from mjxskill.engine.native.rollout import engine_from_recipe
 
@@ -39,7 +38,7 @@ def main() -> int:
             kind, payload = read_frame(stdin)
             arrays = unpack_arrays(payload)
             worlds = Worlds(*(arrays[f"world_{name}"] for name in Worlds._fields))
-            results = run_batched(engine, arrays["params"], worlds)
+            results = engine.run_episodes(arrays["params"], worlds)
             fields = {f: np.array([getattr(r, f) for r in results]) for f in EpisodeResult._fields}
             write_frame(stdout, b"O", pack_arrays(**fields))
     except EOFError:  # the parent closed the pipe: done
