@@ -70,6 +70,11 @@ class PlanError(UserError, ValueError):
     """No plan reaches the goal, or a plan does not fit the skill library."""
 
 
+class RecordingError(UserError):
+    """A recording of an executed episode that cannot be used (``mjxskill.calibration.recording``):
+    the message names the file, the array and, for a value, its sample and time."""
+
+
 class RunError(UserError):
     """A run directory (or a file in it) that cannot be used as asked."""
 
@@ -128,5 +133,5 @@ class Notice(UserWarning):
     ``prog: warning: message`` line."""
 
 
-__all__ = ["MAX_MESSAGE_CHARS", "QUOTE_CHARS", "bounded", "listing", "quote", "ClusterError", "CommandError", "GoalError", "Notice", "PlanError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
+__all__ = ["MAX_MESSAGE_CHARS", "QUOTE_CHARS", "bounded", "listing", "quote", "ClusterError", "CommandError", "GoalError", "Notice", "PlanError", "RecordingError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
            "ServerBusy", "SettingError", "UserError"]

@@ -127,8 +127,9 @@ def test_no_import_cycles():
 
 CORE = ("scenario", "planner", "ebt", "task", "bt_compiled", "sim", "engine", "gp", "errors", "_runtime", "_lazy", "_headless")
 # the applications over the core, each only importing those before it: the run directory, the
-# optimizer loop, what follows training, the experiment and the explore page, the command line
-APPLICATIONS = ("runs", "training", "evaluation", "experiment", "explore", "cli")
+# twin calibrated from recordings, the optimizer loop, what follows training, the experiment and
+# the explore page, the command line
+APPLICATIONS = ("runs", "calibration", "training", "evaluation", "experiment", "explore", "cli")
 ROBOT = ("scenario", "planner", "ebt", "task", "bt_compiled", "sim", "engine", *APPLICATIONS)
 
 

@@ -20,6 +20,7 @@ from mjxskill.scenario.scene_refs import check_scene
 from mjxskill.scenario.domain import ANGLE_DEG, EXTRA, FRICTION, JOINT_ANGLE, JOINT_LIMIT_DEG, MASS, POSITION, SIZE, STIFFNESS
 from mjxskill.scenario.schema import MAX_EPISODE_SECONDS, Pose, Robot, Scenario, WorldObject, frozen_array, frozen_mapping
 from mjxskill.scenario.vocabulary import SHAPES
+from mjxskill.scenario.calibration import calibrated, calibration
 from mjxskill.scenario.sections import optimizer, pick, randomization, rewards, success
 from mjxskill.scenario.skills import (
     manual_parameters, parameter_priors, skill, skill_fields, skill_parameter_overrides,
@@ -61,10 +62,10 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     top = root.mapping(
         required=(
             "name", "scene", "gravity", "episode_seconds", "bt_hz", "control_hz", "types", "predicates",
-            "robot", "objects", "goal", "objectives", "rewards", "success", "randomization",
-            "optimizer",
+            "robot", "objects", "goal", "objectives", "rewards", "success", "randomization", "optimizer",
         ),
-        optional=("manual_parameters", "parameter_priors", "skills", "skill_library", "skill_parameters", "pick"),
+        optional=("manual_parameters", "parameter_priors", "skills", "skill_library", "skill_parameters", "pick",
+                  "calibration", "calibrated"),
     )
     types = _types(top["types"])
     predicates = _predicates(top["predicates"], types)
@@ -116,6 +117,8 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         manual_parameters=manual_parameters(top.get("manual_parameters"), skills),
         parameter_priors=parameter_priors(top.get("parameter_priors"), skills),
         pick=pick(top.get("pick")),
+        calibration=calibration(top.get("calibration"), objects),
+        calibrated=calibrated(top.get("calibrated")),
         locations=frozen_mapping(_locations(top, robot_field, objects_field)),
     )
     try:  # the goal's syntax and names (planning it is mjxskill.task's)

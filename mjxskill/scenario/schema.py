@@ -24,11 +24,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
 from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mjxskill.scenario.calibration import Calibrated, Calibration
 
 
 # Bounds of the run settings a scenario gives defaults for, shared with the command-line flags
@@ -338,7 +341,9 @@ class Scenario:
     parameter_priors: learnable parameter name ("<skill>.<parameter>") -> ParameterPrior, where
     the operator believes good values lie (the optimizer's prior, ``mjxskill.training.priors``).
     pick: the pick's force bound and its reason (None: the scenario states none, and a pick
-    without ``--max-force`` is unbounded).
+    without ``--max-force`` is unbounded). calibration: what ``python -m mjxskill.calibrate``
+    may fit to recordings (``mjxskill.scenario.calibration``; None: nothing); calibrated: what a
+    fit wrote into this scenario (None: not a fitted one).
     """
 
     name: str
@@ -364,6 +369,8 @@ class Scenario:
     libraries: tuple[str, ...] = ()
     parameter_priors: Mapping[str, ParameterPrior] = field(default_factory=lambda: MappingProxyType({}))
     pick: PickBound | None = None
+    calibration: "Calibration | None" = None
+    calibrated: "Calibrated | None" = None
 
     def where(self, key_path: str) -> str:
         """``"file: key path (line N)"`` of a YAML entry (the file alone when not recorded)."""

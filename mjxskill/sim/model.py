@@ -57,6 +57,14 @@ def build_model(scn) -> mujoco.MjModel:
 def compile_model(scn) -> mujoco.MjModel:
     """``build_model``'s work, done every time: three MjSpec compiles (the MJCF as written, with
     the tool's force sensors placed, and the final model)."""
+    return _compile(scenario_spec(scn), scn)
+
+
+def scenario_spec(scn) -> mujoco.MjSpec:
+    """The ``mujoco.MjSpec`` that compiles to ``build_model(scn)``: the MJCF with the YAML's
+    physics written in (two compiles: the MJCF as written, and with the tool's force sensors
+    placed). What edits the twin further starts here (``mjxskill.calibration``: the twin whose
+    object physics is fitted). Raises ScenarioError as ``build_model``."""
     spec = mujoco.MjSpec.from_file(scn.scene)
     base = _compile(spec, scn)  # the MJCF as written: poses, masses, where the tool tip is
     data = mujoco.MjData(base)
@@ -69,12 +77,12 @@ def compile_model(scn) -> mujoco.MjModel:
             _body_physics(spec, base, data, scn, obj, robot, hole_item, site)
         elif obj.mjcf_geom is not None:
             _world_geom(spec, scn, obj)
-    _friction(spec, scn)
+    write_friction(spec, scn)
     spec.option.timestep = 1.0 / scn.control_hz
     if not scn.gravity:
         spec.option.gravity = [0.0, 0.0, 0.0]
     add_tool_force_sensors(spec, _compile(spec, scn), scn.robot.tool_site)
-    return _compile(spec, scn)
+    return spec
 
 
 def _compile(spec, scn) -> mujoco.MjModel:
@@ -256,17 +264,22 @@ def _world_geom(spec, scn, obj) -> None:
     geom.quat = np.asarray(obj.pose.quat, float)
 
 
-def _friction(spec, scn) -> None:
-    """Objects' friction on their geoms and on the contact pairs touching them."""
+def write_friction(spec, scn, changed: dict[str, float] | None = None) -> None:
+    """Objects' friction on their geoms and on the contact pairs touching them (a pair takes the
+    larger of its two sides, see the module docstring), with the frictions ``changed`` gives
+    (object name -> coefficient) in place of the YAML's: what fitting an object's friction
+    writes into a spec (``mjxskill.calibration``)."""
+    changed = changed or {}
     of_geom: dict[str, float] = {}
     for obj in scn.objects.values():
-        if obj.friction is None:
+        friction = changed.get(obj.name, obj.friction)
+        if friction is None:
             continue
         geoms = list(spec.body(obj.mjcf_body).geoms) if obj.mjcf_body is not None else [spec.geom(obj.mjcf_geom)]
         for geom in geoms:
-            geom.friction = [obj.friction, *list(geom.friction)[1:]]
+            geom.friction = [friction, *list(geom.friction)[1:]]
             if geom.name:
-                of_geom[geom.name] = obj.friction
+                of_geom[geom.name] = friction
     for pair in spec.pairs:
         sides = [of_geom[g] for g in (pair.geomname1, pair.geomname2) if g in of_geom]
         if sides:
@@ -275,4 +288,4 @@ def _friction(spec, scn) -> None:
             pair.friction = friction
 
 
-__all__ = ["build_model", "held_item"]
+__all__ = ["build_model", "held_item", "scenario_spec", "write_friction"]

@@ -12,7 +12,7 @@ divergence check and the tick's rewards.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Callable
 
 import mujoco
 import numpy as np
@@ -173,8 +173,10 @@ class NativeEpisode:
         bb.leaf_ticks = [(1 if s else n + 1) if a else 0 for a, s, n in zip(active, started, bb.leaf_ticks)]
         self.root, self.active = root, active
 
-    def plain_steps(self) -> None:
-        """The tick's control steps one at a time: reference, numpy controller, ``mj_step``."""
+    def plain_steps(self, on_step: Callable[[mujoco.MjData, np.ndarray], None] | None = None) -> None:
+        """The tick's control steps one at a time: reference, numpy controller, ``mj_step``.
+        ``on_step(data, tau)``: called after each step with the data and the joint torques the
+        step applied (what a recording of the episode reads, ``mjxskill.calibration.record``)."""
         model, data, bb, cfg = self.model, self.data, self.bb, self.engine.setup.ctrl
         cstate = self.cstate
         sensors = list(self.engine.setup.bindings.force_sensors)
@@ -185,6 +187,8 @@ class NativeEpisode:
             tau, cstate = native_impedance_control(cfg, model, data, command, self.nullspace_target, cstate)
             data.ctrl[:N_ARM] = tau
             mujoco.mj_step(model, data)
+            if on_step is not None:
+                on_step(data, tau)
             force = float(np.sum(data.sensordata[sensors]))  # computed by mj_step: this step's contact force
             force_sum, force_peak = force_sum + force, max(force_peak, force)
             bb.advance(cfg.dt)

@@ -126,16 +126,17 @@ class NativeRollout(RolloutBase):
         return jax.tree.map(np.asarray, worlds_per_config(sampler, key, per_config))
 
     # -- episodes ---------------------------------------------------------------------------
-    def run_episode(self, params, world: Worlds, record: bool = False):
+    def run_episode(self, params, world: Worlds, record: bool = False, on_step=None):
         """Rolls out ``params`` (P,) in ``world`` (unbatched numpy fields) in a plain Python loop,
         one control step at a time; the result's fields are numpy scalars / (R,) as in
         ``rollout.types.EpisodeResult``. With ``record``, returns (result, TickRecord of numpy
         arrays with a leading (T,) axis) like the compiled rollout's ``trace`` (T: ticks run;
-        fewer if the world diverged)."""
+        fewer if the world diverged). ``on_step(data, tau)``: called after every control step
+        (``NativeEpisode.plain_steps``)."""
         episode = NativeEpisode(self, params, world, self.mj_model, record=record)
         for t in range(self.setup.ticks):
             episode.begin_tick()
-            episode.plain_steps()
+            episode.plain_steps(on_step)
             if not episode.end_tick(t):
                 break
         return (episode.result(), episode.trace()) if record else episode.result()
