@@ -19,11 +19,12 @@ change of 1 mg does not):
    twin's pushes), so each signal is then weighed by the larger of its noise and its RMS error at
    the first round's values (feasible generalized least squares), so that no signal's chaos
    drowns the others.
-3. **A last Gauss-Newton step on central secants.** The trust region of the first round closes
-   where the chaos hides the remaining slope (on the "true" twin: 4.5 % off in mass and friction,
-   along the valley where only their product is well seen). From there one Gauss-Newton step is
-   taken with the Jacobian of central differences over +-``SECANT_SHARE`` of each range, where the
-   slope stands out of the chaos; it took the same fit to 1.1 % (``docs/calibration.md``).
+3. **Last Gauss-Newton steps on central secants.** sysid's trust region closes where the chaos
+   hides the remaining slope (on the "true" twin: 4.5 and 12.5 % off in mass, along the valley
+   where only mass times friction is well seen). From there Gauss-Newton steps are taken with
+   the Jacobian of central differences over +-``SECANT_SHARE`` of each range, where the slope
+   stands out of the chaos, each kept only when it lowers the residual, at most ``GN_STEPS``
+   (``docs/calibration.md``: the errors they left).
 
 **The intervals.** ``sysid.calculate_intervals`` takes the residual's samples as independent
 with one variance. They are not: the replay's chaos and the sensors' noise run through a whole
@@ -57,7 +58,8 @@ from mjxskill.sim.model import scenario_spec
 from mjxskill.task import PlannedTask
 
 STEP_SHARE = 0.03  # of a parameter's bounds' width: the optimizer's finite-difference step
-SECANT_SHARE = 0.06  # of its width: the central secants of the last step and the intervals
+SECANT_SHARE = 0.06  # of its width: the central secants of the last steps and the intervals
+GN_STEPS = 3  # Gauss-Newton steps on them at most
 MIN_RECORDINGS = 2  # the intervals come from how the recordings differ
 
 
@@ -198,22 +200,38 @@ class _Problem:
         return np.array(columns).T
 
 
-def _gauss_newton(problem: _Problem, x: np.ndarray, jac: np.ndarray, log: io.StringIO) -> np.ndarray:
-    """Point 3 of the module docstring: ``x`` moved to the minimum of the secant model, within the bounds."""
+def _gauss_newton(problem: _Problem, x: np.ndarray, secants: np.ndarray, confidence: float, log: io.StringIO):
+    """Point 3 of the module docstring: Gauss-Newton steps on central secants from ``x``, each
+    kept only when it lowers the residual, until one moves every value by less than a quarter of
+    its interval or ``GN_STEPS`` are taken. Returns (the point, the secant Jacobian there)."""
     lower, upper = problem.params.get_bounds()
-    r = np.concatenate(problem.residuals(x))
-    step = -np.linalg.pinv(jac.T @ jac) @ (jac.T @ r)
-    moved = np.clip(x + step, lower, upper)
-    log.write(f"Gauss-Newton step on central secants: {np.array2string(x, precision=5)} -> "
-              f"{np.array2string(moved, precision=5)}\n")
-    return moved
+    residuals = problem.residuals(x)
+    cost = float(sum(np.sum(r ** 2) for r in residuals))
+    jac = problem.secant_jacobian(x, secants)
+    for _ in range(GN_STEPS):
+        r = np.concatenate(residuals)
+        moved = np.clip(x - np.linalg.pinv(jac.T @ jac) @ (jac.T @ r), lower, upper)
+        trial = problem.residuals(moved)
+        trial_cost = float(sum(np.sum(t ** 2) for t in trial))
+        kept = trial_cost < cost
+        log.write(f"Gauss-Newton step on central secants: {np.array2string(x, precision=5)} -> "
+                  f"{np.array2string(moved, precision=5)}, residual {cost:.5g} -> {trial_cost:.5g}"
+                  f"{'' if kept else ' (not kept)'}\n")
+        if not kept:
+            break
+        small = np.all(np.abs(moved - x) < sandwich(residuals, jac, confidence)[1] / 4)
+        x, residuals, cost = moved, trial, trial_cost
+        if small:
+            break
+        jac = problem.secant_jacobian(x, secants)
+    return x, jac
 
 
 def calibrate(scn: Scenario, task: PlannedTask, recordings: list[Recording], *, max_evaluations: int = 40,
               confidence: float = 0.95, step_share: float = STEP_SHARE, secant_share: float = SECANT_SHARE) -> FitResult:
     """Fits ``scn``'s ``calibration.parameters`` to ``recordings`` of ``task`` (module docstring):
     sysid's optimizer (at most ``max_evaluations`` residual evaluations) from the YAML's values,
-    the weights from its errors, a Gauss-Newton step on central secants, the intervals there.
+    the weights from its errors, Gauss-Newton steps on central secants, the intervals there.
     UserError when there are too few recordings, RecordingError when one holds no free push."""
     if scn.calibration is None:
         raise UserError(f"{scn.source}: the scenario declares no calibration section: nothing to fit")
@@ -238,9 +256,9 @@ def calibrate(scn: Scenario, task: PlannedTask, recordings: list[Recording], *, 
         pooled = _reweigh(problem.replays, _rms(problem.replays, preds, records))
         log.write("weights from here (RMS error at these values): " + ", ".join(f"{k} {v:.3g}" for k, v in pooled.items()) + "\n")
         secants = finite_difference_steps(scn.calibration.parameters, secant_share).ravel()
-        jac = problem.secant_jacobian(first.as_vector(), secants)
+        x, jac = _gauss_newton(problem, first.as_vector(), secants, confidence, log)
         fitted = first.copy()
-        fitted.update_from_vector(_gauss_newton(problem, first.as_vector(), jac, log))
+        fitted.update_from_vector(x)
         after, preds1, records1 = residual_fn(fitted.as_vector(), fitted, return_pred_all=True)
     finally:
         absl.setLevel(level)
@@ -273,4 +291,4 @@ def _control(replay: Replay):
     return sysid.TimeSeries(np.asarray(rec.time, float), np.asarray(torque, float))
 
 
-__all__ = ["FitResult", "MIN_RECORDINGS", "SECANT_SHARE", "STEP_SHARE", "calibrate", "sandwich"]
+__all__ = ["FitResult", "GN_STEPS", "MIN_RECORDINGS", "SECANT_SHARE", "STEP_SHARE", "calibrate", "sandwich"]
