@@ -190,4 +190,4 @@ def _pooled_batch(optimizer: Optimizer, state, config: RunConfig, earlier: Evalu
 
 def _save_state(state, path) -> None:
     """The optimizer state, replaced in one step (a kill mid-write leaves the previous one)."""
-    replace_whole(path, lambda tmp: gp.save_state(state, tmp))
+    replace_whole(path, lambda fh: gp.save_state(state, fh))
