@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from mjxskill.errors import ClusterError
+from mjxskill.errors import ClusterError, quote
 
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
@@ -35,7 +35,7 @@ def resolve_engine(name: str, backend: str | None = None) -> tuple[str, str]:
     if name in ENGINES:
         return name, "as asked"
     if name != "auto":
-        raise ValueError(f"unknown engine {name!r}; expected one of {', '.join(CHOICES)}")
+        raise ValueError(f"unknown engine {quote(name)}; expected one of {', '.join(CHOICES)}")
     if backend is None:
         import jax  # lazy: ~1 s, and train/evaluate/experiment --help and bad input import this module
 
@@ -68,4 +68,4 @@ def build_rollout(scn: Scenario, task: PlannedTask, engine: str, *, worlds: int 
         return NativeRollout(scn, task, worlds=worlds, episode_seconds=episode_seconds,
                              start_configs=start_configs, mj_model=mj_model, workers=workers, cluster=cluster,
                              actors=actors)
-    raise ValueError(f"unknown engine {engine!r}; expected one of {', '.join(ENGINES)}")
+    raise ValueError(f"unknown engine {quote(engine)}; expected one of {', '.join(ENGINES)}")

@@ -29,7 +29,7 @@ from pathlib import Path
 import yaml
 
 from mjxskill._files import is_regular
-from mjxskill.errors import RunError
+from mjxskill.errors import RunError, quote
 from mjxskill.scenario.fields import compose_text, read_text
 from mjxskill.runs.atomic_write import write_json, write_text
 from mjxskill.evaluation.evaluate_run import evaluation_settings
@@ -251,13 +251,13 @@ def _check_state(state) -> None:
             raise ValueError(f"sessions[{i}] is not a mapping")
         for key, ok in SESSION_KEYS.items():
             if key not in session or not ok(session[key]):
-                raise ValueError(f"sessions[{i}].{key} is {session.get(key, 'missing')!r}")
+                raise ValueError(f"sessions[{i}].{key} is {quote(session.get(key, 'missing'))}")
     for key, entry in state["times"].items():
         if not isinstance(entry, dict):
             raise ValueError(f"times.{key} is not a mapping")
         for field, value in entry.items():
             if not _number(value):
-                raise ValueError(f"times.{key}.{field} is {value!r}, not a number of seconds or evaluations")
+                raise ValueError(f"times.{key}.{field} is {quote(value)}, not a number of seconds or evaluations")
 
 
 def repetition_settings(config: RunConfig, protocol: Protocol, seed: int) -> dict:

@@ -42,6 +42,7 @@ import jax
 import numpy as np
 
 from mjxskill._files import read_regular
+from mjxskill.errors import quote
 from mjxskill.gp.config import STATE_FORMAT, MOBOConfig, config_from_json
 from mjxskill.gp.hypervolume_scalarization import reference_point, warmup_reference
 from mjxskill.gp.pareto import pareto_mask
@@ -183,7 +184,7 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
     assert cfg.acquisition is not None  # MOBOConfig.__post_init__ sets it
     q = cfg.batch_size if num is None else int(num)
     if q < 1:
-        raise ValueError(f"ask: batch size must be positive, got {num!r}")
+        raise ValueError(f"ask: batch size must be positive, got {quote(num)}")
     lo, hi = np.asarray(cfg.bounds)
     n = len(state.x)
     if n < cfg.n_init:
@@ -323,7 +324,7 @@ def minimize(
         # "lognormal"); as a keyword of minimize it is the parameter prior.
         hint = (f"; for the GP's hyperparameter prior pass acquisition={{'prior': {prior!r}}}" if prior in CHOICES["prior"]
                 else "")
-        raise ValueError(f"minimize: prior={prior!r} is not a parameter prior (a Prior or {{'mean': ..., 'std': ...}}){hint}")
+        raise ValueError(f"minimize: prior={quote(prior)} is not a parameter prior (a Prior or {{'mean': ..., 'std': ...}}){hint}")
 
     def evaluate(x):
         y = np.asarray(f(x), dtype=np.float64)

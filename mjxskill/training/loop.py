@@ -16,6 +16,7 @@ import numpy as np
 
 from mjxskill import gp
 from mjxskill.engine.common.keys import stream_key
+from mjxskill.errors import quote
 from mjxskill.runs.atomic_write import replace_whole
 from mjxskill.training.front import pareto_mask_of, reference_from
 from mjxskill.runs.evaluations_csv import FORCE_COLUMNS
@@ -113,7 +114,7 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
     if optimizer is None:
         optimizer = make_optimizer(config.optimizer, config)
     elif optimizer.name != config.optimizer:
-        raise ValueError(f"train: the optimizer {optimizer.name!r} is not the run's, {config.optimizer!r}")
+        raise ValueError(f"train: the optimizer {quote(optimizer.name)} is not the run's, {quote(config.optimizer)}")
     state = optimizer.init()
     sizes = list(batch_sizes(config.training_rows, config.batch_size, config.n_init))
     known = lambda: concat_all((done[b] for b in sorted(done)), *shape)  # noqa: E731  (in batch order)

@@ -36,6 +36,7 @@ from mjxskill.engine.native.episode import NativeEpisode
 from mjxskill.engine.native.lockstep import run_lockstep
 from mjxskill.engine.native.pool import WorkerPool
 from mjxskill.engine.native.ray_pool import RayPool, connect
+from mjxskill.errors import quote
 from mjxskill.sim.model import build_model
 from mjxskill.scenario import load_scenario
 from mjxskill.scenario.schema import Scenario
@@ -184,7 +185,7 @@ class NativeRollout(RolloutBase):
         process. Returns a RolloutOutput of numpy arrays with the compiled rollout's fields and
         metric names."""
         if stepping not in STEPPINGS:
-            raise ValueError(f"stepping must be one of {', '.join(STEPPINGS)}, got {stepping!r}")
+            raise ValueError(f"stepping must be one of {', '.join(STEPPINGS)}, got {quote(stepping)}")
         params = self.check_params(params)
         worlds = jax.tree.map(np.asarray, worlds)
         if worlds.config_index.ndim == 1:
