@@ -130,6 +130,7 @@ def evaluate_run(run: Run, config: RunConfig, rollout: Rollout, task: PlannedTas
         except RunError:
             old = None  # damaged: evaluated again below, the chunks kept so far are still used
         if old is not None and _same(old_settings, settings) and _same_candidates(old.candidates, candidates):
+            remove_file(folder / CHUNKS, root=run.path)  # left by a run killed as it finished: the evaluation is whole
             write_csv(old, config.parameter_names, folder / "evaluation.csv", root=run.path)  # derived: rewritten, never missing
             return old, plot_boxes(old, folder / "success.png", _title(config), root=run.path), True
     make_folder(run.path, folder)  # never through a link below the run

@@ -122,6 +122,7 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
     replication.check_pointers(ev, str(run.path / EVALUATIONS))
     if progress:
         progress.start(ev, reference_from(run, config, ev))
+    saved = False  # whether the optimizer state on disk is that of every batch
     for batch, size in enumerate(sizes):
         if config.pooled:  # the rows so far pooled, each with its noise (mjxskill.training.replication)
             if batch in done:
@@ -144,9 +145,12 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
             run.write_evaluations(config, ev)
         state = _pooled_state(optimizer, ev) if config.pooled else optimizer.tell(state, x, -new.objectives)
         _save_state(state, run.path / OPTIMIZER_STATE)
+        saved = batch == len(sizes) - 1
         run.write_pareto(config, ev, pareto_mask_of(ev))
         if progress:
             progress.update(new, ev, reference_from(run, config, ev))
+    if not saved and done:  # a run killed between its last batch's rows and their state: the state is written now
+        _save_state(_pooled_state(optimizer, ev) if config.pooled else state, run.path / OPTIMIZER_STATE)
     run.write_pareto(config, ev, pareto_mask_of(ev))
     if progress:
         progress.close()
