@@ -28,6 +28,7 @@ from typing import Mapping
 
 import numpy as np
 
+from mjxskill.errors import quote
 from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS
 
 
@@ -193,7 +194,7 @@ class Skill:
         for p in self.parameters:
             if p.name == name:
                 return p
-        raise KeyError(f"skill {self.name} has no parameter {name!r}")
+        raise KeyError(f"skill {self.name} has no parameter {quote(name)}")
 
     def value(self, name: str):
         """Default value of a fixed (non-plan) parameter."""
@@ -234,7 +235,7 @@ class Reward:
             return float(self.constants[key])
         default = REWARD_KINDS[self.kind].constants.get(key, REQUIRED)
         if default is REQUIRED:
-            raise KeyError(f"reward {self.name!r} ({self.kind}) has no constant {key!r}")
+            raise KeyError(f"reward {quote(self.name)} ({self.kind}) has no constant {quote(key)}")
         return float(default)
 
 
