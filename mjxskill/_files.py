@@ -24,7 +24,12 @@ class NotRegularFile(OSError):
 
 
 def kind_of(mode: int) -> str:
-    return next((name for test, name in KINDS if test(mode)), "not a regular file")
+    return next((name for test, name in KINDS if test(mode)), "something else")
+
+
+def not_regular(mode: int) -> str:
+    """What every refusal says of a path of ``mode``: "is not a regular file but a FIFO (named pipe)"."""
+    return f"is not a regular file but {kind_of(mode)}"
 
 
 # Opening without blocking: a FIFO's open returns at once instead of waiting for a writer.
@@ -38,8 +43,28 @@ def read_regular(path, limit: int | None = None) -> bytes:
     try:
         fd = os.open(path, OPEN_FLAGS)
     except IsADirectoryError:
-        raise NotRegularFile(errno.EISDIR, "is a directory, not a regular file", str(path)) from None
+        raise NotRegularFile(errno.EISDIR, "is not a regular file but a directory", str(path)) from None
     return read_open(fd, path, limit)
+
+
+def is_regular(path, error: type[Exception] | None = None) -> bool:
+    """Whether a regular file is at ``path`` (a link followed, as ``Path.is_file``): False when
+    nothing is there; when something else is (a FIFO, a device, a folder), ``error`` (an exception
+    class taking the message) naming the path and what it is, or NotRegularFile without one. What a
+    reader asks before it reads a file that may be missing: a FIFO is never taken for a missing
+    file (a run whose ``config.yaml`` was a FIFO was "not a run directory")."""
+    try:
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return False
+    except OSError:  # a name too long, a loop of links: the read that follows says it
+        return False
+    if stat.S_ISREG(mode):
+        return True
+    what = not_regular(mode)
+    if error is None:
+        raise NotRegularFile(errno.EINVAL, what, str(path))
+    raise error(f"{path} {what}; mjxskill reads only regular files: remove it or put the file there")
 
 
 def read_open(fd: int, path, limit: int | None = None) -> bytes:
@@ -49,7 +74,7 @@ def read_open(fd: int, path, limit: int | None = None) -> bytes:
     try:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
-            raise NotRegularFile(errno.EINVAL, f"is {kind_of(mode)}, not a regular file", str(path))
+            raise NotRegularFile(errno.EINVAL, not_regular(mode), str(path))
         os.set_blocking(fd, True)
         with os.fdopen(fd, "rb", closefd=True) as fh:
             fd = -1
@@ -59,4 +84,4 @@ def read_open(fd: int, path, limit: int | None = None) -> bytes:
             os.close(fd)
 
 
-__all__ = ["OPEN_FLAGS", "NotRegularFile", "kind_of", "read_open", "read_regular"]
+__all__ = ["OPEN_FLAGS", "NotRegularFile", "is_regular", "kind_of", "not_regular", "read_open", "read_regular"]

@@ -34,7 +34,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from mjxskill.errors import Notice
+from mjxskill.errors import Notice, quote
 
 CPU_FUSION_FLAG = "--xla_cpu_use_fusion_emitters"
 CPU_FUSION_SETTING = f"{CPU_FUSION_FLAG}=false"
@@ -142,7 +142,7 @@ def enable_compilation_cache(path: Path | None = None) -> Path | None:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as err:  # read-only home, or the setting names a file: run without a cache
         why = "it is a file" if path.exists() and not path.is_dir() else err.strerror
-        _warn_once(f"the compile cache {str(path)!r} is not a usable directory ({why}); compile caches "
+        _warn_once(f"the compile cache {quote(str(path), 300)} is not a usable directory ({why}); compile caches "
                    f"are off, so every run compiles from scratch (set MJXSKILL_CACHE_DIR to a directory, or off)")
         return None
     settings = {

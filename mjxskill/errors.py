@@ -12,6 +12,7 @@ another stage.
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 
@@ -46,6 +47,22 @@ def bounded(message: str, limit: int = MAX_MESSAGE_CHARS) -> str:
     if len(message) <= limit:
         return message
     return f"{message[:limit]}... (message cut at {limit} of {len(message)} characters)"
+
+
+# A word of a message longer than any path or name a message means to show: a value the user gave
+# that reached the message without ``quote`` (argparse's "unrecognized arguments", a path of 100 KB)
+WORD_CHARS = 300
+_LONG_WORD = re.compile(rf"\S{{{WORD_CHARS + 1},}}")
+
+
+def shortened(message: str, limit: int = WORD_CHARS) -> str:
+    """``message`` with every run of more than ``limit`` non-blank characters cut to its first
+    ``limit`` (and its length), then ``bounded``: what the command line and the page print of any
+    message, whatever reached it unquoted."""
+    if len(message) > WORD_CHARS:
+        pattern = _LONG_WORD if limit == WORD_CHARS else re.compile(rf"\S{{{limit + 1},}}")
+        message = pattern.sub(lambda m: f"{m.group()[:limit]}... ({len(m.group())} characters)", message)
+    return bounded(message)
 
 
 class UserError(Exception):
@@ -133,5 +150,5 @@ class Notice(UserWarning):
     ``prog: warning: message`` line."""
 
 
-__all__ = ["MAX_MESSAGE_CHARS", "QUOTE_CHARS", "bounded", "listing", "quote", "ClusterError", "CommandError", "GoalError", "Notice", "PlanError", "RecordingError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
+__all__ = ["MAX_MESSAGE_CHARS", "QUOTE_CHARS", "WORD_CHARS", "bounded", "listing", "quote", "shortened", "ClusterError", "CommandError", "GoalError", "Notice", "PlanError", "RecordingError", "RequestError", "ResumeConflict", "RunError", "ScenarioError",
            "ServerBusy", "SettingError", "UserError"]

@@ -14,7 +14,7 @@ import numpy as np
 
 from mjxskill.ebt.from_plan import LearnableParameter, PlanStep, ground_plan, plan_to_tree
 from mjxskill.ebt.nodes import Node, render
-from mjxskill.errors import PlanError, ScenarioError
+from mjxskill.errors import PlanError, ScenarioError, quote
 from mjxskill.planner import Unsolvable
 from mjxskill.planner import solve as optimal_solve
 from mjxskill.planner.world_pddl import domain_pddl, goal_literals, problem_pddl
@@ -87,7 +87,7 @@ def plan_task(scn: "Scenario", goal: str | None = None, *, solve: Solver | None 
     try:
         plan = tuple(solve(domain, problem))
     except Unsolvable as err:
-        message = f"no plan reaches the goal {goal!r} from the initial state of {scn.source}: {err}"
+        message = f"no plan reaches the goal {quote(goal)} from the initial state of {scn.source}: {err}"
         if own_goal:  # the scenario's own goal: name its place in the file
             raise ScenarioError(f"{scn.where('goal')}: {message}") from err
         raise PlanError(message) from err
@@ -105,7 +105,7 @@ def _manual_sets(scn: "Scenario", parameters: Sequence[LearnableParameter], stri
         extra = [n for n in manual.values if n not in names]
         if missing or extra:
             if strict:
-                problem = f"missing key {missing[0]!r}" if missing else f"{extra[0]!r} is not a learnable parameter of the plan"
+                problem = f"missing key {quote(missing[0])}" if missing else f"{quote(extra[0])} is not a learnable parameter of the plan"
                 raise ScenarioError(f"{manual.where}: {problem} (the plan's parameters: {', '.join(names)})")
             continue
         sets[set_name] = frozen_array([manual.values[n] for n in names])

@@ -11,6 +11,8 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from cli_helpers import ROOT, error_line, invoke, snapshot, subprocess_env
 from mjxskill.scenario import load_scenario
@@ -283,3 +285,52 @@ def test_an_empty_front_is_refused(tmp_path, capsys, command):
     code, stderr = invoke(capsys, command, run.path)
     error_line(code, stderr, command, f"{run.path} has an empty Pareto front ({PARETO} has no rows")
     assert snapshot(run.path) == before
+
+
+# -- 10: error text bounded: a value is shown to a short prefix, whatever its size --------------
+def _scenario_with(value: str, old: str, new: str):
+    assert PUSH.count(old) >= 1, old
+    return lambda folder: ["plan", _written(folder, PUSH.replace(old, new.format(value), 1))]
+
+
+def _written(folder, text: str):
+    path = folder / "cell.yaml"
+    path.write_text(text)
+    return path
+
+
+# entry point -> (value -> (folder -> the command's arguments)): a scenario field or a flag
+HUGE_VALUES = {
+    "scenario goal": lambda v: _scenario_with(v, "goal: (skiros:at", "goal: ({} skiros:at"),
+    "scenario skill library": lambda v: _scenario_with(v, "skill_library: ", "skill_library: {}"),
+    "scenario scene": lambda v: _scenario_with(v, "scene: /", "scene: {}/"),
+    "scenario body": lambda v: _scenario_with(v, "mjcf_body: object", "mjcf_body: object{}"),
+    "scenario number": lambda v: _scenario_with(v, "mass: 2.5", "mass: 2{}"),
+    "flag --budget": lambda v: lambda folder: ["train", "push", "--budget", v, "--out", folder / "out"],
+    "flag --optimizer-option value": lambda v: lambda folder: ["train", "push", "--optimizer-option", f"n_raw={v}",
+                                                               "--out", folder / "out"],
+    "flag --optimizer-option name": lambda v: lambda folder: ["train", "push", "--optimizer-option", f"{v}=1",
+                                                              "--out", folder / "out"],
+    "flag --goal": lambda v: lambda folder: ["plan", "push", "--goal", f"({v})"],
+    "a flag no command has": lambda v: lambda folder: ["train", "push", f"--{v}", "1"],
+    "flag --out": lambda v: lambda folder: ["train", "push", "--out", folder / v],
+    "a run directory": lambda v: lambda folder: ["select", folder / v, "--no-render"],
+    "flag --per-config": lambda v: lambda folder: ["evaluate", folder, "--per-config", v],
+    "a task name": lambda v: lambda folder: ["plan", v],
+}
+
+
+@pytest.mark.parametrize("entry", list(HUGE_VALUES))
+@settings(max_examples=3, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(char=st.sampled_from("x1é"), size=st.sampled_from([5_000, 900_000]))
+def test_a_huge_value_anywhere_makes_a_short_error_line(tmp_path_factory, capsys, entry, char, size):
+    """A scenario field of 900 KB, a flag of 900 KB: one error line of at most a few hundred
+    characters (the value quoted to its prefix and its length), exit 2, nothing written."""
+    folder = tmp_path_factory.mktemp("huge")
+    args = HUGE_VALUES[entry](char * size)(folder)
+    code, stderr = invoke(capsys, *args)
+    line = error_line(code, stderr, args[0])
+    assert len(line) < 1000, (entry, len(line), line[:300])
+    assert len(stderr) < 6000, (entry, len(stderr))  # with argparse's usage lines
+    assert sorted(p.name for p in folder.iterdir()) == (["cell.yaml"] if entry.startswith("scenario") else [])

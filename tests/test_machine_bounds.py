@@ -126,3 +126,32 @@ def test_a_fifo_in_a_runs_place_of_its_files_is_refused_unopened(tmp_path, capsy
         error_line(code, err, command, str(csv), "a FIFO")
     else:  # never opened: a pareto.csv that is not a regular file is no Pareto front
         error_line(code, err, command, "pareto.csv")
+
+
+# each command and the run files it reads (train --resume: those it replaces after a batch too)
+READS = {"train": ["config.yaml", "scenario.yaml", "evaluations.csv", "run_state.json", "pareto.csv", "optimizer_state.npz"],
+         "select": ["config.yaml", "pareto.csv"],
+         "evaluate": ["config.yaml", "pareto.csv", "scenario.yaml"]}
+
+
+@pytest.mark.parametrize("command, name", [(c, n) for c, names in READS.items() for n in names])
+def test_a_fifo_in_place_of_any_run_file_is_refused_by_name_unopened(tmp_path, capsys, watchdog, command, name):
+    """Every reader of a run's files asks what is there first (``mjxskill._files.is_regular``,
+    ``read_regular``): a FIFO is one error naming it, "is not a regular file", never waited on
+    and never taken for a missing file; nothing of the run changes."""
+    run = push_run(tmp_path / "run")
+    front_rows(run, 2)
+    path = run.path / name
+    if path.exists():
+        path.unlink()
+    os.mkfifo(path)
+    before = snapshot(run.path)
+    args = ["push", "--resume", run.path, "--workers", 1] if command == "train" else [run.path]
+    code, err = invoke(capsys, command, *args, *(["--no-render"] if command == "select" else []))
+    error_line(code, err, command, str(path), "is not a regular file but a FIFO")
+    assert snapshot(run.path) == before
+    from mjxskill.gp import load_state
+
+    if name == "optimizer_state.npz":  # the library's reader of the optimizer state too
+        with pytest.raises(OSError, match="is not a regular file but a FIFO"):
+            load_state(path)

@@ -145,6 +145,87 @@ def test_a_cached_document_behind_a_link_or_a_fifo_is_no_cache(tmp_path, outside
     assert (outside / "worlds.json").read_text().endswith("[1.0]}")
 
 
+# -- a folder swapped for a link between the check and the write (TOCTOU) ---------------------------
+def _swap_for_link(folder: Path, outside: Path) -> None:
+    """What a concurrent process does in the window: the real folder moved away, a link to the
+    user's folder put in its place."""
+    folder.rename(folder.with_name(folder.name + "-moved"))
+    folder.symlink_to(outside)
+
+
+def _with_file_of_the_users(folder: Path, name: str) -> None:
+    (folder / name).write_bytes(USERS)
+
+
+# every writer of a run's files that goes below the run, and what it does: path -> its call
+SWAPPED_WRITERS = {
+    "replace_whole": lambda target, root: atomic_write.replace_whole(target, lambda fh: fh.write(b"new\n"), root=root),
+    "write_json": lambda target, root: write_json(target, {"a": 1}, root=root),
+    "append_text": lambda target, root: atomic_write.append_text(target, "line\n", root=root),
+    "remove_file": lambda target, root: atomic_write.remove_file(target, root=root),
+    "keep_copy": lambda target, root: atomic_write.keep_copy(target, "kept.json"),
+    "lock": lambda target, root: outputs_lock(target.parent),
+}
+
+
+def outputs_lock(folder: Path) -> None:
+    from mjxskill.runs.run_lock import lock_run
+
+    lock_run(folder).release()
+
+
+@pytest.mark.parametrize("writer", SWAPPED_WRITERS)
+@pytest.mark.parametrize("swapped", ["folder", "file"])
+def test_a_link_swapped_in_after_the_check_is_never_followed(tmp_path, monkeypatch, outside, writer, swapped):
+    """Between a writer's check of the folders and its write, a folder below the root (or the
+    file itself) becomes a link to the user's folder: nothing there is written, replaced or
+    removed. The swap is made at the first moment a writer can be interrupted after its check:
+    right after ``open_folder`` (the check) returns, or, for a writer that holds its folder
+    otherwise (the lock), right after that folder is opened."""
+    root = tmp_path / "run"
+    folder = root / "evaluation"
+    folder.mkdir(parents=True)
+    target = folder / "result.json"
+    target.write_bytes(b"old\n")
+    for name in ("result.json", "result.json.tmp", "kept.json", ".lock"):
+        _with_file_of_the_users(outside, name)  # what a write through the link would change
+    before = tree(outside)
+    swaps = []
+
+    def swap() -> None:
+        if swaps:
+            return
+        swaps.append(True)
+        if swapped == "folder":
+            _swap_for_link(folder, outside)
+        else:
+            target.unlink()
+            target.symlink_to(outside / "result.json")
+
+    real_open_folder, real_open = atomic_write.open_folder, os.open
+
+    def open_folder_then_swap(*args, **kwargs):
+        fd = real_open_folder(*args, **kwargs)
+        swap()
+        return fd
+
+    def open_then_swap(path, flags, *args, **kwargs):  # the lock opens its folder itself
+        fd = real_open(path, flags, *args, **kwargs)
+        if flags & os.O_DIRECTORY and Path(os.fsdecode(path)) == folder:
+            swap()
+        return fd
+
+    monkeypatch.setattr(atomic_write, "open_folder", open_folder_then_swap)
+    monkeypatch.setattr(os, "open", open_then_swap)
+    try:
+        SWAPPED_WRITERS[writer](target, root)
+    except RunError as err:  # a writer may refuse what it finds: never with a traceback's OSError
+        assert "symbolic link" in str(err), err
+    monkeypatch.undo()
+    assert swaps, "the writer never reached the window"
+    assert tree(outside) == before
+
+
 # -- nothing of the user's replaced without the flag -------------------------------------------
 @FAST
 @given(as_folder=st.booleans(), same=st.booleans())

@@ -19,6 +19,7 @@ from typing import Mapping, NamedTuple
 import numpy as np
 
 from mjxskill.ebt.nodes import Kind, Node
+from mjxskill.errors import quote
 
 # Parallel (first-fail) keeps "which children already succeeded" as bits of one int32 memory
 # slot, so it can have at most 31 children.
@@ -129,10 +130,10 @@ def compile_tree(tree: Node) -> CompiledTree:
 
     for node_id, node in enumerate(nodes):
         if not isinstance(node.kind, Kind):
-            raise ValueError(f"node {node_id} ({node.name!r}) has kind {node.kind!r}, not an mjxskill Kind")
+            raise ValueError(f"node {node_id} ({quote(node.name)}) has kind {quote(node.kind)}, not an mjxskill Kind")
         if node.kind == Kind.PARALLEL and len(node.children) > MAX_PARALLEL_CHILDREN:
             raise ValueError(
-                f"PARALLEL node {node_id} ({node.name!r}) has {len(node.children)} children; the compiled "
+                f"PARALLEL node {node_id} ({quote(node.name)}) has {len(node.children)} children; the compiled "
                 f"tick supports at most {MAX_PARALLEL_CHILDREN} (nest Parallel nodes to get more)"
             )
 

@@ -6,9 +6,12 @@ the library, and the one edge where bad input becomes a message.
 ``prog: error: message`` line on stderr with exit code 2, without a traceback, and a
 ``mjxskill.errors.Notice`` warning (rows set aside on resume, a cache that is off) as one
 ``prog: warning: message`` line. A fault of the machine mid-run, an ``OSError`` (a full disk,
-a file system gone read-only), is one ``prog: error:`` line with exit code 1: what was finished
-is on disk (every file is appended or replaced whole, ``mjxskill.runs.atomic_write``) and the
-line says to run the command again. A Ctrl-C ends the command with exit code 130
+a file system gone read-only), is one ``prog: error:`` line naming the path, with exit code 1:
+what was finished is on disk (every file is appended or replaced whole,
+``mjxskill.runs.atomic_write``) and the line says to run the command again; a path the system
+cannot use (a name too long, a loop of links) is the user's: exit code 2. Every line is
+``mjxskill.errors.shortened`` (argparse's own messages too: "unrecognized arguments" echoes a
+value whole), so that no value, however long, makes a long line. A Ctrl-C ends the command with exit code 130
 (``mjxskill.cli.interrupt``). Nothing below this package prints errors or exits.
 """
 
@@ -18,12 +21,12 @@ import argparse
 import errno
 import sys
 import warnings
-from typing import Callable, Sequence
+from typing import Callable, NoReturn, Sequence
 
 from mjxskill._runtime import enable_compilation_cache, xla_flags_problem
 from mjxskill.cli import interrupt
 from mjxskill.cli.interrupt import EXIT_INTERRUPTED
-from mjxskill.errors import Notice, UserError
+from mjxskill.errors import Notice, UserError, shortened
 
 EXIT_BAD_INPUT = 2
 EXIT_FAULT = 1
@@ -31,9 +34,13 @@ EXIT_FAULT = 1
 SPACE = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
+# an OSError about the path the user gave, not a fault of the machine: bad input (exit 2)
+BAD_PATH = (errno.ENAMETOOLONG, errno.ELOOP)
+
+
 def fault_message(err: OSError) -> str:
     """One line for an OSError that ended a command mid-run."""
-    where = f" ({err.filename})" if err.filename else ""
+    where = f" ({err.filename})" if err.filename else ""  # a path of any length: the line is shortened
     what = err.strerror or str(err) or type(err).__name__
     cure = "free some space" if err.errno in SPACE else "fix that"
     return (f"{what}{where}; nothing finished is lost (what was written is whole): {cure}, then run the command "
@@ -42,6 +49,12 @@ def fault_message(err: OSError) -> str:
 
 def run(main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentParser, argv: Sequence[str] | None = None) -> int:
     """Parses ``argv``, runs ``main`` and turns user errors into ``prog: error: message`` + exit 2."""
+    error = parser.error
+
+    def short_error(message: str) -> NoReturn:  # argparse echoes values: "unrecognized arguments: ..."
+        error(shortened(message))
+
+    parser.error = short_error  # type: ignore[method-assign]
     args = parser.parse_args(argv)  # argparse itself exits 2 with a usage message
     with warnings.catch_warnings():
         warnings.simplefilter("always", Notice)
@@ -49,7 +62,7 @@ def run(main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentPars
 
         def show(message, category, filename, lineno, file=None, line=None):
             if issubclass(category, Notice):
-                print(f"{parser.prog}: warning: {message}", file=sys.stderr, flush=True)
+                print(f"{parser.prog}: warning: {shortened(str(message))}", file=sys.stderr, flush=True)
             else:
                 default_show(message, category, filename, lineno, file, line)
 
@@ -61,11 +74,14 @@ def run(main: Callable[[argparse.Namespace], int], parser: argparse.ArgumentPars
             enable_compilation_cache()
             return main(args)
         except UserError as err:
-            message = " ".join((str(err) or type(err).__name__).split())  # one line, whatever it holds
+            message = shortened(" ".join((str(err) or type(err).__name__).split()))  # one line, whatever it holds
             print(f"{parser.prog}: error: {message}", file=sys.stderr)
             return EXIT_BAD_INPUT
         except OSError as err:
-            print(f"{parser.prog}: error: {' '.join(fault_message(err).split())}", file=sys.stderr)
+            if err.errno in BAD_PATH and err.filename:  # a path of the user's the system cannot use
+                print(f"{parser.prog}: error: {shortened(f'{err.filename}: {err.strerror}')}", file=sys.stderr)
+                return EXIT_BAD_INPUT
+            print(f"{parser.prog}: error: {shortened(' '.join(fault_message(err).split()))}", file=sys.stderr)
             return EXIT_FAULT
         except KeyboardInterrupt:
             interrupt.acknowledge()

@@ -221,7 +221,8 @@ def _pool(run, config, results, bound) -> str:
     samples = pooled_samples([ev for _, _, ev in results], picks)
     tests = pooled_tests(samples)
     out = make_folder(run.path, run.path / FOLDER)  # never through a link below the run
-    plot_pooled(samples, out / "success.png", f"{config.task}: success rate per start configuration, {len(results)} runs")
+    plot_pooled(samples, out / "success.png", f"{config.task}: success rate per start configuration, {len(results)} runs",
+                root=run.path)
     doc = {"runs": [str(sub.path) for sub, _, _ in results],
            "picked": [{"seed": c.seed, "pareto_row": p.row, "bound_N": p.bound, "bound_source": p.source,
                        "validation_success": None if v is None or p.row is None else v.success_of(p.row),
@@ -229,7 +230,7 @@ def _pool(run, config, results, bound) -> str:
                       for (_, c, _), p, v in zip(results, picks, validations)],
            "groups": group_means(samples), "samples": {g: {"known": len(v[0]), "unseen": len(v[1])} for g, v in samples.items()},
            "mann_whitney": tests}
-    write_text(out / "pooled.json", json.dumps(doc, indent=1) + "\n")
+    write_text(out / "pooled.json", json.dumps(doc, indent=1) + "\n", root=run.path)
     lines = [f"seed {c.seed}: picked Pareto row {p.row}" for (_, c, _), p in zip(results, picks)]
     lines.append("bound on the commanded force: " + ("none" if bound[0] is None else f"{bound[0]:g} N") + f", {bound[1]}")
     return "\n".join([*lines, "", pooled_table(samples, tests), f"wrote {out / 'success.png'} and {out / 'pooled.json'}"])

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Sequence
 
 from mjxskill import cli
 from mjxskill.cli.args import add_task_argument
-from mjxskill.errors import CommandError, RunError
+from mjxskill.errors import CommandError, RunError, quote
 from mjxskill.runs.atomic_write import DISK_FAULTS
 from mjxskill.runs.outputs import write_outputs
 
@@ -37,9 +37,9 @@ def export(task: PlannedTask, folder: Path, replace: bool = False) -> tuple[Path
     except OSError as err:
         if err.errno in DISK_FAULTS:  # the machine's, not the input's: the command says so (exit 1)
             raise
-        raise CommandError(f"cannot write the PDDL files to {str(folder)!r}: {err.strerror}") from None
+        raise CommandError(f"cannot write the PDDL files to {quote(str(folder), 300)}: {err.strerror}") from None
     except RunError as err:  # a link, a file of the user's: named, nothing written
-        raise CommandError(f"cannot write the PDDL files to {str(folder)!r}: {err}") from None
+        raise CommandError(f"cannot write the PDDL files to {quote(str(folder), 300)}: {err}") from None
     return domain, problem
 
 

@@ -14,8 +14,9 @@ import math
 import sys
 from pathlib import Path
 
+from mjxskill._files import is_regular
 from mjxskill.engine.build import build_rollout
-from mjxskill.errors import CommandError
+from mjxskill.errors import CommandError, RunError
 from mjxskill.evaluation.racing import raced_pick
 from mjxskill.evaluation.render import RenderUnavailable, render_content, render_world
 from mjxskill.evaluation.selection import best_unvalidated, choose, export_document, export_outputs, write_export
@@ -38,7 +39,7 @@ def _fronts(path: Path):
     for ref in refs:
         run = Run(ref.path)
         config = run.config()
-        if len(refs) > 1 and (not (run.path / PARETO).is_file() or len(run.pareto(config)) == 0):
+        if len(refs) > 1 and (not is_regular(run.path / PARETO, RunError) or len(run.pareto(config)) == 0):
             continue
         out.append((ref, run, config, run.front(config)))
     if not out:  # none trained: what a single run says

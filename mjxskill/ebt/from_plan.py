@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Mapping, Sequence
 
 from mjxskill.ebt.nodes import Node, serial_star
 from mjxskill.ebt.template import Binding, expand
-from mjxskill.errors import PlanError
+from mjxskill.errors import PlanError, quote
 
 if TYPE_CHECKING:  # pragma: no cover
     from mjxskill.scenario.schema import Scenario
@@ -54,17 +54,17 @@ def ground_plan(scn: "Scenario", plan: Sequence[str]) -> tuple[PlanStep, ...]:
     for text in plan:
         tokens = text.strip().strip("()").split()
         if not tokens or tokens[0].lower() not in by_action:
-            raise PlanError(f"plan step {text!r} names no skill of the library ({', '.join(scn.skills)})")
+            raise PlanError(f"plan step {quote(text)} names no skill of the library ({', '.join(scn.skills)})")
         skill = by_action[tokens[0].lower()]
         arguments = skill.arguments
         if len(tokens) - 1 != len(arguments):
-            raise PlanError(f"plan step {text!r}: {skill.name} takes {len(arguments)} arguments")
+            raise PlanError(f"plan step {quote(text)}: {skill.name} takes {len(arguments)} arguments")
         grounded = {}
         for parameter, name in zip(arguments, tokens[1:]):
             try:
                 grounded[parameter.name] = scn.object_by_pddl_name(name).name
             except KeyError:
-                raise PlanError(f"plan step {text!r}: unknown object {name!r}") from None
+                raise PlanError(f"plan step {quote(text)}: unknown object {quote(name)}") from None
         uses[skill.name] = uses.get(skill.name, 0) + 1
         label = skill.name if uses[skill.name] == 1 else f"{skill.name}#{uses[skill.name]}"
         steps.append(PlanStep(skill.name, label, MappingProxyType(grounded)))

@@ -40,6 +40,8 @@ import enum
 from dataclasses import dataclass, field
 from typing import Iterator, Mapping
 
+from mjxskill.errors import quote
+
 
 class Status(enum.IntEnum):
     """Tick result. The integer values are the ones the compiled tree uses."""
@@ -113,13 +115,13 @@ class Node:
 
     def __post_init__(self):
         if self.kind in COMPOSITES and not self.children:
-            raise ValueError(f"{self.kind.name} node {self.name!r} needs at least one child")
+            raise ValueError(f"{self.kind.name} node {quote(self.name)} needs at least one child")
         if self.kind in DECORATORS and len(self.children) != 1:
-            raise ValueError(f"{self.kind.name} node {self.name!r} needs exactly one child")
+            raise ValueError(f"{self.kind.name} node {quote(self.name)} needs exactly one child")
         if self.kind in LEAVES and self.children:
-            raise ValueError(f"leaf {self.name!r} cannot have children")
+            raise ValueError(f"leaf {quote(self.name)} cannot have children")
         if self.kind in (Kind.REPEAT, Kind.RETRY, Kind.TIMEOUT) and self.count < 1:
-            raise ValueError(f"{self.kind.name} node {self.name!r} needs count >= 1, got {self.count}")
+            raise ValueError(f"{self.kind.name} node {quote(self.name)} needs count >= 1, got {self.count}")
 
     @property
     def is_leaf(self) -> bool:

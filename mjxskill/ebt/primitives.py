@@ -40,6 +40,8 @@ from __future__ import annotations
 from types import MappingProxyType
 from typing import Mapping, NamedTuple
 
+from mjxskill.errors import quote
+
 
 ORIENTATIONS = ("tool_down_aligned", "tool_down")  # set_goal_from_object's ``args.orientation``
 SPIRAL_NORMAL = (0.0, 0.0, 1.0)  # overlay_spiral's default ``normal``: the search plane is horizontal
@@ -104,7 +106,7 @@ def goal_orientation(leaf) -> str:
     faces to the element's yaw; "tool_down" keeps the tool's current yaw (a pure translation)."""
     orientation = leaf.args.get("orientation", "tool_down_aligned")
     if orientation not in ORIENTATIONS:
-        raise ValueError(f"leaf {leaf.name!r}: orientation {orientation!r} is not one of {', '.join(ORIENTATIONS)}")
+        raise ValueError(f"leaf {quote(leaf.name)}: orientation {quote(orientation)} is not one of {', '.join(ORIENTATIONS)}")
     return orientation
 
 
@@ -116,7 +118,7 @@ class LeafRegistry(dict):
     def register(self, builder):
         name = builder.__name__.lstrip("_")
         if name not in PRIMITIVES:
-            raise ValueError(f"{name!r} is not a leaf primitive ({', '.join(PRIMITIVES)})")
+            raise ValueError(f"{quote(name)} is not a leaf primitive ({', '.join(PRIMITIVES)})")
         self[name] = builder
         return builder
 
@@ -124,7 +126,7 @@ class LeafRegistry(dict):
         """(status, effect) of leaf number ``i``."""
         builder = self.get(leaf.primitive)
         if builder is None:
-            raise ValueError(f"leaf {leaf.name!r}: no leaf program for primitive {leaf.primitive!r}")
+            raise ValueError(f"leaf {quote(leaf.name)}: no leaf program for primitive {quote(leaf.primitive)}")
         return builder(i, leaf, context)
 
 

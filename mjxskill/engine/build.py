@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from mjxskill.errors import ClusterError
+from mjxskill.errors import ClusterError, quote
 
 if TYPE_CHECKING:  # pragma: no cover
     import mujoco
@@ -39,7 +39,7 @@ def resolve_engine(name: str, backend: str | None = None) -> tuple[str, str]:
     if name in ENGINES:
         return name, "as asked"
     if name != "auto":
-        raise ValueError(f"unknown engine {name!r}; expected one of {', '.join(CHOICES)}")
+        raise ValueError(f"unknown engine {quote(name)}; expected one of {', '.join(CHOICES)}")
     if backend is None:
         import jax  # lazy: ~1 s, and train/evaluate/experiment --help and bad input import this module
 
@@ -91,4 +91,4 @@ def build_rollout(scn: Scenario, task: PlannedTask, engine: str, *, worlds: int 
             return ray_pool.RayRollout(inner, cluster, actors)
         workers = pool.default_workers() if workers is None else max(1, int(workers))
         return pool.ProcessPoolRollout(inner, workers) if workers > 1 else inner
-    raise ValueError(f"unknown engine {engine!r}; expected one of {', '.join(ENGINES)}")
+    raise ValueError(f"unknown engine {quote(engine)}; expected one of {', '.join(ENGINES)}")

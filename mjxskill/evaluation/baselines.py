@@ -18,8 +18,9 @@ of a run's evaluation: ``mjxskill.evaluation.evaluate_run``.
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
-from typing import TYPE_CHECKING, NamedTuple, Sequence
+from typing import TYPE_CHECKING, BinaryIO, NamedTuple, Sequence
 
 import numpy as np
 
@@ -211,10 +212,11 @@ def group_samples(ev: Evaluation, group: str, known: bool) -> np.ndarray:
     return ev.success[np.ix_(rows, cols)].ravel()
 
 
-def box_plot(samples: dict, reference: str, path: Path, title: str) -> dict:
+def box_plot(samples: dict, reference: str, path: Path, title: str, *, root: Path | None = None) -> dict:
     """Box plots of ``samples`` (label -> (known samples, unseen samples)), known and unseen
-    panels side by side, each group tested against ``reference`` (a label) with its stars above;
-    returns the tests {(known|unseen, label): (p, stars)}."""
+    panels side by side, each group tested against ``reference`` (a label) with its stars above,
+    into ``path`` (below ``root``, the run: ``save_figure``); returns the tests
+    {(known|unseen, label): (p, stars)}."""
     plt = pyplot()
     labels = list(samples)
     panels = [("known", 0)] + ([("unseen", 1)] if any(len(v[1]) for v in samples.values()) else [])
@@ -235,17 +237,17 @@ def box_plot(samples: dict, reference: str, path: Path, title: str) -> dict:
     axes[0][0].set_ylabel("success rate (fraction of worlds)")
     fig.suptitle(f"{title}  (Mann-Whitney U vs {reference})", fontsize=10)
     fig.tight_layout()
-    save_figure(fig, path)
+    save_figure(fig, path, root=root)
     plt.close(fig)
     return tests
 
 
-def plot_boxes(ev: Evaluation, path: Path, title: str) -> dict:
+def plot_boxes(ev: Evaluation, path: Path, title: str, *, root: Path | None = None) -> dict:
     """``box_plot`` of one run's groups against the Pareto group; returns the tests
     {(known|unseen, group): (p, stars)}."""
     present = [g for g in GROUPS if g in ev.candidates.groups]
     samples = {GROUP_LABELS[g]: (group_samples(ev, g, True), group_samples(ev, g, False)) for g in present}
-    labelled = box_plot(samples, GROUP_LABELS["pareto"], path, title)
+    labelled = box_plot(samples, GROUP_LABELS["pareto"], path, title, root=root)
     by_label = {GROUP_LABELS[g]: g for g in present}
     return {(panel, by_label[label]): test for (panel, label), test in labelled.items()}
 
@@ -255,31 +257,32 @@ CSV_METRICS = (("position_error", "position_error", "m"), ("peak_contact_force",
                ("mean_contact_force", "mean_contact_force", "N"))
 
 
-def write_csv(ev: Evaluation, parameter_names: Sequence[str], path: Path) -> None:
+def write_csv(ev: Evaluation, parameter_names: Sequence[str], path: Path, *, root: Path | None = None) -> None:
     """One row per candidate: parameters, success known/unseen and per configuration, each
     metric's mean over the known and over the unseen configurations' worlds, then (when
     measured) the commanded force (peak_commanded_force_N) and the time to success."""
     present = [(head, getattr(ev, field), unit) for head, field, unit in CSV_METRICS if getattr(ev, field) is not None]
     force, seconds = ev.peak_commanded_force, ev.success_seconds
 
-    def write(tmp: Path) -> None:
-        with open(tmp, "w", newline="") as fh:
-            writer = csv.writer(fh)
-            writer.writerow(["candidate", "group", *parameter_names, "success_known", "success_unseen",
-                             *(f"success_{c}" for c in ev.config_names)]
-                            + [f"{head}_{side}_{unit}" for head, _, unit in present for side in ("known", "unseen")]
-                            + ([] if force is None else ["peak_commanded_force_N"])
-                            + ([] if seconds is None else ["success_time_s"]))
-            known, unseen = ev.mean(True), ev.mean(False)
-            for i, name in enumerate(ev.candidates.names):
-                extra = [repr(float(values[i, cols].mean())) if cols.any() else "nan"
-                         for _, values, _ in present for cols in (ev.known, ~ev.known)]
-                extra += [] if force is None else [repr(float(force[i]))]
-                extra += [] if seconds is None else [repr(mean_success_seconds(ev, [i]))]
-                writer.writerow([name, ev.candidates.groups[i], *map(repr, map(float, ev.candidates.params[i])),
-                                 repr(float(known[i])), repr(float(unseen[i])), *map(repr, map(float, ev.success[i]))] + extra)
+    def write(out: BinaryIO) -> None:
+        fh = io.StringIO(newline="")  # the rows as text, then written whole
+        writer = csv.writer(fh)
+        writer.writerow(["candidate", "group", *parameter_names, "success_known", "success_unseen",
+                         *(f"success_{c}" for c in ev.config_names)]
+                        + [f"{head}_{side}_{unit}" for head, _, unit in present for side in ("known", "unseen")]
+                        + ([] if force is None else ["peak_commanded_force_N"])
+                        + ([] if seconds is None else ["success_time_s"]))
+        known, unseen = ev.mean(True), ev.mean(False)
+        for i, name in enumerate(ev.candidates.names):
+            extra = [repr(float(values[i, cols].mean())) if cols.any() else "nan"
+                     for _, values, _ in present for cols in (ev.known, ~ev.known)]
+            extra += [] if force is None else [repr(float(force[i]))]
+            extra += [] if seconds is None else [repr(mean_success_seconds(ev, [i]))]
+            writer.writerow([name, ev.candidates.groups[i], *map(repr, map(float, ev.candidates.params[i])),
+                             repr(float(known[i])), repr(float(unseen[i])), *map(repr, map(float, ev.success[i]))] + extra)
+        out.write(fh.getvalue().encode())
 
-    replace_whole(Path(path), write)
+    replace_whole(Path(path), write, root=root)
 
 
 def mean_success_seconds(ev: Evaluation, rows, cols=None) -> float:

@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from mjxskill._files import is_regular
+from mjxskill.errors import RunError
 from mjxskill.evaluation.baselines import Candidates, Evaluation, evaluate_candidates
 from mjxskill.evaluation.evaluate_run import FOLDER, evaluation_document, read_evaluation
 from mjxskill.runs.atomic_write import make_folder, write_json
@@ -58,7 +60,8 @@ def confirm(run_path, rollout: Rollout, candidates: Candidates, settings: dict, 
     size = batch_size if settings["engine"] == "mjx" else max(1, len(candidates.names))
     ev = evaluate_candidates(rollout, candidates, settings["per_config"], settings["seed"], size, stream=STREAM)
     make_folder(Path(run_path), Path(run_path) / FOLDER)  # never through a link below the run
-    write_json(Path(run_path) / FOLDER / FILE, {"format": FORMAT, "settings": settings, **evaluation_document(ev)})
+    write_json(Path(run_path) / FOLDER / FILE, {"format": FORMAT, "settings": settings, **evaluation_document(ev)},
+               root=Path(run_path))
     return ev, False
 
 
@@ -66,7 +69,7 @@ def load_confirmation(run_path, candidates: Candidates | None, settings: dict) -
     """The confirmation on disk with ``settings`` (and, given, ``candidates``); None when there is
     none or it is of other settings or candidates. RunError when the file is damaged."""
     path = run_path / FOLDER / FILE
-    if not path.is_file():
+    if not is_regular(path, RunError):
         return None
     ev, own = read_evaluation(path, FORMAT, "confirmation", "delete it (it is made again)")
     if own != settings:

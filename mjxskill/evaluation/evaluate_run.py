@@ -33,10 +33,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from mjxskill._files import is_regular
 from mjxskill.errors import RunError
 from mjxskill.runs.bounds import call_episodes_problem
 from mjxskill.scenario.fields import read_text
-from mjxskill.runs.atomic_write import append_text, check_folder, make_folder, write_json
+from mjxskill.runs.atomic_write import append_text, check_folder, make_folder, read_below, remove_file, write_json
 from mjxskill.evaluation.baselines import (
     CHUNK_FIELDS,
     Candidates,
@@ -123,34 +124,35 @@ def evaluate_run(run: Run, config: RunConfig, rollout: Rollout, task: PlannedTas
     candidates = build_candidates(task, front.params, settings["random"], settings["seed"])
     folder = run.path / FOLDER
     check_folder(run.path, folder)  # never read or written through a link below the run
-    if (folder / RESULT).is_file():
+    if is_regular(folder / RESULT, RunError):
         try:
             old, old_settings = load_evaluation(run)
         except RunError:
             old = None  # damaged: evaluated again below, the chunks kept so far are still used
         if old is not None and _same(old_settings, settings) and _same_candidates(old.candidates, candidates):
-            write_csv(old, config.parameter_names, folder / "evaluation.csv")  # derived: rewritten, never missing
-            return old, plot_boxes(old, folder / "success.png", _title(config)), True
+            remove_file(folder / CHUNKS, root=run.path)  # left by a run killed as it finished: the evaluation is whole
+            write_csv(old, config.parameter_names, folder / "evaluation.csv", root=run.path)  # derived: rewritten, never missing
+            return old, plot_boxes(old, folder / "success.png", _title(config), root=run.path), True
     make_folder(run.path, folder)  # never through a link below the run
     chunk_path = folder / CHUNKS
-    done = _read_chunks(chunk_path, settings, candidates)
+    done = _read_chunks(run.path, chunk_path, settings, candidates)
 
     def keep(start: int, result: dict) -> None:
         line = {"format": FORMAT, "settings": settings, "start": start,
                 "params": candidates.params[start : start + len(result["success"])].tolist(),
                 **{k: _plain(v) for k, v in result.items()}}
-        append_text(chunk_path, json.dumps(line) + "\n")
+        append_text(chunk_path, json.dumps(line) + "\n", root=run.path)
         if progress is not None:
             progress(min(start + len(result["success"]), len(candidates.names)), len(candidates.names))
 
     ev = evaluate_candidates(rollout, candidates, settings["per_config"], settings["seed"], settings["batch_size"],
                              done=done, on_chunk=keep)
-    write_csv(ev, config.parameter_names, folder / "evaluation.csv")
-    tests = plot_boxes(ev, folder / "success.png", _title(config))
+    write_csv(ev, config.parameter_names, folder / "evaluation.csv", root=run.path)
+    tests = plot_boxes(ev, folder / "success.png", _title(config), root=run.path)
     # evaluation.json last: its presence says the evaluation is complete
     write_json(folder / RESULT, {"format": FORMAT, "settings": settings, "parameter_names": list(config.parameter_names),
-                                  **evaluation_document(ev)})
-    chunk_path.unlink(missing_ok=True)
+                                  **evaluation_document(ev)}, root=run.path)
+    remove_file(chunk_path, root=run.path)
     return ev, tests, False
 
 
@@ -166,7 +168,7 @@ def load_evaluation(run: Run) -> tuple[Evaluation, dict]:
     """(evaluation, its settings) from ``RUN_DIR/evaluation/evaluation.json``; RunError when it
     is missing or damaged."""
     path = run.path / FOLDER / RESULT
-    if not path.is_file():
+    if not is_regular(path, RunError):
         raise RunError(f"{run.path} has not been evaluated yet (no {FOLDER}/{RESULT}): run python -m mjxskill.evaluate {run.path}")
     return read_evaluation(path, FORMAT, "evaluation", "delete it and evaluate again")
 
@@ -219,12 +221,13 @@ def evaluation_document(ev: Evaluation) -> dict:
                for k in CHUNK_FIELDS if k != "success"}}
 
 
-def _read_chunks(path: Path, settings: dict, candidates: Candidates) -> dict:
-    """Chunk start -> results of the usable lines of ``chunks.jsonl`` (see the module docstring)."""
+def _read_chunks(root: Path, path: Path, settings: dict, candidates: Candidates) -> dict:
+    """Chunk start -> results of the usable lines of ``chunks.jsonl`` of the run ``root`` (see
+    the module docstring); read only when it is a regular file, never through a link below the run."""
     done: dict[int, dict] = {}
-    if not path.is_file():
+    if not is_regular(path, RunError):
         return done
-    for text in path.read_text().splitlines():
+    for text in read_below(root, path).decode(errors="replace").splitlines():
         try:
             line = json.loads(text)
             start = int(line["start"])

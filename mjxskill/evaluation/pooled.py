@@ -226,10 +226,11 @@ def paired_seconds(evals: list[Evaluation], picks: list[Pick], group: str, other
     return float(a.mean()), float(b.mean()), int(len(a))
 
 
-def plot_pooled(samples: dict, path, title: str) -> dict:
-    """Box plots of the pooled groups, picked against each; returns box_plot's tests."""
+def plot_pooled(samples: dict, path, title: str, *, root=None) -> dict:
+    """Box plots of the pooled groups, picked against each (into ``path`` below ``root``, the
+    run); returns box_plot's tests."""
     labelled = {POOLED_LABELS[g]: v for g, v in samples.items()}
-    return box_plot(labelled, POOLED_LABELS["picked"], path, title)
+    return box_plot(labelled, POOLED_LABELS["picked"], path, title, root=root)
 
 
 def pooled_table(samples: dict, tests: dict) -> str:

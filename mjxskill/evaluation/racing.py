@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from mjxskill._files import is_regular
 from mjxskill.engine.common.keys import stream_key
 from mjxskill.errors import RunError
 from mjxskill.evaluation.baselines import evaluate_chunk
@@ -214,7 +215,7 @@ def raced_pick(run_path, front: Evaluations) -> tuple[int, int, int] | None:
     winner is still that row of the front, whatever its settings (what ``select`` shows); None
     when there is none. RunError when the file is damaged."""
     path = run_path / FILE
-    if not path.is_file():
+    if not is_regular(path, RunError):
         return None
     try:
         doc = json.loads(read_text(path, RunError, "race"))
@@ -234,7 +235,7 @@ def raced_pick(run_path, front: Evaluations) -> tuple[int, int, int] | None:
 def _finished_rounds(run_path, front: Evaluations, rows, settings: dict):
     """The rounds of a current race.json (same settings, contenders and parameters); none else."""
     path = run_path / FILE
-    if not path.is_file():
+    if not is_regular(path, RunError):
         return
     try:
         doc = json.loads(read_text(path, RunError, "race"))

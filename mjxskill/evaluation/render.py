@@ -21,14 +21,14 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from mjxskill._headless import default_gl, pyplot  # noqa: F401  (default_gl: callers import it from here too)
-from mjxskill.errors import UserError
+from mjxskill.errors import UserError, quote
 from mjxskill.runs.outputs import write_outputs
 
 if TYPE_CHECKING:  # pragma: no cover
     from mjxskill.engine.protocol import Rollout
 
 GL_HELP = (
-    "MuJoCo's offscreen renderer found no OpenGL backend (MUJOCO_GL={gl!r}: {err}). "
+    "MuJoCo's offscreen renderer found no OpenGL backend (MUJOCO_GL={gl}: {err}). "
     "Headless Linux: install Mesa's EGL (apt-get install libegl1 libgl1-mesa-dri) and run with MUJOCO_GL=egl, "
     "or software OSMesa (apt-get install libosmesa6) with MUJOCO_GL=osmesa; with a display, MUJOCO_GL=glfw."
 )
@@ -77,7 +77,7 @@ def frames(model, qpos: np.ndarray, width: int = 640, height: int = 480, progres
     try:
         renderer = mujoco.Renderer(model, height, width)
     except Exception as err:  # the GL backends raise a variety of errors when no context exists
-        raise RenderUnavailable(GL_HELP.format(gl=os.environ.get("MUJOCO_GL", ""), err=f"{type(err).__name__}: {err}"),
+        raise RenderUnavailable(GL_HELP.format(gl=quote(os.environ.get("MUJOCO_GL", "")), err=f"{type(err).__name__}: {err}"),
                                 AFTER_SELECT) from None
     finally:
         frame.offwidth, frame.offheight = kept

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, NamedTuple, Sequence
 
 import numpy as np
 
+from mjxskill._files import is_regular
 from mjxskill.engine.common.keys import stream_key
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
@@ -124,7 +125,7 @@ def validate(run: Run, front: Evaluations, rows: Sequence[int], rollout: Rollout
            "params": front.params[list(rows)].tolist(), "success": success.tolist(),
            "seconds": None if seconds is None else seconds.tolist()}
     make_folder(run.path, run.path / FOLDER)  # never through a link below the run
-    write_json(run.path / FOLDER / FILE, doc)
+    write_json(run.path / FOLDER / FILE, doc, root=run.path)
     return result, False
 
 
@@ -222,7 +223,7 @@ def _read(run: Run):
     """(document, rows, worlds, params, success) of ``run``'s validation.json, checked; None
     when there is none. RunError when it is damaged."""
     path = run.path / FOLDER / FILE
-    if not path.is_file():
+    if not is_regular(path, RunError):
         return None
     try:
         doc = json.loads(read_text(path, RunError, "validation"))

@@ -28,7 +28,8 @@ from pathlib import Path
 
 import yaml
 
-from mjxskill.errors import RunError
+from mjxskill._files import is_regular
+from mjxskill.errors import RunError, quote
 from mjxskill.scenario.fields import compose_text, read_text
 from mjxskill.runs.atomic_write import write_json, write_text
 from mjxskill.evaluation.evaluate_run import evaluation_settings
@@ -125,7 +126,7 @@ class Experiment:
         """Writes experiment.yaml, the planning artefacts ``texts`` (file name -> text) and the
         two repeated runs of ``config`` (optimizer "mobo"), which get none of their own; all or
         nothing, and only where nothing is (a missing or empty folder)."""
-        if (self.path / EXPERIMENT).exists():
+        if os.path.lexists(self.path / EXPERIMENT):
             raise RunError(f"{self.path} already holds an experiment; continue it with --resume {self.path}")
         if self.path.exists() and (not self.path.is_dir() or os.listdir(self.path)):
             raise RunError(f"{self.path} is not empty and holds no mjxskill experiment; refusing to write into it: "
@@ -138,7 +139,7 @@ class Experiment:
 
     def protocol(self) -> Protocol:
         path = self.path / EXPERIMENT
-        if not path.is_file():
+        if not is_regular(path, RunError):
             raise RunError(f"{self.path} is not an experiment directory (no {EXPERIMENT})")
         return Protocol.from_yaml(read_text(path, RunError, "experiment protocol"), str(path))
 
@@ -185,7 +186,7 @@ class Experiment:
     # -- wall times ----------------------------------------------------------------------------
     def state(self) -> dict:
         path = self.path / STATE
-        if not path.is_file():
+        if not is_regular(path, RunError):
             return {"sessions": [], "times": {}}
         try:
             state = json.loads(read_text(path, RunError, "experiment state"))
@@ -250,13 +251,13 @@ def _check_state(state) -> None:
             raise ValueError(f"sessions[{i}] is not a mapping")
         for key, ok in SESSION_KEYS.items():
             if key not in session or not ok(session[key]):
-                raise ValueError(f"sessions[{i}].{key} is {session.get(key, 'missing')!r}")
+                raise ValueError(f"sessions[{i}].{key} is {quote(session.get(key, 'missing'))}")
     for key, entry in state["times"].items():
         if not isinstance(entry, dict):
             raise ValueError(f"times.{key} is not a mapping")
         for field, value in entry.items():
             if not _number(value):
-                raise ValueError(f"times.{key}.{field} is {value!r}, not a number of seconds or evaluations")
+                raise ValueError(f"times.{key}.{field} is {quote(value)}, not a number of seconds or evaluations")
 
 
 def repetition_settings(config: RunConfig, protocol: Protocol, seed: int) -> dict:

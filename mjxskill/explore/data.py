@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mjxskill._files import is_regular
 from mjxskill.errors import RunError
 from mjxskill.evaluation.selection import choose
 from mjxskill.evaluation.validation import validated_union
@@ -36,7 +37,7 @@ class RunEntry:
 
     def front(self) -> Evaluations:
         """The rows of pareto.csv (none before the first batch is written)."""
-        if not (self.run.path / PARETO).is_file():
+        if not is_regular(self.run.path / PARETO, RunError):
             return Evaluations.empty(len(self.config.parameter_names), len(self.config.objective_names),
                                      self.config.pooled)
         return self.run.pareto(self.config)
@@ -51,7 +52,7 @@ def runs_in(path: Path) -> list[RunEntry]:
     if directory_kind(path) == "experiment":
         entries = []
         for folder, kind in ((OPTIMIZER_RUNS, "optimizer"), (RANDOM_RUNS, "random search")):
-            if (path / folder / CONFIG).is_file():
+            if is_regular(path / folder / CONFIG, RunError):
                 entries += [RunEntry(f"{kind} {e.label}", e.run, e.config) for e in _started_runs(path / folder)]
         if not entries:
             raise RunError(f"{path} is an experiment none of whose runs has started (no {OPTIMIZER_RUNS}/seed-*/{CONFIG})")
@@ -64,7 +65,7 @@ def _started_runs(path: Path) -> list[RunEntry]:
     config = root.config()
     if config.repeats == 1:
         return [RunEntry(f"seed {config.seed}", root, config)]
-    started = [(sub, sub.config()) for sub in root.sub_runs(config) if (sub.path / CONFIG).is_file()]
+    started = [(sub, sub.config()) for sub in root.sub_runs(config) if is_regular(sub.path / CONFIG, RunError)]
     entries = [RunEntry(f"seed {sub_config.seed}", sub, sub_config) for sub, sub_config in started]
     if not entries:
         raise RunError(f"{root.path} holds {config.repeats} repeated runs but none has started (no seed-*/{CONFIG})")

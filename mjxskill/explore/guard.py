@@ -19,6 +19,8 @@ from __future__ import annotations
 import socket
 from dataclasses import dataclass
 
+from mjxskill.errors import quote
+
 MAX_BODY_BYTES = 64 * 1024  # the page's largest request is a few dozen bytes of JSON
 LOOPBACK_NAMES = frozenset({"127.0.0.1", "localhost", "::1"})
 WILDCARD_HOSTS = frozenset({"", "0.0.0.0", "::"})
@@ -65,24 +67,24 @@ def refusal(environ: dict, served: ServedAddress) -> tuple[int, str] | None:
     host = environ.get("HTTP_HOST", "")
     named = split_host(host)
     if served.port is None or named is None or named[0] not in served.names or named[1] != served.port:
-        return 403, f"refused: Host {host!r} is not an address this server serves"
+        return 403, f"refused: Host {quote(host)} is not an address this server serves"
     method = environ.get("REQUEST_METHOD", "GET").upper()
     if "chunked" in environ.get("HTTP_TRANSFER_ENCODING", "").lower():
         return 411, "refused: a request body must state its Content-Length"
     length_text = environ.get("CONTENT_LENGTH", "") or "0"
     if not length_text.isdigit():
-        return 400, f"Content-Length {length_text!r} is not a number of bytes"
-    if int(length_text) > MAX_BODY_BYTES:
-        return 413, f"refused: a request body of {int(length_text)} bytes; at most {MAX_BODY_BYTES} are read"
+        return 400, f"Content-Length {quote(length_text)} is not a number of bytes"
+    if len(length_text) > 20 or int(length_text) > MAX_BODY_BYTES:  # int() of 5000 digits raises
+        return 413, f"refused: a request body of {length_text if len(length_text) <= 20 else quote(length_text, 20)} bytes; at most {MAX_BODY_BYTES} are read"
     if method in SAFE_METHODS:
         return None
     origin = environ.get("HTTP_ORIGIN")
     if origin is not None:
         if origin.lower() != f"http://{host}".lower():
-            return 403, f"refused: {method} from origin {origin!r}, not from this page (http://{host})"
+            return 403, f"refused: {method} from origin {quote(origin)}, not from this page (http://{host})"
     elif environ.get("HTTP_SEC_FETCH_SITE", "") != "same-origin":
         return 403, f"refused: {method} without an Origin header or Sec-Fetch-Site: same-origin"
     media_type = environ.get("CONTENT_TYPE", "").partition(";")[0].strip().lower()
     if media_type != "application/json":
-        return 403, f"refused: {method} with Content-Type {media_type!r}; the page sends application/json"
+        return 403, f"refused: {method} with Content-Type {quote(media_type)}; the page sends application/json"
     return None

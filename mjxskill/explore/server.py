@@ -43,7 +43,7 @@ from wsgiref.simple_server import WSGIRequestHandler, WSGIServer, make_server
 
 import bottle
 
-from mjxskill.errors import RequestError, RunError, ServerBusy, UserError, bounded, quote
+from mjxskill.errors import RequestError, RunError, ServerBusy, UserError, quote, shortened
 from mjxskill.explore.data import (
     choose_document,
     evaluations_document,
@@ -91,12 +91,12 @@ def error_status(err: BaseException) -> tuple[int, str]:
     elif isinstance(err, UserError):
         status, message = 400, str(err)
     elif isinstance(err, OSError):
-        where = f" ({err.filename})" if err.filename else ""
+        where = f" ({err.filename})" if err.filename else ""  # shortened below
         status = 507 if err.errno in SPACE else 500
         message = f"{err.strerror or type(err).__name__}{where}: the server could not finish; fix that and ask again"
     else:
         status, message = 500, f"internal error: {type(err).__name__}: {quote(str(err), 300)}"
-    return status, bounded(" ".join(message.split()))
+    return status, shortened(" ".join(message.split()))
 
 
 def log_error(status: int, message: str) -> None:
@@ -150,7 +150,7 @@ def _limit(name: str) -> float | None:
     try:
         return float(text)
     except ValueError:
-        raise RequestError(f"{name} must be a number, got {text!r}") from None
+        raise RequestError(f"{name} must be a number, got {quote(text)}") from None
 
 
 def _body() -> dict:
@@ -172,7 +172,7 @@ def _int(doc, name: str, default: int | None = None) -> int:
         except ValueError:
             pass
     if isinstance(value, bool) or not isinstance(value, int):
-        raise RequestError(f"{name} must be an integer, got {value!r}")
+        raise RequestError(f"{name} must be an integer, got {quote(value)}")
     return value
 
 
@@ -182,7 +182,7 @@ def build_app(explorer: Explorer, served: ServedAddress) -> bottle.Bottle:
     app.install(_guarded)  # every route's errors: JSON, one log line
 
     def _error_page(error: bottle.HTTPError) -> str:  # Bottle's own errors (no such route: 404, 405)
-        message = bounded(" ".join(str(error.body or error.status_line).split()))
+        message = shortened(" ".join(str(error.body or error.status_line).split()))
         log_error(error.status_code, message)
         bottle.response.content_type = "application/json"
         return json.dumps({"error": message})

@@ -9,6 +9,7 @@ from typing import Mapping
 
 import numpy as np
 
+from mjxskill.errors import quote
 from mjxskill.gp.prior import Prior, prior_of
 from mjxskill.gp.settings import AcquisitionSettings, acquisition_defaults, acquisition_settings
 
@@ -58,13 +59,13 @@ class MOBOConfig:
         for name in ("n_objectives", "batch_size"):
             v = getattr(self, name)
             if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < 1:
-                raise ValueError(f"MOBOConfig.{name}: expected a positive integer, got {v!r}")
+                raise ValueError(f"MOBOConfig.{name}: expected a positive integer, got {quote(v)}")
         if not isinstance(self.n_init, (int, np.integer)) or self.n_init < 2:
-            raise ValueError(f"MOBOConfig.n_init: need at least 2 warm-up points, got {self.n_init!r}")
+            raise ValueError(f"MOBOConfig.n_init: need at least 2 warm-up points, got {quote(self.n_init)}")
         if self.ref_point is not None:
             r = np.asarray(self.ref_point, dtype=np.float64)
             if r.shape != (self.n_objectives,) or not np.all(np.isfinite(r)):
-                raise ValueError(f"MOBOConfig.ref_point: expected {self.n_objectives} finite numbers, got {self.ref_point!r}")
+                raise ValueError(f"MOBOConfig.ref_point: expected {self.n_objectives} finite numbers, got {quote(self.ref_point)}")
             object.__setattr__(self, "ref_point", tuple(float(v) for v in r))
         defaults = acquisition_defaults(reference_given=self.ref_point is not None, n_objectives=self.n_objectives)
         if self.acquisition is None:
@@ -72,7 +73,7 @@ class MOBOConfig:
         elif isinstance(self.acquisition, Mapping):
             object.__setattr__(self, "acquisition", acquisition_settings(self.acquisition, defaults))
         elif not isinstance(self.acquisition, AcquisitionSettings):
-            raise ValueError(f"MOBOConfig.acquisition: expected AcquisitionSettings or a mapping, got {self.acquisition!r}")
+            raise ValueError(f"MOBOConfig.acquisition: expected AcquisitionSettings or a mapping, got {quote(self.acquisition)}")
         try:
             object.__setattr__(self, "prior", prior_of(self.prior))
             if self.prior is not None:

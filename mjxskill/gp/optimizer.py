@@ -33,6 +33,7 @@ using this module does not change ``jax_enable_x64`` for the rest of the process
 from __future__ import annotations
 
 import dataclasses
+import io
 import json
 from pathlib import Path
 from typing import Any, Callable, Mapping, NamedTuple
@@ -40,6 +41,8 @@ from typing import Any, Callable, Mapping, NamedTuple
 import jax
 import numpy as np
 
+from mjxskill._files import read_regular
+from mjxskill.errors import quote
 from mjxskill.gp.config import STATE_FORMAT, MOBOConfig, config_from_json
 from mjxskill.gp.hypervolume_scalarization import reference_point, warmup_reference
 from mjxskill.gp.pareto import pareto_mask
@@ -181,7 +184,7 @@ def ask(state: MOBOState, num: int | None = None) -> np.ndarray:
     assert cfg.acquisition is not None  # MOBOConfig.__post_init__ sets it
     q = cfg.batch_size if num is None else int(num)
     if q < 1:
-        raise ValueError(f"ask: batch size must be positive, got {num!r}")
+        raise ValueError(f"ask: batch size must be positive, got {quote(num)}")
     lo, hi = np.asarray(cfg.bounds)
     n = len(state.x)
     if n < cfg.n_init:
@@ -255,9 +258,12 @@ def observed(config: MOBOConfig, x, y, noise=None) -> MOBOState:
 
 def save_state(state: MOBOState, path) -> None:
     """Writes the state as NPZ (arrays, the noise array when the state has one, and the config
-    as JSON); no pickle."""
+    as JSON); no pickle. ``path``: a file name, or a binary file open for writing."""
     config_json = json.dumps({"format": STATE_FORMAT, "config": state.config.to_dict()})
     noise: dict[str, Any] = {} if state.noise is None else {"noise": state.noise}  # Any: savez's stubs
+    if hasattr(path, "write"):
+        np.savez(path, x=state.x, y=state.y, config_json=np.array(config_json), **noise)
+        return
     with open(path, "wb") as fh:
         np.savez(fh, x=state.x, y=state.y, config_json=np.array(config_json), **noise)
 
@@ -268,7 +274,8 @@ def load_state(path) -> MOBOState:
     """Reads a state written by :func:`save_state` (or by format 1), validating it; a file
     without a noise array is a state without noise."""
     path = Path(path)
-    with np.load(path, allow_pickle=False) as data:
+    # a regular file only (a FIFO in its place would block np.load forever), then parsed from memory
+    with np.load(io.BytesIO(read_regular(path)), allow_pickle=False) as data:
         missing = {"x", "y", "config_json"} - set(data.files)
         if missing:
             raise ValueError(f"load_state: {path} lacks {sorted(missing)}")
@@ -317,7 +324,7 @@ def minimize(
         # "lognormal"); as a keyword of minimize it is the parameter prior.
         hint = (f"; for the GP's hyperparameter prior pass acquisition={{'prior': {prior!r}}}" if prior in CHOICES["prior"]
                 else "")
-        raise ValueError(f"minimize: prior={prior!r} is not a parameter prior (a Prior or {{'mean': ..., 'std': ...}}){hint}")
+        raise ValueError(f"minimize: prior={quote(prior)} is not a parameter prior (a Prior or {{'mean': ..., 'std': ...}}){hint}")
 
     def evaluate(x):
         y = np.asarray(f(x), dtype=np.float64)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from mjxskill.errors import quote
+
 
 def _as_points(y, where: str) -> np.ndarray:
     y = np.asarray(y, dtype=np.float64)
@@ -84,7 +86,7 @@ def hypervolume(y, ref) -> float:
     y = _as_points(y, "hypervolume")
     ref = np.asarray(ref, dtype=np.float64)
     if ref.shape != (y.shape[1],) or not np.all(np.isfinite(ref)):
-        raise ValueError(f"hypervolume: reference point {ref!r} must be {y.shape[1]} finite numbers")
+        raise ValueError(f"hypervolume: reference point {quote(ref)} must be {y.shape[1]} finite numbers")
     ok = np.all(np.isfinite(y), axis=1) & np.all(y < ref, axis=1)
     p = y[ok]
     p = p[pareto_mask(p)]

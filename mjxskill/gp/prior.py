@@ -38,6 +38,8 @@ import numpy as np
 from jax.scipy.special import logsumexp
 from scipy.special import ndtr, ndtri
 
+from mjxskill.errors import quote
+
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 _WEIGHT_TOLERANCE = 1e-6  # how far the weights' sum may be from 1 (they are renormalized exactly)
 
@@ -46,7 +48,7 @@ def _matrix(name: str, value) -> np.ndarray:
     try:
         a = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ValueError(f"Prior.{name}: expected numbers, got {value!r}") from None
+        raise ValueError(f"Prior.{name}: expected numbers, got {quote(value)}") from None
     if a.ndim == 1:
         a = a[None]
     if a.ndim != 2 or a.shape[1] < 1 or a.shape[0] < 1:
@@ -119,7 +121,7 @@ class Prior:
     def from_dict(cls, data: Mapping) -> "Prior":
         """The prior of a ``to_dict`` mapping (JSON, config.yaml); ValueError names a bad key."""
         if not isinstance(data, Mapping):
-            raise ValueError(f"Prior: expected a mapping with mean, std and weights, got {data!r}")
+            raise ValueError(f"Prior: expected a mapping with mean, std and weights, got {quote(data)}")
         unknown = set(data) - {"mean", "std", "weights"}
         if unknown or not {"mean", "std"} <= set(data):
             raise ValueError(f"Prior: expected the keys mean, std (and weights), got {sorted(data)}")
@@ -132,7 +134,7 @@ def prior_of(value) -> Prior | None:
         return value
     if isinstance(value, Mapping):
         return Prior.from_dict(value)
-    raise ValueError(f"prior: expected a Prior or a mapping, got {value!r}")
+    raise ValueError(f"prior: expected a Prior or a mapping, got {quote(value)}")
 
 
 class UnitPrior(NamedTuple):

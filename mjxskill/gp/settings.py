@@ -105,7 +105,7 @@ class AcquisitionSettings:
             if f.type == "float":
                 object.__setattr__(self, f.name, float(getattr(self, f.name)))
         if self.scalarization == "hypervolume" and self.ei != "draws":
-            raise ValueError(f"acquisition setting ei: {self.ei!r} needs scalarization 'chebyshev' (the hypervolume "
+            raise ValueError(f"acquisition setting ei: {quote(self.ei)} needs scalarization 'chebyshev' (the hypervolume "
                              "scalarization, the default, has only the 'draws' estimate)")
         if self.n_restarts > self.n_raw:
             raise ValueError(f"acquisition setting n_restarts ({self.n_restarts}) exceeds n_raw ({self.n_raw})")
@@ -146,7 +146,7 @@ def acquisition_defaults(generation: int = GENERATION, reference_given: bool = F
     generation 2 on), which from generation 3 on also depend on ``n_objectives`` (None: not
     known yet, as two). Raises ValueError naming an unknown generation."""
     if generation not in DEFAULTS_BY_GENERATION:
-        raise ValueError(f"unknown generation of acquisition defaults {generation!r}; known: "
+        raise ValueError(f"unknown generation of acquisition defaults {quote(generation)}; known: "
                          f"{', '.join(map(str, DEFAULTS_BY_GENERATION))}")
     changes = DEFAULTS_BY_GENERATION[generation]
     if reference_given and generation >= 2:
@@ -187,13 +187,13 @@ def _field_problem(name: str, kind: str, v) -> str | None:
         if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
             return f"expected a finite number, got {quote(v)}"
         if name in _NONNEGATIVE and v < 0.0:
-            return f"must be >= 0, got {v!r}"
+            return f"must be >= 0, got {quote(v)}"
         if name in _AT_MOST_ONE and v > 1.0:
-            return f"must be <= 1 (a fraction), got {v!r}"
+            return f"must be <= 1 (a fraction), got {quote(v)}"
         if name in _POSITIVE and not v > 0.0:
-            return f"must be > 0, got {v!r}"
+            return f"must be > 0, got {quote(v)}"
         if v > MAXIMUM.get(name, v):
-            return f"must be at most {MAXIMUM[name]:g}, got {v!r}"
+            return f"must be at most {MAXIMUM[name]:g}, got {quote(v)}"
     elif name in CHOICES and v not in CHOICES[name]:
         return f"expected one of {', '.join(map(repr, CHOICES[name]))}, got {quote(v)}"
     return None

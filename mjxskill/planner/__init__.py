@@ -8,6 +8,7 @@ Stages, one module each (as in pyperplan): `parse` (PDDL text -> checked lifted 
 
 from __future__ import annotations
 
+from mjxskill.errors import quote
 from mjxskill.planner.errors import PDDLError, Unsolvable
 from mjxskill.planner.ground import GroundTask, Operator, apply, applicable, ground, is_goal
 from mjxskill.planner.heuristics import HEURISTICS
@@ -33,7 +34,7 @@ def solve(domain: str, problem: str, heuristic: str = "hmax",
       Unsolvable: no plan exists.
     """
     if heuristic not in HEURISTICS:
-        raise ValueError(f"unknown heuristic {heuristic!r}; choose from {sorted(HEURISTICS)}")
+        raise ValueError(f"unknown heuristic {quote(heuristic)}; choose from {sorted(HEURISTICS)}")
     task = ground(parse(domain, problem))
     plan = astar(task, HEURISTICS[heuristic](task), max_expansions)
     return [op.name for op in plan]

@@ -19,6 +19,7 @@ from pddl.logic.terms import Variable
 from pddl.parser.domain import DomainParser
 from pddl.parser.problem import ProblemParser
 
+from mjxskill.errors import quote
 from mjxskill.planner.errors import PDDLError
 from mjxskill.planner.source import Source
 
@@ -115,7 +116,7 @@ def _syntax_error(src: Source, error: lark.exceptions.UnexpectedInput) -> PDDLEr
         elif error.token.type == "RPAR" and set(error.expected) <= _END:
             what = "unexpected ')' after the end of the definition (unbalanced parentheses?)"
         else:
-            what = f"unexpected {error.token.value!r}"
+            what = f"unexpected {quote(error.token.value)}"
         if error.expected:
             what += f"; expected {_describe_terminals(error.expected)}"
     elif isinstance(error, lark.exceptions.UnexpectedCharacters):
@@ -156,7 +157,7 @@ def _semantic_error(src: Source, error: Exception) -> PDDLError:
     names = [part for i, part in enumerate(message.split("'")) if i % 2 == 1]
     offset = src.locate([([n], False) for n in names])
     if message.startswith("Constant '") and message.endswith("' not defined."):
-        message = f"unknown constant {names[0]!r} (objects in a domain must be in :constants)"
+        message = f"unknown constant {quote(names[0])} (objects in a domain must be in :constants)"
     return src.error(message.rstrip("."), offset)
 
 
@@ -172,8 +173,8 @@ def parse(domain_text: str, problem_text: str) -> LiftedTask:
     _check_requirements(dsrc, domain.requirements)
     _check_requirements(psrc, problem.requirements)
     if str(problem.domain_name).lower() != str(domain.name).lower():
-        raise psrc.error(f"problem is for domain {str(problem.domain_name)!r} but the domain is "
-                         f"{str(domain.name)!r}", psrc.locate([([":domain"], True)]))
+        raise psrc.error(f"problem is for domain {quote(str(problem.domain_name))} but the domain is "
+                         f"{quote(str(domain.name))}", psrc.locate([([":domain"], True)]))
 
     ancestors = _type_ancestors(dsrc, domain.types)
     objects: dict[str, frozenset[str]] = {}
@@ -227,7 +228,7 @@ def _type_ancestors(src: Source, types) -> dict[str, frozenset[str]]:
         chain, t = [], start
         while t != OBJECT:
             if t in chain:
-                raise src.error(f"type hierarchy has a cycle through {t!r}",
+                raise src.error(f"type hierarchy has a cycle through {quote(t)}",
                                 src.locate([([t], False)], src.section([":types"])))
             chain.append(t)
             # a parent named but not declared itself (`a b - c`) is a child of `object`, as
@@ -241,7 +242,7 @@ def _declared_types(src: Source, type_tags, ancestors, where: str) -> frozenset[
     types = frozenset(str(t).lower() for t in type_tags) or frozenset({OBJECT})
     for t in sorted(types):
         if t not in ancestors:
-            raise src.error(f"unknown type {t!r} in {where}", src.locate([([t], False)]))
+            raise src.error(f"unknown type {quote(t)} in {where}", src.locate([([t], False)]))
     return types
 
 
@@ -334,7 +335,7 @@ def _checked_term(src, term, objects, variables, span, where, offset=None) -> st
             raise src.error(f"undeclared variable {name} in {where}",
                             src.locate([([name], False)], span) if offset is None else offset)
     elif name not in objects:
-        raise src.error(f"unknown object {name!r} in {where}",
+        raise src.error(f"unknown object {quote(name)} in {where}",
                         src.locate([([name], False)], span) if offset is None else offset)
     return name
 
@@ -344,9 +345,9 @@ def _atom(src, predicate, predicates, objects, variables, span, where) -> Atom:
     args = [_term(t) for t in predicate.terms]
     here = src.locate([([name] + args, True), ([name], True)], span)
     if name not in predicates:
-        raise src.error(f"unknown predicate {name!r} in {where}", here)
+        raise src.error(f"unknown predicate {quote(name)} in {where}", here)
     if len(args) != predicates[name]:
-        raise src.error(f"predicate {name!r} takes {predicates[name]} argument(s) but "
+        raise src.error(f"predicate {quote(name)} takes {predicates[name]} argument(s) but "
                         f"{len(args)} are given in {where}", here)
     for term in predicate.terms:
         _checked_term(src, term, objects, variables, span, where, here)

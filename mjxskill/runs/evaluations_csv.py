@@ -20,7 +20,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from mjxskill._files import read_regular
-from mjxskill.errors import RunError
+from mjxskill.errors import RunError, quote
 from mjxskill.runs.atomic_write import append_text, write_text
 
 
@@ -242,9 +242,9 @@ def _row(raw: bytes, columns, p: int, lo, hi, tol, o: int | None = None) -> tupl
         row = [float(v) for v in fields]
     except ValueError:
         bad = next(i for i, v in enumerate(fields) if not _is_number(v))
-        return f"{columns[bad]} is not a number: {fields[bad]!r}", None
+        return f"{columns[bad]} is not a number: {quote(fields[bad])}", None
     if not (row[0] >= 0 and float(row[0]).is_integer()):
-        return f"iteration {fields[0]!r} is not a batch number", None
+        return f"iteration {quote(fields[0])} is not a batch number", None
     params = np.array(row[1 : 1 + p]) if lo is not None else ()
     for i, v in enumerate(params):
         if not math.isfinite(v):
@@ -255,9 +255,9 @@ def _row(raw: bytes, columns, p: int, lo, hi, tol, o: int | None = None) -> tupl
         at = len(columns) - len(POOLING_COLUMNS) - o
         worlds, replaces = row[at], row[at + 1]
         if not (worlds >= 1 and worlds.is_integer()):
-            return f"worlds {fields[at]!r} is not a positive whole number of worlds", None
+            return f"worlds {quote(fields[at])} is not a positive whole number of worlds", None
         if not (replaces >= -1 and replaces.is_integer()):
-            return f"replaces {fields[at + 1]!r} is not a row number (or -1)", None
+            return f"replaces {quote(fields[at + 1])} is not a row number (or -1)", None
     return None, row
 
 

@@ -31,6 +31,7 @@ import os
 from pathlib import Path
 from typing import NamedTuple
 
+from mjxskill._files import is_regular
 from mjxskill.errors import RunError
 from mjxskill.runs.run_dir import CONFIG, Run
 from mjxskill.runs.settings import BOTORCH_OPTIMIZERS, OPTUNA_OPTIMIZERS
@@ -54,9 +55,9 @@ class RunRef(NamedTuple):
 def directory_kind(path: Path | str) -> str:
     """"experiment", "repeated" or "run"; RunError when ``path`` is none of them."""
     path = Path(path)
-    if (path / EXPERIMENT).is_file():
+    if is_regular(path / EXPERIMENT, RunError):
         return "experiment"
-    if (path / CONFIG).is_file():
+    if is_regular(path / CONFIG, RunError):
         return "repeated" if Run(path).config().repeats > 1 else "run"
     raise RunError(f"{path} is not a run directory (no {CONFIG}) nor an experiment (no {EXPERIMENT})")
 

@@ -25,7 +25,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Union
 
-from mjxskill.errors import RunError
+from mjxskill.errors import RunError, quote
 from mjxskill.runs.atomic_write import DIR_FLAGS, DISK_FAULTS, open_folder, remove_stale_staging, staging_name
 
 # What an output holds: a file's bytes, or a folder's files (name -> bytes)
@@ -65,7 +65,7 @@ def in_the_way(root: Path, path: Path, content: Content) -> tuple[str, bool] | N
         except FileNotFoundError:
             return None
         if stat.S_ISLNK(info.st_mode):
-            return f"{path} is a symbolic link (to {os.readlink(path.name, dir_fd=fd)!r}), never written through", False
+            return f"{path} is a symbolic link (to {quote(os.readlink(path.name, dir_fd=fd), 200)}), never written through", False
         folder = not isinstance(content, (bytes, bytearray))
         if folder != stat.S_ISDIR(info.st_mode) or not (folder or stat.S_ISREG(info.st_mode)):
             return f"{path} is {'no folder' if folder else 'no regular file'}", False
@@ -91,7 +91,7 @@ def check_outputs(root: Path, outputs: Mapping[Path, Content], *, replace: bool 
         except OSError as err:
             if err.errno in DISK_FAULTS:
                 raise
-            raise RunError(f"cannot write {str(path)!r}: {err.strerror or err}") from None
+            raise RunError(f"cannot write {quote(str(path), 200)}: {err.strerror or err}") from None
         if why is not None and not (replace and why[1]):
             cure = ", ".join(filter(None, [hint, f"or replace it with {flag}" if why[1] and flag else ""]))
             raise RunError(f"{why[0]}; it is kept" + (f": {cure}" if cure else ""))
@@ -180,7 +180,7 @@ def write_outputs(root: Path, outputs: Mapping[Path, Content], *, replace: bool 
             fd = open_folder(root, path.parent, create=True, made=made)
             assert fd is not None
             try:
-                remove_stale_staging(path.parent)
+                remove_stale_staging(path.parent, dir_fd=fd)
                 if _put(fd, path.name, content):
                     added.append(path)
             finally:
@@ -198,7 +198,9 @@ def write_outputs(root: Path, outputs: Mapping[Path, Content], *, replace: bool 
             with contextlib.suppress(OSError):
                 os.rmdir(folder)
         if isinstance(err, OSError) and err.errno not in DISK_FAULTS:
-            raise RunError(f"cannot write {str(path)!r}: {err.strerror or err}") from None
+            raise RunError(f"cannot write {quote(str(path), 200)}: {err.strerror or err}") from None
+        if isinstance(err, OSError):  # the machine's fault, naming the output (not its staging)
+            raise OSError(err.errno, err.strerror, str(path)) from None
         raise
     return list(outputs)
 

@@ -17,8 +17,8 @@ Non-finite objectives of a finished batch are results (a diverged world): kept, 
 from __future__ import annotations
 
 import csv
+import io
 import os
-import shutil
 import warnings
 from collections import Counter
 from pathlib import Path
@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from mjxskill.errors import Notice, RunError
+from mjxskill.runs.atomic_write import append_text, keep_copy
 from mjxskill.runs.run_dir import EVALUATIONS, Evaluations, Run, RunConfig, concat_all
 
 SET_ASIDE = "evaluations-set-aside.csv"
@@ -77,28 +78,21 @@ def _keep_original(path: Path) -> Path:
     """Keeps ``path`` as it is under the first free ``<name>.orig-<n>``; returns that path."""
     for n in range(1, 10_000):
         kept = path.with_name(f"{path.name}.orig-{n}")
-        try:
-            os.link(path, kept)  # never replaces an existing file; no copy of the bytes
+        if keep_copy(path, kept.name):  # never replaces an existing file; a hard link where it can
             return kept
-        except FileExistsError:
-            continue
-        except OSError:  # no hard links here: a copy, still never over an existing file
-            if not kept.exists():
-                shutil.copy2(path, kept)
-                return kept
     raise RunError(f"cannot keep a copy of {path}: {path.name}.orig-1 to -9999 all exist")
 
 
 def _append_set_aside(path: Path, original: str, rejected) -> None:
-    new = not path.exists()
-    with open(path, "a", newline="") as fh:
-        writer = csv.writer(fh, lineterminator="\n")
-        if new:
-            writer.writerow(["file", "line", "reason", "text"])
-        for r in rejected:
-            writer.writerow([original, r.line, r.reason, r.text])
-        fh.flush()
-        os.fsync(fh.fileno())
+    """The ``rejected`` lines appended to ``path`` in one write (``append_text``: never through a
+    link, none of them left on a full disk), under a header when the file is new."""
+    fh = io.StringIO(newline="")
+    writer = csv.writer(fh, lineterminator="\n")
+    if not os.path.lexists(path):
+        writer.writerow(["file", "line", "reason", "text"])
+    for r in rejected:
+        writer.writerow([original, r.line, r.reason, r.text])
+    append_text(path, fh.getvalue())
 
 
 __all__ = ["SET_ASIDE", "resume_batches"]

@@ -18,7 +18,7 @@ from typing import Iterator
 import yaml
 
 from mjxskill import gp
-from mjxskill.errors import RunError
+from mjxskill.errors import RunError, quote
 from mjxskill.gp.settings import DEFAULTS_BY_GENERATION, GENERATION, acquisition_defaults, acquisition_settings
 from mjxskill.scenario.fields import Field, compose_text
 from mjxskill.runs.evaluations_csv import FORCE_COLUMNS, POOLING_COLUMNS, SPREAD_PREFIX
@@ -146,12 +146,12 @@ class RunConfig:
             known = _optimizer_generations()[0]
             if isinstance(generation, bool) or generation not in known:
                 f["optimizer_defaults"].fail(f"expected a generation of the optimizer's defaults "
-                                             f"({', '.join(map(str, known))}), got {generation!r}")
+                                             f"({', '.join(map(str, known))}), got {quote(generation)}")
         cluster = None
         if "cluster" in f and not f["cluster"].is_null():
             cluster = f["cluster"].scalar()
             if cluster not in CLUSTERS:
-                f["cluster"].fail(f"expected one of {', '.join(CLUSTERS)} or null, got {cluster!r}")
+                f["cluster"].fail(f"expected one of {', '.join(CLUSTERS)} or null, got {quote(cluster)}")
         changes = _scenario_changes(f["scenario_changes"]) if "scenario_changes" in f else ()
         config = cls(task=f["task"].string(), scenario=f["scenario"].string(), parameter_names=names,
                      parameter_units=units, bounds=(tuple(bounds[0]), tuple(bounds[1])),
@@ -225,7 +225,7 @@ def _texts(field: Field) -> tuple[str, ...]:
     for item in field.seq():
         value = item.scalar()
         if not isinstance(value, str):
-            item.fail(f"expected a text, got {value!r}")
+            item.fail(f"expected a text, got {quote(value)}")
         values.append(value)
     return tuple(values)
 

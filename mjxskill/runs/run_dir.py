@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjxskill._files import read_regular
+from mjxskill._files import is_regular, read_regular
 from mjxskill.errors import RunError
 from mjxskill.scenario.fields import read_text
 from mjxskill.runs.atomic_write import (  # noqa: F401  (STAGING, _this_host: re-exported, where they lived before)
@@ -94,7 +94,7 @@ class Run:
                 _write_run(sub.path, config.sub_run(int(sub.path.name.split("-")[1])), scenario_text, texts)
 
     def _check_free(self) -> None:
-        if (self.path / CONFIG).exists():
+        if os.path.lexists(self.path / CONFIG):
             raise RunError(f"{self.path} already holds a run; continue it with --resume {self.path}")
         if self.path.exists() and not self.path.is_dir():
             raise RunError(f"{self.path} exists and is not a directory; choose another --out")
@@ -107,7 +107,7 @@ class Run:
 
     def config(self) -> RunConfig:
         path = self.path / CONFIG
-        if not path.is_file():
+        if not is_regular(path, RunError):
             raise RunError(f"{self.path} is not a run directory (no {CONFIG})")
         return RunConfig.from_yaml(read_text(path, RunError, "run configuration"), str(path))
 
@@ -118,6 +118,8 @@ class Run:
             own = run.config() if run is not self else config
             run.run_state()
             run.batches(own)
+            for name in (PARETO, OPTIMIZER_STATE):  # replaced after the next batch: a FIFO there is refused now
+                is_regular(run.path / name, RunError)
 
     def lock(self) -> RunLock:
         """The writer's lock of this run (RunError naming the holder if another process has it)."""
@@ -151,7 +153,7 @@ class Run:
     def pareto(self, config: RunConfig | None = None) -> Evaluations:
         config = self.config() if config is None else config
         path = self.path / PARETO
-        if not path.is_file():
+        if not is_regular(path, RunError):
             raise RunError(f"{self.path} has no {PARETO} yet (train it first)")
         return read_csv(path, config.columns(), config.bounds)
 
@@ -167,7 +169,7 @@ class Run:
     def run_state(self) -> dict:
         """run_state.json ({} before the warm-up is complete); RunError if it is damaged."""
         path = self.path / RUN_STATE
-        if not path.is_file():
+        if not is_regular(path, RunError):
             return {}
         hint = "delete it and --resume recomputes it from the warm-up rows"
         try:

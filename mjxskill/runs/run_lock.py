@@ -25,8 +25,8 @@ import sys
 import time
 from pathlib import Path
 
-from mjxskill.errors import RunError
-from mjxskill.runs.atomic_write import open_nofollow
+from mjxskill.errors import RunError, quote
+from mjxskill.runs.atomic_write import DISK_FAULTS, open_nofollow
 
 LOCK_FILE = ".lock"
 
@@ -54,6 +54,14 @@ class RunLock:
         self.release()
 
 
+def _cannot_lock(folder: Path, err: OSError) -> Exception:
+    """Why the lock of ``folder`` cannot be taken: the OSError itself for a fault of the machine
+    (a read-only file system, a full disk: the command's exit 1), else a RunError naming it."""
+    if err.errno in DISK_FAULTS:
+        return OSError(err.errno, err.strerror, str(Path(folder) / LOCK_FILE))
+    return RunError(f"cannot lock the run directory {quote(str(folder), 200)}: {err.strerror}")
+
+
 def lock_run(folder: Path) -> RunLock:
     """Takes the writer's lock of the run in ``folder``; RunError if another process holds it
     (also when it deleted the ``.lock`` file: the directory itself is locked)."""
@@ -61,7 +69,7 @@ def lock_run(folder: Path) -> RunLock:
     try:
         dir_fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
     except OSError as err:
-        raise RunError(f"cannot lock the run directory {str(folder)!r}: {err.strerror}") from None
+        raise _cannot_lock(folder, err) from None
     try:
         fcntl.flock(dir_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as err:
@@ -69,15 +77,16 @@ def lock_run(folder: Path) -> RunLock:
         if err.errno in (errno.EWOULDBLOCK, errno.EACCES):
             raise RunError(f"{folder} is being written by another process ({_holder_of(path)}); wait for it to "
                            f"end or stop it, then run again") from None
-        raise RunError(f"cannot lock the run directory {str(folder)!r}: {err.strerror}") from None
+        raise _cannot_lock(folder, err) from None
     try:
-        fd = open_nofollow(path, os.O_RDWR | os.O_CREAT)  # a link's target would be truncated below
+        # in the folder held: a folder swapped in between is never locked instead; a link's target would be truncated below
+        fd = open_nofollow(path, os.O_RDWR | os.O_CREAT | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0), dir_fd=dir_fd)
     except RunError:
         os.close(dir_fd)
         raise
     except OSError as err:
         os.close(dir_fd)
-        raise RunError(f"cannot lock the run directory {str(folder)!r}: {err.strerror}") from None
+        raise _cannot_lock(folder, err) from None
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as err:  # a writer of before the directory was locked: it holds only the file
@@ -87,7 +96,7 @@ def lock_run(folder: Path) -> RunLock:
         if err.errno in (errno.EWOULDBLOCK, errno.EACCES):
             raise RunError(f"{folder} is being written by another process ({holder}); wait for it to end "
                            f"or stop it, then run again") from None
-        raise RunError(f"cannot lock the run directory {str(folder)!r}: {err.strerror}") from None
+        raise _cannot_lock(folder, err) from None
     info = {"pid": os.getpid(), "host": socket.gethostname(), "since": time.strftime("%Y-%m-%d %H:%M:%S"),
             "command": " ".join([os.path.basename(sys.executable), *sys.argv])}
     try:
@@ -101,7 +110,7 @@ def lock_run(folder: Path) -> RunLock:
 def _holder_of(path: Path) -> str:
     """What the holder wrote about itself into ``path`` (read without following a link)."""
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)  # a FIFO's open would wait
     except OSError:
         return f"its {LOCK_FILE} file was removed, so it cannot say who it is"
     try:

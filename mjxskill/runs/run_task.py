@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from mjxskill.errors import Notice, RunError, UserError
+from mjxskill.errors import Notice, RunError, UserError, quote
 from mjxskill.runs.atomic_write import write_text
 from mjxskill.runs.run_dir import CONFIG, EVALUATIONS, SCENARIO_COPY, Run, RunConfig
 from mjxskill.runs.training_protocol import objective_names
@@ -38,7 +38,7 @@ def check_same_task(scn, task, config: RunConfig, where: Path) -> None:
     """Raises RunError when the scenario and plan differ from what the run at ``where`` trained."""
     mismatch = []
     if scn.name != config.task:
-        mismatch.append(f"task {config.task!r}, not {scn.name!r}")
+        mismatch.append(f"task {quote(config.task)}, not {quote(scn.name)}")
     elif tuple(task.parameter_names) != config.parameter_names:
         mismatch.append(f"parameters {list(config.parameter_names)}, not {list(task.parameter_names)}")
     elif objective_names(scn.objective_names, config.protocol) != config.objective_names:
@@ -59,7 +59,7 @@ def load_run_task(run: Run, config: RunConfig, scenario: str | None = None):
     than the one the run learned in (a resume, given ``scenario``, compares and decides itself)."""
     scn = load_scenario(config.scenario if scenario is None else scenario)
     if scn.name != config.task:
-        raise RunError(f"{run.path} is a run of task {config.task!r}, not {scn.name!r}")
+        raise RunError(f"{run.path} is a run of task {quote(config.task)}, not {quote(scn.name)}")
     task = plan_task(scn, config.goal)
     check_same_task(scn, task, config, run.path)
     if scenario is None and os.path.lexists(run.path / SCENARIO_COPY):

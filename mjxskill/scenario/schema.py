@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
+from mjxskill.errors import quote
 from mjxskill.scenario.vocabulary import REQUIRED, REWARD_KINDS
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -196,7 +197,7 @@ class Skill:
         for p in self.parameters:
             if p.name == name:
                 return p
-        raise KeyError(f"skill {self.name} has no parameter {name!r}")
+        raise KeyError(f"skill {self.name} has no parameter {quote(name)}")
 
     def value(self, name: str):
         """Default value of a fixed (non-plan) parameter."""
@@ -237,7 +238,7 @@ class Reward:
             return float(self.constants[key])
         default = REWARD_KINDS[self.kind].constants.get(key, REQUIRED)
         if default is REQUIRED:
-            raise KeyError(f"reward {self.name!r} ({self.kind}) has no constant {key!r}")
+            raise KeyError(f"reward {quote(self.name)} ({self.kind}) has no constant {quote(key)}")
         return float(default)
 
 

@@ -10,6 +10,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
+from mjxskill.errors import quote
 from mjxskill.sim.scene import ARM_JOINTS, TOOL_SITE
 
 COMMAND_SIZE = 19
@@ -41,7 +42,7 @@ class ControllerConfig(NamedTuple):
         for j in ARM_JOINTS:
             act = [a for a in range(model.nu) if model.actuator_trnid[a, 0] == model.joint(j).id]
             if len(act) != 1:
-                raise ValueError(f"joint {j!r} needs exactly one torque actuator, found {len(act)}")
+                raise ValueError(f"joint {quote(j)} needs exactly one torque actuator, found {len(act)}")
             limits.append(float(np.max(np.abs(model.actuator_ctrlrange[act[0]]))))
         kw = dict(dt=float(model.opt.timestep))
         kw.update(overrides)

@@ -34,7 +34,7 @@ from typing import NoReturn
 import mujoco
 import numpy as np
 
-from mjxskill.errors import ScenarioError
+from mjxskill.errors import ScenarioError, quote
 from mjxskill.sim.shapes import SHAPE_MODELS, Drawn, HeldItem, ShapeError, mesh_half_extent
 from mjxskill.sim.tool_force import add_tool_force_sensors
 
@@ -178,7 +178,7 @@ def _body_physics(spec, base, data, scn, obj, robot: set[int], hole_item, site: 
     if (obj.mass is not None or np.any(obj.com_offset)) and not moves:
         what = "a mocap body" if base.body_mocapid[body_id] >= 0 else "fixed to the world"
         key = "mass" if obj.mass is not None else "com_offset"
-        _fail(scn, obj, key, f"body {obj.mjcf_body!r} is {what}: it does not move, so the simulator has no use for "
+        _fail(scn, obj, key, f"body {quote(obj.mjcf_body)} is {what}: it does not move, so the simulator has no use for "
                              f"its {key}; drop it (or give the body a joint in the MJCF)")
     try:
         if obj.mass is not None or np.any(obj.com_offset):
@@ -238,7 +238,7 @@ def _place(spec, base, data, scn, obj, body_id: int, body) -> None:
     offset = np.linalg.norm(data.xpos[body_id] - obj.pose.position)
     turn = 2 * np.degrees(np.arccos(min(1.0, abs(float(np.dot(data.xquat[body_id], obj.pose.quat))))))
     if offset > 1e-3 or turn > 0.1:
-        _fail(scn, obj, "pose", f"body {obj.mjcf_body!r} is nested in another body, so the simulator cannot move "
+        _fail(scn, obj, "pose", f"body {quote(obj.mjcf_body)} is nested in another body, so the simulator cannot move "
                                 f"it; the MJCF puts it {offset * 1000:.1f} mm and {turn:.1f} deg away from this pose")
 
 
@@ -251,14 +251,14 @@ def _world_geom(spec, scn, obj) -> None:
         _fail(scn, obj, "shape", f"a geom of the world body is drawn as a box or a plane, not a {obj.shape}")
     if geom.type == mujoco.mjtGeom.mjGEOM_PLANE:
         if obj.size[2] != 0:
-            _fail(scn, obj, "size", f"geom {obj.mjcf_geom!r} is a plane: its height must be 0, got {obj.size[2]:g}")
+            _fail(scn, obj, "size", f"geom {quote(obj.mjcf_geom)} is a plane: its height must be 0, got {obj.size[2]:g}")
         geom.size = [obj.size[0] / 2, obj.size[1] / 2, geom.size[2]]
     elif geom.type == mujoco.mjtGeom.mjGEOM_BOX:
         if obj.size[2] == 0:
-            _fail(scn, obj, "size", f"geom {obj.mjcf_geom!r} is a box: its height must be > 0 (only a plane's is 0)")
+            _fail(scn, obj, "size", f"geom {quote(obj.mjcf_geom)} is a box: its height must be > 0 (only a plane's is 0)")
         geom.size = np.asarray(obj.size, float) / 2
     else:
-        _fail(scn, obj, "shape", f"geom {obj.mjcf_geom!r} is a {geom.type.name.removeprefix('mjGEOM_').lower()}, "
+        _fail(scn, obj, "shape", f"geom {quote(obj.mjcf_geom)} is a {geom.type.name.removeprefix('mjGEOM_').lower()}, "
                                  f"not a box or a plane")
     geom.pos = np.asarray(obj.pose.position, float)
     geom.quat = np.asarray(obj.pose.quat, float)

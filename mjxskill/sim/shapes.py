@@ -40,6 +40,8 @@ from typing import Callable, NamedTuple
 import mujoco
 import numpy as np
 
+from mjxskill.errors import quote
+
 
 class ShapeError(ValueError):
     """What the MJCF does not let a shape be drawn as the YAML says: (YAML key, message)."""
@@ -113,7 +115,7 @@ def _one_geom(drawn: Drawn, shape: str, kind) -> int:
     if len(drawn.geoms) != 1 or drawn.geoms[0].type != kind:
         found = ", ".join(f"{g.name or '?'} ({g.type.name.removeprefix('mjGEOM_').lower()})" for g in drawn.geoms) or "none"
         raise ShapeError("shape", f"a {shape} is drawn by exactly one {kind.name.removeprefix('mjGEOM_').lower()} geom "
-                                  f"of body {drawn.body.name!r}; it has {found}")
+                                  f"of body {quote(drawn.body.name)}; it has {found}")
     return 0
 
 
@@ -143,7 +145,7 @@ def _prism_geom(drawn: Drawn) -> int:
     geom = drawn.geoms[i]
     if np.any(np.array(geom.pos) != 0) or np.any(np.array(geom.quat) != [1, 0, 0, 0]) or \
             geom.alt.type != mujoco.mjtOrientation.mjORIENTATION_QUAT:
-        raise ShapeError("shape", f"the prism's mesh geom {geom.name!r} must sit at its body's origin, unrotated "
+        raise ShapeError("shape", f"the prism's mesh geom {quote(geom.name)} must sit at its body's origin, unrotated "
                                   f"(the body origin is the prism's centroid)")
     return i
 
@@ -157,7 +159,7 @@ def _prism_draw(size, extra, drawn: Drawn, spec):
     geom = drawn.geoms[_prism_geom(drawn)]
     mesh = spec.mesh(geom.meshname)
     if len(mesh.uservert) != 18:
-        raise ShapeError("shape", f"the prism's mesh {geom.meshname!r} has {len(mesh.uservert) // 3} vertices, not 6")
+        raise ShapeError("shape", f"the prism's mesh {quote(geom.meshname)} has {len(mesh.uservert) // 3} vertices, not 6")
     mesh.uservert = prism_vertices(size).ravel().tolist()
 
 
@@ -184,10 +186,10 @@ def _cylinder_geom(drawn: Drawn, spec) -> int:
     i = _one_geom(drawn, "cylinder", mujoco.mjtGeom.mjGEOM_MESH)
     geom = drawn.geoms[i]
     if not np.allclose(drawn.geom_rot[i], np.eye(3)) or np.any(np.array(geom.quat) != [1, 0, 0, 0]):
-        raise ShapeError("shape", f"the cylinder's mesh geom {geom.name!r} must be unrotated (its axis is the body's z)")
+        raise ShapeError("shape", f"the cylinder's mesh geom {quote(geom.name)} must be unrotated (its axis is the body's z)")
     vertices = np.reshape(spec.mesh(geom.meshname).uservert, (-1, 3))
     if len(vertices) != 2 * CYLINDER_SIDES or np.abs(vertices.max(axis=0) + vertices.min(axis=0)).max() > 1e-9:
-        raise ShapeError("shape", f"the cylinder's mesh {geom.meshname!r} must be a prism of {2 * CYLINDER_SIDES} "
+        raise ShapeError("shape", f"the cylinder's mesh {quote(geom.meshname)} must be a prism of {2 * CYLINDER_SIDES} "
                                   f"vertices centred on its geom's origin (cylinder_vertices); it has {len(vertices)}")
     return i
 
@@ -268,7 +270,7 @@ def _box_with_hole_inertia(size, extra, drawn: Drawn):
 def _box_with_hole_draw(size, extra, drawn: Drawn, spec):
     boxes = [i for i, g in enumerate(drawn.geoms) if g.type == mujoco.mjtGeom.mjGEOM_BOX]
     if len(boxes) != 5 or len(drawn.geoms) != 5 or not all(np.allclose(drawn.geom_rot[i], np.eye(3)) for i in boxes):
-        raise ShapeError("shape", f"a box_with_hole is drawn by five unrotated box geoms of body {drawn.body.name!r} "
+        raise ShapeError("shape", f"a box_with_hole is drawn by five unrotated box geoms of body {quote(drawn.body.name)} "
                                   f"(four walls and a bottom); it has {len(drawn.geoms)} geoms")
     pos = drawn.geom_pos
     bottom = min(boxes, key=lambda i: pos[i, 2])
@@ -276,7 +278,7 @@ def _box_with_hole_draw(size, extra, drawn: Drawn, spec):
     order = [max(walls, key=lambda i: pos[i, 0]), min(walls, key=lambda i: pos[i, 0]),
              max(walls, key=lambda i: pos[i, 1]), min(walls, key=lambda i: pos[i, 1])]
     if len(set(order)) != 4:
-        raise ShapeError("shape", f"the walls of body {drawn.body.name!r} are not one on each side of the hole")
+        raise ShapeError("shape", f"the walls of body {quote(drawn.body.name)} are not one on each side of the hole")
     for i, (centre, half) in zip(order + [bottom], box_with_hole_parts(size, extra, drawn)):
         drawn.geoms[i].pos = centre
         drawn.geoms[i].size = half
@@ -329,7 +331,7 @@ def _box_with_round_hole_inertia(size, extra, drawn: Drawn):
 def _box_with_round_hole_draw(size, extra, drawn: Drawn, spec):
     if len(drawn.geoms) != ROUND_HOLE_GEOMS or any(g.type != mujoco.mjtGeom.mjGEOM_BOX for g in drawn.geoms):
         raise ShapeError("shape", f"a box_with_round_hole is drawn by {ROUND_HOLE_GEOMS} box geoms of body "
-                                  f"{drawn.body.name!r} (four walls, {CYLINDER_SIDES} slabs around the hole, a bottom, "
+                                  f"{quote(drawn.body.name)} (four walls, {CYLINDER_SIDES} slabs around the hole, a bottom, "
                                   f"in that order); it has {len(drawn.geoms)} geoms")
     for geom, (centre, half, yaw) in zip(drawn.geoms, box_with_round_hole_parts(size, extra, drawn)):
         geom.pos = centre

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Mapping
 
 from mjxskill.engine.build import resolve_engine
-from mjxskill.errors import PlanError, ResumeConflict, RunError, SettingError
+from mjxskill.errors import PlanError, ResumeConflict, RunError, SettingError, quote
 from mjxskill.runs.run_config import optimizer_problem
 from mjxskill.runs.run_dir import Run, RunConfig
 from mjxskill.runs.settings import BY_NAME, SETTINGS, cross_problems, optimizer_option_value
@@ -101,7 +101,7 @@ def new_run_config(scn: Scenario, task: PlannedTask, scenario: str, settings: Ma
         **values,
     )
     if not config.parameter_names:
-        raise PlanError(f"the plan for {config.goal!r} leaves no parameter to learn")
+        raise PlanError(f"the plan for {quote(config.goal)} leaves no parameter to learn")
     problem = optimizer_problem(config)  # the run's own settings are checked: an option is left
     if problem:
         raise SettingError(f"optimizer_options: {problem}" if options else f"the optimizer refuses this run: {problem}",

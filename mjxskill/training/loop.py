@@ -16,6 +16,7 @@ import numpy as np
 
 from mjxskill import gp
 from mjxskill.engine.common.keys import stream_key
+from mjxskill.errors import quote
 from mjxskill.runs.atomic_write import replace_whole
 from mjxskill.training.front import pareto_mask_of, reference_from
 from mjxskill.runs.evaluations_csv import FORCE_COLUMNS
@@ -113,7 +114,7 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
     if optimizer is None:
         optimizer = make_optimizer(config.optimizer, config)
     elif optimizer.name != config.optimizer:
-        raise ValueError(f"train: the optimizer {optimizer.name!r} is not the run's, {config.optimizer!r}")
+        raise ValueError(f"train: the optimizer {quote(optimizer.name)} is not the run's, {quote(config.optimizer)}")
     state = optimizer.init()
     sizes = list(batch_sizes(config.training_rows, config.batch_size, config.n_init))
     known = lambda: concat_all((done[b] for b in sorted(done)), *shape)  # noqa: E731  (in batch order)
@@ -121,6 +122,7 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
     replication.check_pointers(ev, str(run.path / EVALUATIONS))
     if progress:
         progress.start(ev, reference_from(run, config, ev))
+    saved = False  # whether the optimizer state on disk is that of every batch
     for batch, size in enumerate(sizes):
         if config.pooled:  # the rows so far pooled, each with its noise (mjxskill.training.replication)
             if batch in done:
@@ -143,9 +145,12 @@ def train(run: Run, config: RunConfig, evaluate: BatchEvaluator, *, progress: Pr
             run.write_evaluations(config, ev)
         state = _pooled_state(optimizer, ev) if config.pooled else optimizer.tell(state, x, -new.objectives)
         _save_state(state, run.path / OPTIMIZER_STATE)
+        saved = batch == len(sizes) - 1
         run.write_pareto(config, ev, pareto_mask_of(ev))
         if progress:
             progress.update(new, ev, reference_from(run, config, ev))
+    if not saved and done:  # a run killed between its last batch's rows and their state: the state is written now
+        _save_state(_pooled_state(optimizer, ev) if config.pooled else state, run.path / OPTIMIZER_STATE)
     run.write_pareto(config, ev, pareto_mask_of(ev))
     if progress:
         progress.close()
@@ -190,4 +195,4 @@ def _pooled_batch(optimizer: Optimizer, state, config: RunConfig, earlier: Evalu
 
 def _save_state(state, path) -> None:
     """The optimizer state, replaced in one step (a kill mid-write leaves the previous one)."""
-    replace_whole(path, lambda tmp: gp.save_state(state, tmp))
+    replace_whole(path, lambda fh: gp.save_state(state, fh))

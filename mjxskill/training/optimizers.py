@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Callable, Protocol
 import numpy as np
 
 from mjxskill import gp
+from mjxskill.errors import quote
 from mjxskill.runs.run_config import RunConfig, optimizer_config
 from mjxskill.runs.settings import BOTORCH_OPTIMIZERS, BY_NAME, OPTUNA_OPTIMIZERS
 from mjxskill.training import botorch_search, optuna_search
@@ -111,7 +112,7 @@ def optuna_sampler(config: RunConfig) -> Optimizer:
     """``optuna-nsga2``, ``optuna-tpe``, ``optuna-gp`` (``config.optimizer``): after the warm-up,
     Optuna's sampler on a study rebuilt from the rows so far (``optuna_search.ask``)."""
     if config.optimizer not in OPTUNA_OPTIMIZERS:
-        raise ValueError(f"{config.optimizer!r} is none of Optuna's optimizers {', '.join(OPTUNA_OPTIMIZERS)}")
+        raise ValueError(f"{quote(config.optimizer)} is none of Optuna's optimizers {', '.join(OPTUNA_OPTIMIZERS)}")
     return WarmedUp(config.optimizer, optimizer_config(config),
                     lambda state, size: optuna_search.ask(config, state.x, -state.y, size))
 

@@ -40,6 +40,7 @@ import warnings
 
 import numpy as np
 
+from mjxskill.errors import quote
 from mjxskill.runs.run_config import RunConfig, batch_sizes
 from mjxskill.runs.settings import OPTUNA_OPTIMIZERS
 
@@ -84,7 +85,7 @@ def _sampler(optuna, config: RunConfig, seed: int):
                                           seed=seed)
     if config.optimizer == "optuna-gp":
         return optuna.samplers.GPSampler(n_startup_trials=config.n_init, seed=seed)
-    raise ValueError(f"{config.optimizer!r} is none of Optuna's optimizers {', '.join(OPTUNA_OPTIMIZERS)}")
+    raise ValueError(f"{quote(config.optimizer)} is none of Optuna's optimizers {', '.join(OPTUNA_OPTIMIZERS)}")
 
 
 def _trial(optuna, params: dict, values: np.ndarray, distributions: dict, system_attrs: dict):

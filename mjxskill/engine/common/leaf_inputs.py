@@ -10,6 +10,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from mjxskill.errors import quote
+
 
 class LeafInput(NamedTuple):
     """index: the input's position in the parameter vector (None: a fixed argument); value: the
@@ -25,7 +27,7 @@ def leaf_input(leaf, name: str, parameter_index: dict, default: float = 0.0) -> 
     if name in leaf.params:
         index = parameter_index.get(leaf.params[name])
         if index is None:
-            raise ValueError(f"leaf {leaf.name!r}: input {name!r} names parameter {leaf.params[name]!r}, "
+            raise ValueError(f"leaf {quote(leaf.name)}: input {quote(name)} names parameter {quote(leaf.params[name])}, "
                              "which is not learnable here")
         return LeafInput(index, math.nan)
     return LeafInput(None, float(leaf.args.get(name, default)))

@@ -19,6 +19,7 @@ from typing import Any, Callable, NamedTuple
 import numpy as np
 
 from mjxskill.engine.common.rotations import quat_angle
+from mjxskill.errors import quote
 from mjxskill.scenario.schema import Reward, Scenario
 from mjxskill.scenario.vocabulary import REWARD_KINDS
 
@@ -87,7 +88,7 @@ def _raw_term(reward: Reward, slot_of: dict, xp):
     """(raw function, smallest raw value, largest raw value) of one reward."""
     kind = reward.kind
     if kind not in REWARD_KINDS:
-        raise ValueError(f"reward {reward.name!r}: unknown kind {kind!r}; expected one of {sorted(REWARD_KINDS)}")
+        raise ValueError(f"reward {quote(reward.name)}: unknown kind {quote(kind)}; expected one of {sorted(REWARD_KINDS)}")
     if kind == "task_completion":
         value = reward.constant("value")
         return (lambda obs: xp.where(obs.bt_succeeded, value, 0.0)), min(value, 0.0), max(value, 0.0)

@@ -20,6 +20,7 @@ import numpy as np
 from mujoco import mjx
 
 from mjxskill.engine.mjx.controller import N_ARM, ControllerConfig, ControllerState, impedance_control
+from mjxskill.errors import quote
 
 STRATEGIES = ("vmap", "map", "chunked")
 
@@ -46,9 +47,9 @@ def over_worlds(fn: Callable, strategy: str = "vmap", chunk: int | None = None) 
         return lambda *args: jax.lax.map(lambda a: fn(*a), args)
     if strategy == "chunked":
         if not chunk or chunk < 1:
-            raise ValueError(f"strategy 'chunked' needs chunk >= 1, got chunk={chunk!r}")
+            raise ValueError(f"strategy 'chunked' needs chunk >= 1, got chunk={quote(chunk)}")
         return _chunked(jax.vmap(fn), chunk)
-    raise ValueError(f"unknown batching strategy {strategy!r}; expected one of {STRATEGIES}")
+    raise ValueError(f"unknown batching strategy {quote(strategy)}; expected one of {STRATEGIES}")
 
 
 def _chunked(batched_fn: Callable, chunk: int) -> Callable:

@@ -40,6 +40,7 @@ from mjxskill.engine.mjx.leaves import build_leaf_programs
 from mjxskill.engine.mjx.program_cache import Program, load_or_trace
 from mjxskill.engine.mjx.sharding import shard_batch
 from mjxskill.engine.protocol import RolloutBase
+from mjxskill.errors import quote
 from mjxskill.scenario.schema import Scenario
 from mjxskill.sim.model import build_model
 from mjxskill.task import PlannedTask, plan_task
@@ -209,7 +210,7 @@ def _checked_settings(scn: Scenario, worlds: int | None, episode_seconds: float 
         raise ValueError(f"episode_seconds must be positive, got {episode_seconds}")
     strategy = default_strategy() if batching is None else batching
     if strategy not in STRATEGIES:
-        raise ValueError(f"unknown batching strategy {strategy!r}; expected one of {STRATEGIES}")
+        raise ValueError(f"unknown batching strategy {quote(strategy)}; expected one of {STRATEGIES}")
     return worlds, seconds, strategy
 
 

@@ -37,6 +37,7 @@ from mjxskill.engine.common.bindings import SceneBindings
 from mjxskill.engine.common.leaf_inputs import LeafInput, force_inputs, leaf_input, spiral_inputs, wait_ticks
 from mjxskill.engine.mjx.motion import MotionLimits, Pose, SpiralState, init_spiral, linear_trajectory, spiral_step
 from mjxskill.engine.common.rotations import quat_mul
+from mjxskill.errors import quote
 
 
 
@@ -241,7 +242,7 @@ def _set_goal_from_object(i: int, leaf, ctx: _Context):
     index, bindings = ctx.index, ctx.bindings
     obj = leaf.args.get("object")
     if obj not in bindings.slot_of:
-        raise ValueError(f"leaf {leaf.name!r}: object {obj!r} is not bound to the scene")
+        raise ValueError(f"leaf {quote(leaf.name)}: object {quote(obj)} is not bound to the scene")
     slot = bindings.slot_of[obj]
     fixed = np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), np.float32)
     dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)

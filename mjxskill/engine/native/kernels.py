@@ -27,7 +27,18 @@ import numba
 import numpy as np
 
 
-@numba.njit(cache=True, nogil=True)
+def _compiled(function):
+    """``function`` compiled by numba, its machine code cached on disk beside this file (or in
+    numba's cache folder); where no folder can be written (a read-only file system, a full disk
+    at the first run) it is compiled at each run instead, never an error: numba refuses to
+    decorate a cached function it finds no writable folder for."""
+    try:
+        return numba.njit(cache=True, nogil=True)(function)
+    except RuntimeError:  # "cannot cache function ...: no locator available"
+        return numba.njit(nogil=True)(function)
+
+
+@_compiled
 def _mat2quat(mat, quat):
     """``mju_mat2Quat`` operation for operation: the branch of the largest quaternion component,
     then ``mju_normalize4`` (which leaves a norm within 1e-15 of 1 alone)."""
@@ -60,7 +71,7 @@ def _mat2quat(mat, quat):
             quat[k] *= inverse
 
 
-@numba.njit(cache=True, nogil=True)
+@_compiled
 def _rate_limit(previous, target, max_delta):
     step = target - previous
     if step > max_delta:
@@ -70,7 +81,7 @@ def _rate_limit(previous, target, max_delta):
     return previous + step
 
 
-@numba.njit(cache=True, nogil=True)
+@_compiled
 def _site_jacobian(i, chain, site, root, cdof, subtree_com, site_xpos, jac):
     """Row i's site Jacobian (6, 7) as ``mj_jac``: translation rows cross(axis, offset) plus the
     dof's linear part, the offset taken from the site's tree's centre of mass."""
@@ -89,7 +100,7 @@ def _site_jacobian(i, chain, site, root, cdof, subtree_com, site_xpos, jac):
                 jac[k, j] = 0.0
 
 
-@numba.njit(cache=True, nogil=True)
+@_compiled
 def _pose_error(position, mat, ref_pos, ref_quat, quat, pose_err):
     """Position error and ``quat2vel(quat * conj(ref))`` (the angle wrapped into (-pi, pi])."""
     _mat2quat(mat, quat)
@@ -111,7 +122,7 @@ def _pose_error(position, mat, ref_pos, ref_quat, quat, pose_err):
         pose_err[3], pose_err[4], pose_err[5] = ex / norm * angle, ey / norm * angle, ez / norm * angle
 
 
-@numba.njit(cache=True, nogil=True)
+@_compiled
 def _damped_solve(jac, damping, chol, x):
     """x = (J J^T + lambda I)^-1 J (6, 7), through the Cholesky factor of the symmetric positive
     definite J J^T + lambda I, built row by row in ``chol``'s lower triangle."""
@@ -137,7 +148,7 @@ def _damped_solve(jac, damping, chol, x):
             x[a, j] = acc / chol[a, a]
 
 
-@numba.njit(cache=True, nogil=True)
+@_compiled
 def impedance_rows(rows, chain, site, root, cdof, subtree_com, site_xpos, site_xmat, qpos, qvel, qfrc_bias,
                    ref_pos, ref_quat, cmd_wrench, cmd_stiffness, nullspace_target, torque, stiffness, wrench,
                    torque_limit, rates, ctrl):
@@ -188,7 +199,7 @@ def impedance_rows(rows, chain, site, root, cdof, subtree_com, site_xpos, site_x
             ctrl[i, j] = tau
 
 
-@numba.njit(cache=True, nogil=True)
+@_compiled
 def add_forces(rows, sensordata, sensors, force_sum, force_peak):
     """This step's contact force per row of ``rows``: the sum of the tool's touch ``sensors``,
     added to force_sum and folded into force_peak (m,), in place."""
@@ -201,7 +212,7 @@ def add_forces(rows, sensordata, sensors, force_sum, force_peak):
             force_peak[r] = total
 
 
-@numba.njit(cache=True, nogil=True)
+@_compiled
 def spiral_offsets(theta, radius, radius_max, velocity, pitch, dt, e1, e2, n):
     """``n`` control periods of the search spiral (``motion.spiral_step``), its offset from the
     motion's reference at each: offsets (n, 3) and the final (theta, radius). The same scalar

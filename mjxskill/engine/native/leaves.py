@@ -17,6 +17,7 @@ from mjxskill.engine.common.leaf_inputs import LeafInput, force_inputs, leaf_inp
 from mjxskill.engine.common.rotations import quat_mul
 from mjxskill.engine.native.kernels import spiral_offsets
 from mjxskill.engine.native.motion import LinearMotion, plane_basis, spiral_step
+from mjxskill.errors import quote
 
 TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # rotation by pi about y: the tool's z along world -z
 
@@ -163,7 +164,7 @@ def _set_goal_from_object(i: int, leaf, ctx: _Context):
     index, slot_of, nominal_pos, nominal_quat = ctx.index, ctx.slot_of, ctx.nominal_pos, ctx.nominal_quat
     obj = leaf.args.get("object")
     if obj not in slot_of:
-        raise ValueError(f"leaf {leaf.name!r}: object {obj!r} is not bound to the scene")
+        raise ValueError(f"leaf {quote(leaf.name)}: object {quote(obj)} is not bound to the scene")
     base = np.asarray(nominal_pos[slot_of[obj]], float) + np.asarray(leaf.args.get("offset", (0.0, 0.0, 0.0)), float)
     dx, dy = _input(leaf, "offset_x", index), _input(leaf, "offset_y", index)
     roll, pitch, yaw = (_input(leaf, f"tool_{k}", index) for k in ("roll", "pitch", "yaw"))
