@@ -246,6 +246,16 @@ MUTATIONS = {
                               "ObjectGoalPose-1:\n    type: pose\n    shape: pose"),
     "names differing only in case": ("  Home-1:\n", "  objectgoalpose-1:\n", "objects.objectgoalpose-1", "duplicate name 'objectgoalpose-1'"),
     "duplicate reward name": ("  - {name: object_orientation,", "  - {name: object_position,", r"rewards\[1\].name", "duplicate reward name"),
+    # names become PDDL symbols, CSV headers and file-name parts: one rule, bounded, ASCII
+    "scenario name too long": ("name: push\n", "name: " + "p" * 101 + "\n", "name", "at most 100 characters"),
+    "scenario name not ASCII": ("name: push\n", "name: pushé\n", "name", "'pushé' is not usable as a scenario name"),
+    "scenario name not starting with a letter": ("name: push\n", "name: 1push\n", "name", "'1push' is not usable"),
+    "object key too long": (
+        "  ObjectToBePushed-1:\n", "  " + "O" * 150 + ":\n", "objects", "a key of 150 characters",
+    ),
+    "text too long": (
+        "goal: (skiros:at", "goal: " + "(" * 10_001 + " (skiros:at", "goal", "a text of 10063 characters.*at most 10000",
+    ),
     "unknown objective": ("{name: ee_to_goal, kind: exp_ee_to_goal, objective: success,",
                           "{name: ee_to_goal, kind: exp_ee_to_goal, objective: sucess,",
                           r"rewards\[2\].objective", "unknown objective 'sucess'"),

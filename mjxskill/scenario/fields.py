@@ -17,6 +17,7 @@ caller's: ``ScenarioError`` for scenarios, ``RunError`` for a run's ``config.yam
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import NoReturn
 
@@ -31,6 +32,13 @@ _constructor = yaml.constructor.SafeConstructor()
 MAX_BYTES = 1 << 20  # the shipped scenarios are about 10 KB
 MAX_NODES = 100_000  # nodes after alias expansion; the shipped scenarios have about 2,000
 MAX_DEPTH = 64  # lists and mappings inside one another; the shipped scenarios nest 7 deep
+# A key names something (an object, a skill, a parameter) that reaches PDDL, CSV headers, plots
+# and error lines; the shipped scenarios' longest is 31 characters.
+MAX_KEY_CHARS = 100
+# A text value (a goal, a description, a tree's line); the shipped scenarios' longest is 200.
+MAX_TEXT_CHARS = 10_000
+# A PDDL symbol: a letter, then letters, digits, - or _ (ASCII: what every PDDL parser reads).
+PDDL_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]*")
 _STANDARD = "tag:yaml.org,2002:"
 # What the safe loader resolves plain values to, plus the two collections.
 ALLOWED_TAGS = frozenset(_STANDARD + t for t in ("null", "bool", "int", "float", "str", "timestamp", "seq", "map"))
@@ -219,6 +227,10 @@ class Field:
             key = self._child(key_node, self.path).scalar()
             if not isinstance(key, str):
                 self._child(key_node, self._child_path(str(key))).fail(f"keys must be names, got {quote(key)}")
+            if len(key) > MAX_KEY_CHARS:
+                self._child(key_node, self.path).fail(
+                    f"a key of {len(key)} characters ({quote(key)}); keys name things, at most {MAX_KEY_CHARS}"
+                )
             if key in seen:
                 self._child(key_node, self._child_path(key)).fail(
                     f"duplicate key {quote(key)} (first on line {seen[key]})"
@@ -261,9 +273,20 @@ class Field:
         value = self.scalar()
         if not isinstance(value, str) or not value:
             self.fail(f"expected a name (text), got {quote(value)}")
+        if len(value) > MAX_TEXT_CHARS:
+            self.fail(f"a text of {len(value)} characters ({quote(value)}); at most {MAX_TEXT_CHARS}")
         if choices is not None and value not in choices:
             self.fail(f"{quote(value)} is not one of {sorted(choices)}")
         return value
+
+    def pddl_name(self, name: str | None = None, what: str = "name") -> str:
+        """``name`` (this field's string without one) checked as a PDDL symbol of at most
+        ``MAX_KEY_CHARS`` characters: scenario, type, object and skill names become PDDL symbols."""
+        text = self.string() if name is None else name
+        if len(text) > MAX_KEY_CHARS or not PDDL_NAME.fullmatch(text):
+            self.fail(f"{quote(text)} is not usable as {what}: a letter, then letters, digits, - or _ "
+                      f"(ASCII, at most {MAX_KEY_CHARS} characters)")
+        return text
 
     def boolean(self) -> bool:
         value = self.scalar()

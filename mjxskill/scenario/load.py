@@ -91,9 +91,7 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     control_hz = top["control_hz"].integer(minimum=1)
     if control_hz % bt_hz:
         top["control_hz"].fail(f"control_hz {control_hz} must be a multiple of bt_hz {bt_hz}")
-    name = top["name"].string()
-    if not name.replace("-", "").replace("_", "").isalnum():
-        top["name"].fail(f"{quote(name)} is not usable as a PDDL name (letters, digits, - and _)")
+    name = top["name"].pddl_name(what="a scenario name (the PDDL domain's)")
     scn = Scenario(
         name=name,
         source=str(path),
@@ -205,9 +203,7 @@ def _no_duplicates(field: Field, names, what: str) -> None:
 
 
 def _pddl_name(field: Field, name: str) -> str:
-    if not name.replace("-", "").replace("_", "").isalnum() or not name[0].isalpha():
-        field.fail(f"{quote(name)} is not a PDDL name (a letter, then letters, digits, - or _)")
-    return name.lower()
+    return field.pddl_name(name, "a PDDL name").lower()
 
 
 def _types(field: Field):

@@ -23,8 +23,7 @@ from mjxskill.scenario.skill_tree import read_tree
 def skill(name: str, field: Field, types, predicates, overrides: dict | None = None) -> Skill:
     """One entry of ``skills``: its parameters, PDDL conditions and tree. overrides: parameter
     name -> the scenario's ``skill_parameters`` entry for it (``skill_parameter_overrides``)."""
-    if not name.replace("-", "").replace("_", "").isalnum() or not name[0].isalpha():
-        field.fail(f"{quote(name)} is not usable as a skill name (a letter, then letters, digits, - or _)")
+    field.pddl_name(name, "a skill name")
     f = field.mapping(required=("parameters", "preconditions", "postconditions", "tree"), optional=("holdconditions",))
     parameters = []
     for pname, pfield in f["parameters"].items():
