@@ -16,7 +16,8 @@ from scipy import stats
 
 from mjxskill.gp import MOBOConfig, Prior, acquisition_settings, ask, init, load_state, minimize, save_state, tell
 from mjxskill.gp import optimizer as opt_mod
-from mjxskill.gp.prior import log_density, pibo_weight, prior_rows, unit_prior
+from mjxskill.gp.prior import pibo_weight, prior_rows, unit_prior
+from mjxskill.gp.prior_density import log_density
 from mjxskill.gp.proposal import prior_weighted, propose_batch
 from mjxskill.gp.settings import acquisition_defaults
 

@@ -162,9 +162,7 @@ def _main(args: argparse.Namespace) -> int:
             settle_bound(exp, scn)
             return _run(args, exp, config, scn, task, started, cluster)
     scn, task = scenario_and_task(args.task, args.goal)
-    if args.repeats is None:
-        args.repeats = scn.optimizer.repetitions
-    config = new_config(args, scn, task)
+    config = new_config(args, scn, task, defaults={"repeats": scn.optimizer.repetitions})
     cluster = connect_cluster(args.ray_address, config.engine)  # before the experiment directory is made
     if cluster is not None:
         config = dataclasses.replace(config, cluster="ray")

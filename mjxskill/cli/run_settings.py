@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Mapping
 
 from mjxskill.cli import args as cli_args
 from mjxskill.errors import CommandError, ResumeConflict, SettingError, quote
@@ -59,10 +59,14 @@ def _settings(args: argparse.Namespace) -> dict:
     return {s.name: getattr(args, s.name) for s in SETTINGS}
 
 
-def new_config(args: argparse.Namespace, scn: Scenario, task: PlannedTask) -> RunConfig:
-    """The configuration of a new run of ``task``: the flags over the scenario's defaults."""
+def new_config(args: argparse.Namespace, scn: Scenario, task: PlannedTask,
+               defaults: Mapping[str, object] | None = None) -> RunConfig:
+    """The configuration of a new run of ``task``: the flags over ``defaults`` (the command's own,
+    e.g. the experiment's repetitions) over the scenario's."""
+    settings = _settings(args)
+    settings.update({name: value for name, value in (defaults or {}).items() if settings[name] is None})
     try:
-        return new_run_config(scn, task, args.task, _settings(args), dict(args.optimizer_option or []),
+        return new_run_config(scn, task, args.task, settings, dict(args.optimizer_option or []),
                               getattr(args, "prior_from", None))
     except SettingError as err:
         if not err.given:  # the scenario's default: the library's words name it

@@ -23,8 +23,8 @@ from typing import TYPE_CHECKING
 from mjxskill._lazy import lazy_getattr
 
 if TYPE_CHECKING:  # what __getattr__ below gives, for the type checker
+    from mjxskill.gp.config import MOBOConfig
     from mjxskill.gp.optimizer import (
-        MOBOConfig,
         MOBOResult,
         MOBOState,
         ask,
@@ -40,7 +40,8 @@ if TYPE_CHECKING:  # what __getattr__ below gives, for the type checker
     from mjxskill.gp.settings import AcquisitionSettings, acquisition_settings
 
 _EXPORTS = {
-    **dict.fromkeys(("MOBOConfig", "MOBOResult", "MOBOState", "ask", "init", "load_state", "minimize", "observed",
+    "MOBOConfig": "mjxskill.gp.config",  # numpy only: a run's configuration is checked without jax
+    **dict.fromkeys(("MOBOResult", "MOBOState", "ask", "init", "load_state", "minimize", "observed",
                      "save_state", "tell"), "mjxskill.gp.optimizer"),
     **dict.fromkeys(("hypervolume", "pareto_mask"), "mjxskill.gp.pareto"),
     "Prior": "mjxskill.gp.prior",

@@ -23,7 +23,9 @@ The optimizer uses it twice (Hvarfner et al. 2022, piBO):
 The proposal sees the prior in unit-cube coordinates (``UnitPrior``, arrays traced by the
 jitted proposal: a changed prior with the same number of components does not retrace). Its
 log-density there differs from the one in parameter units by the constant sum(log(hi - lo)),
-which changes no argmax.
+which changes no argmax. Its log-density under jax, the term the proposal adds, is
+``mjxskill.gp.prior_density``: this module is numpy only, so a run's configuration is checked
+(``runs.run_config``) without importing jax.
 """
 
 from __future__ import annotations
@@ -32,10 +34,7 @@ import dataclasses
 import math
 from typing import Mapping, NamedTuple
 
-import jax
-import jax.numpy as jnp
 import numpy as np
-from jax.scipy.special import logsumexp
 from scipy.special import ndtr, ndtri
 
 from mjxskill.errors import quote
@@ -165,21 +164,6 @@ def unit_prior(prior: Prior, bounds) -> UnitPrior:
     log_z = _log_mass(mean, std, 0.0, 1.0)
     log_weights = np.log(np.asarray(prior.weights))
     return UnitPrior(mean, std, log_weights, log_weights - np.sum(np.log(std) + log_z + _LOG_SQRT_2PI, axis=1))
-
-
-def log_prior_unit(prior: UnitPrior, xs: jnp.ndarray) -> jnp.ndarray:
-    """(b, d) points in [0, 1]^d -> (b,) log-density of the prior there (jittable)."""
-    z = (xs[:, None, :] - prior.mean[None]) / prior.std[None]  # (b, K, d)
-    return logsumexp(prior.log_const[None] - 0.5 * jnp.sum(z * z, axis=-1), axis=-1)
-
-
-def log_density(prior: Prior, bounds, x) -> np.ndarray:
-    """(b, d) points in parameter units, inside ``bounds`` -> (b,) log-density of the prior."""
-    lo, hi = np.asarray(bounds, dtype=np.float64)
-    u = (np.atleast_2d(np.asarray(x, dtype=np.float64)) - lo) / (hi - lo)
-    with jax.enable_x64(True):
-        up = jax.tree.map(jnp.asarray, unit_prior(prior, bounds))
-        return np.asarray(log_prior_unit(up, jnp.asarray(u))) - np.sum(np.log(hi - lo))
 
 
 def pibo_weight(beta: float, n_observations: int) -> float:

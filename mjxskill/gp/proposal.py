@@ -73,7 +73,8 @@ from mjxskill.gp import gp as gpm
 from mjxskill.gp.acquisition import log_ei
 from mjxskill.gp.element_scalarizations import Scalarization, element_scalarizations
 from mjxskill.gp.kernels import matern52
-from mjxskill.gp.prior import UnitPrior, log_prior_unit
+from mjxskill.gp.prior import UnitPrior
+from mjxskill.gp.prior_density import log_prior_unit
 from mjxskill.gp.settings import AcquisitionSettings
 
 
