@@ -29,7 +29,7 @@ from mjxskill.ebt import nodes as N
 from mjxskill.ebt.interpreter import Interpreter
 
 # The example trees live with the tests that pin their semantics.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "helpers"))
 from bt_examples import push_tree  # noqa: E402
 
 

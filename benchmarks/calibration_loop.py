@@ -27,7 +27,7 @@ Steps, each skipped when its output is there (a killed loop goes on where it sto
   succeeds in at least 95 % of them; the nominal one's is reported beside it.
 
 The full loop is two training runs of the paper's size (about an hour each on the project's
-2-core machine) and a calibration of minutes; ``tests/test_benchmark_calibration_loop.py`` runs
+2-core machine) and a calibration of minutes; ``tests/benchmarks/test_calibration_loop.py`` runs
 its pieces at a tiny size.
 """
 

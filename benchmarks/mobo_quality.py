@@ -5,7 +5,7 @@ in numpy, with BoTorch's reference points; every input box is mapped to the unit
 (VehicleSafety's [1, 3]^5). Two objectives: BraninCurrin, ZDT1. Three (issue 35): DTLZ2 (front:
 the unit sphere's octant), DTLZ5 (front: a curve), DTLZ7 (front: four disconnected pieces),
 VehicleSafety (Tanabe and Ishibuchi's RE3-5-4 crash design, objectives of very different
-scales). ``tests/test_benchmark_fronts.py`` checks them against BoTorch where it is installed.
+scales). ``tests/benchmarks/test_fronts.py`` checks them against BoTorch where it is installed.
 
 Budget 6 + 20 x 4 = 86 evaluations (the BoTorch multi-objective tutorial's), >= 10 seeds;
 median and quartiles of the final hypervolume for mjxskill.gp, uniform random search with

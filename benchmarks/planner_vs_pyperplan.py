@@ -19,10 +19,10 @@ import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
-sys.path.insert(0, os.path.join(ROOT, "tests"))
+sys.path.insert(0, os.path.join(ROOT, "tests", "helpers"))
 
 import mjxskill.planner as planner  # noqa: E402
-from test_planner_domains import (  # noqa: E402
+from planner_domains import (  # noqa: E402
     BLOCKS_DOMAIN, CASES, GRIPPER_DOMAIN, HANOI_DOMAIN, VISIT_DOMAIN,
     VISIT_DOMAIN_WITHOUT_EITHER, blocks_problem, fast_downward_plan, hanoi_problem,
     pyperplan_plan, visit_problem)

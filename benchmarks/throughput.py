@@ -53,7 +53,7 @@ if str(ROOT) not in sys.path:  # run from a checkout: this worktree's mjxskill f
 
 from mjxskill._runtime import with_host_devices  # noqa: E402  (no jax backend starts here)
 
-HAND_FOUND_PUSH = (-0.05, -0.15, 0.07, -0.10)  # the push into the goal corner (tests/test_rollout_push.py)
+HAND_FOUND_PUSH = (-0.05, -0.15, 0.07, -0.10)  # the push into the goal corner (tests/engine/mjx/test_rollout_push.py)
 
 
 def _env(devices: int) -> dict:

@@ -1,6 +1,6 @@
 """Extended behavior tree (eBT) nodes: an immutable tree of processors, decorators and leaves.
 
-Semantics (pinned by ``tests/test_ebt_interpreter.py``; the compiled tick in
+Semantics (pinned by ``tests/ebt/test_interpreter.py``; the compiled tick in
 ``mjxskill.bt_compiled`` must match the reference interpreter in ``interpreter.py``):
 
 * A tick returns RUNNING, SUCCESS or FAILURE. Children are ticked left to right.

@@ -1,11 +1,11 @@
 """The native engine's references: what the tests and benchmarks check the production engine
 (``mjxskill.engine.native``) against. No module of the package imports this one
-(tests/test_layout.py).
+(tests/project/test_layout.py).
 
 - ``run_plain``: a call's episodes one after another in the plain loop
   (``NativeRollout.run_episode``: one control step at a time, the scalar numpy law with MuJoCo's
   own Jacobian and quaternion functions), how a user without this project would write it: the
-  reference of whole episodes, to rounding (tests/test_native_engine.py).
+  reference of whole episodes, to rounding (tests/engine/native/test_engine.py).
 - ``run_lockstep``: the episodes stepped together, the BT ticks per episode as in the plain loop
   and each control step's impedance law once for all N episodes in numpy
   (``batched_impedance_control``, one numpy operation per scalar operation of the compiled
@@ -13,7 +13,7 @@
   damped pseudo-inverse through a Cholesky factorization of the symmetric positive definite
   J J^T + lambda I). Each episode keeps its own ``MjModel`` copy (its world's friction) and
   ``MjData``, rows never mix, and the compiled engine's episodes equal its results bit for bit
-  (tests/test_native_batched.py); the plain loop's law, with BLAS and LAPACK, agrees with both
+  (tests/engine/native/test_batched.py); the plain loop's law, with BLAS and LAPACK, agrees with both
   to rounding.
 """
 

@@ -1,7 +1,7 @@
 """The interface every physics engine gives: ``Rollout``, a ``typing.Protocol`` (both
 ``mjxskill.engine.mjx.compiled.MJXRollout`` and ``mjxskill.engine.native.rollout.NativeRollout``
 satisfy it, and so do the native engine's wrappers, ``ProcessPoolRollout`` and ``RayRollout``;
-``tests/test_engines.py`` checks them), and ``RolloutBase``, what they compute the same way from
+``tests/engine/test_engines.py`` checks them), and ``RolloutBase``, what they compute the same way from
 their task, scenario and episode setup.
 
     rollout = build_rollout(scn, task, "native", worlds=7)   # mjxskill.engine.build

@@ -5,7 +5,7 @@ bounds, where its default comes from (the scenario's value, or a fixed one). ``t
 its flags from ``SETTINGS`` and ``RunConfig.from_yaml`` reads the file with the very same
 ``Setting.coerce``, so a value the flags refuse is refused in a hand-edited ``config.yaml``
 too (``batch_size: 0`` used to loop forever). A new setting is one row here and one field of
-``RunConfig`` (``tests/test_settings.py`` checks that the two agree).
+``RunConfig`` (``tests/runs/test_settings.py`` checks that the two agree).
 
 ``cross_problems`` holds the checks that involve several settings, and
 ``optimizer_option_value`` the check of one ``--optimizer-option`` / ``optimizer_options``

@@ -9,7 +9,7 @@ law (``mjxskill.engine.native.kernels``) writes every row's torques, then ``Batc
 array. What ``mj_step`` leaves in a row is what it leaves in an ``MjData`` (MuJoCo's batch is
 bit-identical to a loop over one ``MjData`` each), so the law sees what the numpy lockstep
 (``mjxskill.engine.native_reference``, its reference) sees, and whole episodes equal its results
-bit for bit (tests/test_native_batched.py).
+bit for bit (tests/engine/native/test_batched.py).
 
 A row MuJoCo resets after its state went bad (``mj_step`` then only counts a warning, which a
 batch does not report) is found by its clock: a reset sets ``time`` to 0, so the row falls

@@ -9,7 +9,7 @@ scenario file and its skill libraries (checked by their sha256), the goal, the s
 bytes in a frame of their own: no temporary file, so a killed pool leaves nothing on disk). It
 then runs contiguous slices of the episodes, each on one MuJoCo batch (``NativeRollout.run_episodes``).
 Episodes are deterministic and never interact, so the results equal one process's bit for bit
-(tests/test_native_engine.py).
+(tests/engine/native/test_engine.py).
 
 The messages are data only: length-prefixed frames holding JSON or NPZ (no pickle). Workers
 ignore SIGINT; Ctrl-C reaches the parent, which stops them. A worker whose parent has gone sees
@@ -166,7 +166,7 @@ class ProcessPoolRollout(PooledRollout):
     """``inner``'s episodes (a one-process ``NativeRollout``) split over ``workers`` worker
     processes on this machine (``mjxskill.engine.build.build_rollout``'s default: one per core);
     a call of one episode, or ``workers`` 1, runs in this process. Results are ``inner``'s, bit
-    for bit (tests/test_native_engine.py)."""
+    for bit (tests/engine/native/test_engine.py)."""
 
     def __init__(self, inner: NativeRollout, workers: int):
         super().__init__(inner)
