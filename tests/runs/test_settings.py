@@ -3,6 +3,9 @@ config.yaml, and a table that agrees with RunConfig and with train's options."""
 
 import argparse
 import dataclasses
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 import yaml
@@ -15,6 +18,8 @@ from mjxskill.errors import RunError
 from mjxskill.runs.run_config import RunConfig
 from mjxskill.runs.settings import SETTINGS, Setting
 from toy_runs import make_config
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_the_table_is_the_run_configuration_and_the_flags():
@@ -164,3 +169,14 @@ def test_the_optimizer_options_an_older_run_wrote_are_still_read():
     # Relative to the defaults of their time (generation 1: Chebyshev, hybrid), not today's.
     assert optimizer_config(config).acquisition == dataclasses.replace(acquisition_defaults(1), **old)
     assert RunConfig.from_yaml(config.to_yaml(), "again/config.yaml") == config
+
+
+def test_a_run_configuration_is_read_and_checked_without_jax():
+    """select, --resume and the page read runs' config.yaml; that must not cost jax's import
+    (the optimizer options are checked by gp's numpy side: MOBOConfig, Prior)."""
+    config = "docs/experiments/push/optimizer/seed-0/config.yaml"
+    code = ("import sys; from mjxskill.runs.run_config import RunConfig; "
+            f"RunConfig.from_yaml(open({config!r}).read(), {config!r}); "
+            "print(sorted(m for m in ('jax', 'jaxlib') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=REPO)
+    assert out.stdout.strip() == "[]"
