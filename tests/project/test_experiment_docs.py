@@ -19,8 +19,11 @@ def report_wall_seconds(report: dict) -> float:
                for kind in ("optimizer", "random_search") for step in STEPS)
 
 
+NUMBER = r"(?<![\d,.])(\d{1,3}(?:,\d{3})+|\d{3,6})"  # 11950 or 11,950, never a tail of either
+
+
 def _quoted(text: str, pattern: str) -> list[float]:
-    return [float(v) for v in re.findall(pattern, text)]
+    return [float(v.replace(",", "")) for v in re.findall(pattern, text)]
 
 
 @pytest.mark.parametrize("path", EXPERIMENTS, ids=[p.name for p in EXPERIMENTS])
@@ -30,8 +33,8 @@ def test_the_wall_time_quoted_is_the_reports(path):
         pytest.skip(f"{path.name} is not finished: its README quotes no total yet")
     total = report_wall_seconds(report)
     readme = (path / "README.md").read_text()
-    quoted = _quoted(readme, r"(\d{3,6}) s\s+(?:for the ten repetitions|in all for the ten repetitions)")
-    quoted += _quoted(readme, r"(\d{3,6}) s\s+in all\b")
+    quoted = _quoted(readme, NUMBER + r" s\s+(?:for the ten repetitions|in all for the ten repetitions)")
+    quoted += _quoted(readme, NUMBER + r" s\s+in all\b")
     assert quoted, f"{path / 'README.md'} quotes no total wall time"
     for value in quoted:
         assert value == pytest.approx(total, rel=0.02), (path.name, value, total)
