@@ -1,5 +1,5 @@
 """Garbage in XLA_FLAGS is one ``error:`` line naming XLA_FLAGS and the token, exit 2, not XLA's
-fatal abort (issue 47, class 7), on either engine: checked by the command line before jax reads them."""
+fatal abort, on either engine: checked by the command line before jax reads them."""
 
 import string
 

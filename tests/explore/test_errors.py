@@ -1,4 +1,4 @@
-"""The explore page's errors (issue 47, class 6): one handler answers every error a request meets
+"""The explore page's errors: one handler answers every error a request meets
 with a JSON body and its status, logged as one line on the server's stderr, never a traceback;
 and its export (classes 1, 2) goes through select's writer: a rendering left partial, or a
 link or FIFO in its cache, is refused, nothing written."""

@@ -364,7 +364,7 @@ def test_every_function_local_import_says_why_it_is_local():
 
 # Imports sit at the top of their module; a function-local one is kept only where importing it
 # at the top would make a light command (plan, select, --help, bad input) import jax, mujoco,
-# torch, optuna, ray or matplotlib, or an order or cycle requires it (issue 45: 75 then)
+# torch, optuna, ray or matplotlib, or an order or cycle requires it
 MAX_LOCAL_IMPORTS = 30
 
 

@@ -1,4 +1,4 @@
-"""kill -9 at any point of the writers of ``train``, ``evaluate`` and ``experiment`` (issue 47):
+"""kill -9 at any point of the writers of ``train``, ``evaluate`` and ``experiment``:
 the command run again (with ``--resume`` where it has one) leaves the same files, byte for byte,
 as a run that was never interrupted, and nothing half-written or staged. The kill points are
 chosen over the whole run: every change the command makes below its folder is counted in an

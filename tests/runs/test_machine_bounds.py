@@ -1,4 +1,4 @@
-"""Sizes are bounded by the machine, not only by numbers (issue 47, class 4): worker processes and
+"""Sizes are bounded by the machine, not only by numbers: worker processes and
 the episodes of one call against the available memory (measured per worker and per episode,
 ``mjxskill.runs.bounds``), one per-call bound for every command; and only regular files are read
 where a user hands a file: a FIFO or a device is one located error, never opened for reading."""

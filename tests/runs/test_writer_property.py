@@ -1,5 +1,5 @@
 """The one writer (``mjxskill.runs.outputs.write_outputs``) and the commands that write
-through it (issue 47, classes 1 and 2): a link planted at any depth below what a command owns
+through it: a link planted at any depth below what a command owns
 (a run's output folders, ``select``'s export, ``plan --export``, the explore page's cache) is
 refused with one error naming it and the link's target is unchanged; a FIFO where a file is
 read is refused, never waited on; a file or folder of the user's is replaced only with
@@ -433,7 +433,7 @@ def test_plan_export_refuses_a_link_or_a_users_file_and_writes_neither(tmp_path_
 
 @pytest.mark.parametrize("command", ["select", "train"])
 def test_a_repetition_linked_to_another_inside_the_run_is_refused(tmp_path, capsys, command):
-    """``seed-1 -> seed-0`` stays inside the run, so issue 33's check let it be; writing seed-1's
+    """``seed-1 -> seed-0`` stays inside the run, so a check of the run's top level alone lets it be; writing seed-1's
     files would write seed-0's."""
     import shutil
 

@@ -1,12 +1,12 @@
-"""Issue 47, classes 3 and 5, as properties.
+"""Values out of their domain, and the error text about them, as properties.
 
-Class 3, values the simulator or the math cannot honour: every declared number of a scenario (the
+Values the simulator or the math cannot honour: every declared number of a scenario (the
 world model's physics, the task's, the reward constants, the skill library's parameters) and
 every acquisition setting has a domain (``mjxskill.scenario.domain``); a value outside it is one
 located ``ScenarioError`` (file, key path, line) when the scenario loads, and from the command
 line one ``error:`` line with exit code 2 and no run directory.
 
-Class 5, errors that echo what they should not: an error line stays short however long the value
+Errors that echo nothing they should not: an error line stays short however long the value
 it names, and a file that is not what the scenario says it is (a skill library that is a secret
 text file) is never shown.
 
@@ -95,7 +95,7 @@ SITES = [
      domain.PARAMETER),
 ]
 # What a user might write out of a domain: YAML's spellings of the special floats, the extremes of
-# a float, and the values that once ended in a traceback (issue 47).
+# a float, and values that end in a traceback where nothing checks them first.
 SPECIAL = [".nan", ".inf", "-.inf", "1e308", "-1e308", "1e-300", "-1e-300", "1e30", "-1e30", "1e400", "0", "-0.0",
            "-1", "5e-324", "1" + "0" * 400]
 
@@ -214,7 +214,7 @@ def test_what_mujoco_refuses_names_the_entry(tmp_path):
         load_scenario(path)
 
 
-# -- class 5: bounded error text, no file content ---------------------------------------------------
+# -- bounded error text, no file content ---------------------------------------------------
 # Where a long text lands in a scenario: (line as shipped, the line with {v}).
 LONG_SITES = [
     ("name: push", "name: {v}"),
