@@ -28,10 +28,10 @@ from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.rotations import quat_mul
 from mjxskill.engine.common.types import EpisodeResult, RolloutOutput
 from mjxskill.engine.common.worlds import Worlds
-from mjxskill.engine.native.controller import NativeControllerState, _rate_limit
+from mjxskill.engine.native.controller import NativeControllerState
 from mjxskill.engine.native.episode import NativeEpisode
 from mjxskill.engine.native.rollout import NativeRollout
-from mjxskill.sim.controller_config import N_ARM, ControllerConfig
+from mjxskill.sim.controller_config import N_ARM, ControllerConfig, rate_limit
 
 
 def run_plain(engine: NativeRollout, params, worlds: Worlds) -> RolloutOutput:
@@ -157,8 +157,8 @@ def batched_impedance_control(cfg: ControllerConfig, jac, site_pos, site_quat, q
     definite J J^T + lambda I), so that the two agree bit for bit; the plain loop's law, with
     BLAS and LAPACK, agrees with both to rounding. Rows never mix."""
     n = len(jac)
-    stiffness = _rate_limit(state.stiffness, cmd_stiffness, cfg.stiffness_rate * cfg.dt)
-    wrench = _rate_limit(state.wrench, cmd_wrench, cfg.wrench_rate * cfg.dt)
+    stiffness = rate_limit(state.stiffness, cmd_stiffness, cfg.stiffness_rate * cfg.dt, np)
+    wrench = rate_limit(state.wrench, cmd_wrench, cfg.wrench_rate * cfg.dt, np)
     ref_inv = ref_quat * np.array([1.0, -1.0, -1.0, -1.0])
     rot_err = _quat_to_rotvec_rows(quat_mul(site_quat, ref_inv, HOST))
     pose_err = np.concatenate([site_pos - ref_pos, rot_err], axis=1)
@@ -193,7 +193,7 @@ def batched_impedance_control(cfg: ControllerConfig, jac, site_pos, site_quat, q
         for k in range(6):
             total = total + jac[:, k, j] * task_force[:, k]
         tau[:, j] = total
-    tau = _rate_limit(state.torque, tau, cfg.torque_step)
+    tau = rate_limit(state.torque, tau, cfg.torque_step, np)
     limit = np.asarray(cfg.torque_limit)
     tau = np.clip(tau, -limit, limit)
     return tau, BatchedControllerState(tau, stiffness, wrench)

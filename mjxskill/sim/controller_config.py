@@ -47,3 +47,11 @@ class ControllerConfig(NamedTuple):
         kw = dict(dt=float(model.opt.timestep))
         kw.update(overrides)
         return cls(site_id, int(model.site_bodyid[site_id]), tuple(limits), **kw)
+
+
+def rate_limit(previous, target, max_delta, xp):
+    """``target`` approached from ``previous`` by at most ``max_delta`` per element (``xp``: the
+    engine's array namespace, ``engine.common.arrays``): how the law ramps its stiffness and wrench
+    (``stiffness_rate``, ``wrench_rate``) and its torque (``torque_step``). The numba kernel
+    (``engine.native.kernels``) writes the same law per element, as compiled code must."""
+    return previous + xp.clip(target - previous, -max_delta, max_delta)

@@ -26,7 +26,8 @@ import jax.numpy as jnp
 import numpy as np
 from mujoco import mjx
 
-from mjxskill.sim.controller_config import COMMAND_SIZE, DEFAULT_STIFFNESS, N_ARM, ControllerConfig
+from mjxskill.sim.controller_config import COMMAND_SIZE, DEFAULT_STIFFNESS, N_ARM, ControllerConfig, rate_limit
+from mjxskill.engine.common.arrays import JAX
 from mjxskill.engine.common.rotations import quat_conj, quat_mul, quat_to_rotvec
 
 __all__ = [
@@ -86,10 +87,6 @@ def init_controller_state(data: mjx.Data, command) -> ControllerState:
     )
 
 
-def _rate_limit(previous, target, max_delta):
-    return previous + jnp.clip(target - previous, -max_delta, max_delta)
-
-
 def tool_pose(cfg: ControllerConfig, model: mjx.Model, data: mjx.Data):
     """Tool site position (3,) and orientation quaternion (4,) in the world frame."""
     pos = data.site_xpos[cfg.site_id]
@@ -124,8 +121,8 @@ def impedance_control(
     """
     cmd = split_command(command)
     dtype = data.qpos.dtype
-    stiffness = _rate_limit(state.stiffness, cmd.stiffness, cfg.stiffness_rate * cfg.dt)
-    wrench = _rate_limit(state.wrench, cmd.wrench, cfg.wrench_rate * cfg.dt)
+    stiffness = rate_limit(state.stiffness, cmd.stiffness, cfg.stiffness_rate * cfg.dt, JAX)
+    wrench = rate_limit(state.wrench, cmd.wrench, cfg.wrench_rate * cfg.dt, JAX)
 
     q, qd = data.qpos[:N_ARM], data.qvel[:N_ARM]
     jac = site_jacobian(cfg, model, data)
@@ -143,7 +140,7 @@ def impedance_control(
     nullspace = projector @ (k_ns * (nullspace_target - q) - 2.0 * np.sqrt(k_ns) * qd)
 
     tau = jac.T @ task_force + nullspace + data.qfrc_bias[:N_ARM]
-    tau = _rate_limit(state.torque, tau, cfg.torque_step)
+    tau = rate_limit(state.torque, tau, cfg.torque_step, JAX)
     limit = jnp.asarray(cfg.torque_limit, dtype)
     tau = jnp.clip(tau, -limit, limit)
     return tau, ControllerState(tau, stiffness, wrench)

@@ -36,7 +36,10 @@ from mjxskill.ebt.primitives import SPIRAL_NORMAL, LeafRegistry, goal_orientatio
 from mjxskill.engine.common.bindings import SceneBindings
 from mjxskill.engine.common.leaf_inputs import LeafInput, force_inputs, leaf_input, spiral_inputs, wait_ticks
 from mjxskill.engine.mjx.motion import MotionLimits, Pose, SpiralState, init_spiral, linear_trajectory, spiral_step
+from mjxskill.engine.common.arrays import JAX
 from mjxskill.engine.common.rotations import quat_mul
+from mjxskill.engine.common.tool import TOOL_DOWN, TOOL_SYMMETRY
+from mjxskill.engine.common.tool import tool_yaw as common_tool_yaw
 from mjxskill.errors import quote
 
 
@@ -114,10 +117,6 @@ def advance(bb: Blackboard, dt: float) -> Blackboard:
     return bb._replace(mg_time=bb.mg_time + dt, spiral=spiral)
 
 
-# Tool pointing down: rotation by pi about y (the site's z axis along world -z); its x axis is
-# then world -x, so a tool turned by yaw about world z has its x axis at (-cos yaw, -sin yaw, 0).
-TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0], np.float32)
-TOOL_SYMMETRY = np.pi / 2  # both tools (pusher, peg) are square: a quarter turn maps them onto themselves
 
 
 def _yaw_of(object_quat) -> float:
@@ -127,11 +126,8 @@ def _yaw_of(object_quat) -> float:
 
 
 def tool_yaw(quat):
-    """Yaw (rad) of a tool-down orientation (w, x, y, z)."""
-    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
-    r00 = 1.0 - 2.0 * (y * y + z * z)
-    r10 = 2.0 * (x * y + w * z)
-    return jnp.arctan2(-r10, -r00)
+    """Yaw (rad) of a tool-down orientation (w, x, y, z), traced (``common.tool.tool_yaw``)."""
+    return common_tool_yaw(quat, JAX)
 
 
 def tool_down_aligned(current_quat, object_yaw, tilt=None):
@@ -143,7 +139,7 @@ def tool_down_aligned(current_quat, object_yaw, tilt=None):
     delta = jnp.mod(object_yaw - yaw + TOOL_SYMMETRY / 2, TOOL_SYMMETRY) - TOOL_SYMMETRY / 2
     target = yaw + delta
     turn = jnp.stack([jnp.cos(target / 2), jnp.zeros_like(target), jnp.zeros_like(target), jnp.sin(target / 2)])
-    down = jnp.asarray(TOOL_DOWN)
+    down = jnp.asarray(TOOL_DOWN, jnp.float32)
     if tilt is not None:
         roll, pitch = tilt
         zero = jnp.zeros_like(roll)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from mjxskill.sim.controller_config import N_ARM, ControllerConfig
+from mjxskill.sim.controller_config import N_ARM, ControllerConfig, rate_limit
 
 
 class NativeControllerState:
@@ -27,18 +27,14 @@ class NativeControllerState:
         self.wrench = np.array(wrench, dtype=np.float64)
 
 
-def _rate_limit(previous, target, max_delta):
-    return previous + np.clip(target - previous, -max_delta, max_delta)
-
-
 def native_impedance_control(cfg: ControllerConfig, model, data, command, nullspace_target, state):
     """Same contract as controller.impedance_control on a native MjModel/MjData (kinematics
     computed). Returns tau (7,) and a new NativeControllerState."""
     command = np.asarray(command, dtype=np.float64)
     ref_pos, ref_quat = command[:3], command[3:7]
     cmd_wrench, cmd_stiffness = command[7:13], command[13:19]
-    stiffness = _rate_limit(state.stiffness, cmd_stiffness, cfg.stiffness_rate * cfg.dt)
-    wrench = _rate_limit(state.wrench, cmd_wrench, cfg.wrench_rate * cfg.dt)
+    stiffness = rate_limit(state.stiffness, cmd_stiffness, cfg.stiffness_rate * cfg.dt, np)
+    wrench = rate_limit(state.wrench, cmd_wrench, cfg.wrench_rate * cfg.dt, np)
 
     jacp = np.zeros((3, model.nv))
     jacr = np.zeros((3, model.nv))
@@ -64,7 +60,7 @@ def native_impedance_control(cfg: ControllerConfig, model, data, command, nullsp
     nullspace = projector @ (k_ns * (np.asarray(nullspace_target) - q) - 2.0 * np.sqrt(k_ns) * qd)
 
     tau = jac.T @ task_force + nullspace + data.qfrc_bias[:N_ARM]
-    tau = _rate_limit(state.torque, tau, cfg.torque_step)
+    tau = rate_limit(state.torque, tau, cfg.torque_step, np)
     limit = np.asarray(cfg.torque_limit)
     tau = np.clip(tau, -limit, limit)
     return tau, NativeControllerState(tau, stiffness, wrench)

@@ -15,11 +15,10 @@ from mjxskill.ebt.primitives import SPIRAL_NORMAL, LeafRegistry, goal_orientatio
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.leaf_inputs import LeafInput, force_inputs, leaf_input, spiral_inputs, wait_ticks
 from mjxskill.engine.common.rotations import quat_mul
+from mjxskill.engine.common.tool import TOOL_DOWN, TOOL_SYMMETRY, tool_yaw
 from mjxskill.engine.native.kernels import spiral_offsets
 from mjxskill.engine.native.motion import LinearMotion, plane_basis, spiral_step
 from mjxskill.errors import quote
-
-TOOL_DOWN = np.array([0.0, 0.0, 1.0, 0.0])  # rotation by pi about y: the tool's z along world -z
 
 
 class NativeBlackboard:
@@ -113,20 +112,13 @@ def _keep(bb, fresh, params):
     return None
 
 
-def tool_yaw(quat) -> float:
-    """Yaw (rad) of a tool-down orientation (w, x, y, z)."""
-    w, x, y, z = quat
-    return math.atan2(-2.0 * (x * y + w * z), -(1.0 - 2.0 * (y * y + z * z)))
-
-
 def tool_down_aligned(current_quat, object_yaw: float, tilt=None) -> np.ndarray:
     """(4,) tool pointing down (rotation by pi about y, then ``yaw`` about world z), with the
     yaw among the square tool's quarter-turn symmetric ones that aligns its faces with
     ``object_yaw`` (rad) nearest the current orientation (4,), tilted by ``tilt`` (roll, pitch)
     rad about the turned frame's x then y axes (None: not tilted)."""
     yaw = tool_yaw(current_quat)
-    quarter = math.pi / 2
-    target = yaw + (object_yaw - yaw + quarter / 2) % quarter - quarter / 2
+    target = yaw + (object_yaw - yaw + TOOL_SYMMETRY / 2) % TOOL_SYMMETRY - TOOL_SYMMETRY / 2
     down = TOOL_DOWN
     if tilt is not None:
         roll, pitch = tilt
