@@ -52,6 +52,7 @@ from mjxskill.runs.folders import (  # noqa: F401  (re-exported: where they live
     check_folder,
     make_folder,
     open_folder,
+    owning_root,
     read_below,
     remove_stale_staging,
     staging_name,
@@ -105,8 +106,12 @@ def _held_folder(path: Path, root: Path | None) -> int:
     name is looked up again once it is held, so a folder swapped for a link between a check and
     a write is never followed. The folder is reached from ``root`` without following a link
     (``open_folder``; RunError naming one); without ``root`` it is the root itself (the folder
-    the caller named: a run, an experiment)."""
+    the caller named: a run, an experiment, unless this process holds the lock of a folder above
+    it, ``folders.owning_root``: then from there)."""
     folder = Path(path).parent
+    owner = owning_root(folder if root is None else root)
+    if owner is not None:
+        root, folder = owner, Path(os.path.abspath(folder))
     fd = open_folder(folder if root is None else Path(root), folder)
     if fd is None:
         raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), str(folder))

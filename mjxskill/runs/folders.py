@@ -95,6 +95,32 @@ def _lexists(name: str, dir_fd: int | None) -> bool:
 DIR_FLAGS = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0)
 
 
+# The folders whose writer's lock this process holds (``runs.run_lock``): a run, an experiment.
+# A write given no root is reached from the outermost of them that holds it, so a folder inside
+# an experiment (``optimizer/seed-3``) swapped for a link while the experiment runs is refused,
+# not written through.
+_OWNED: list[Path] = []
+
+
+def own_folder(folder: Path) -> Path:
+    """Marks ``folder`` as owned while its lock is held; returns the entry ``disown_folder`` takes."""
+    entry = Path(os.path.abspath(folder))
+    _OWNED.append(entry)
+    return entry
+
+
+def disown_folder(entry: Path) -> None:
+    with contextlib.suppress(ValueError):
+        _OWNED.remove(entry)
+
+
+def owning_root(folder: Path) -> Path | None:
+    """The outermost owned folder (``own_folder``) that is ``folder`` or holds it; None: none."""
+    here = Path(os.path.abspath(folder))
+    holders = [root for root in _OWNED if root == here or root in here.parents]
+    return min(holders, key=lambda root: len(root.parts)) if holders else None
+
+
 def _parts(root: Path, path: Path) -> tuple[str, ...]:
     """The names leading from ``root`` to ``path``; RunError when ``path`` is not below it."""
     try:
@@ -219,5 +245,6 @@ def read_below(root: Path, path: Path, limit: int | None = None) -> bytes:
     return data
 
 
-__all__ = ["DIR_FLAGS", "STAGING", "check_folder", "make_folder", "open_folder", "read_below", "remove_stale_staging",
+__all__ = ["DIR_FLAGS", "STAGING", "check_folder", "disown_folder", "make_folder", "open_folder", "own_folder", "owning_root",
+           "read_below", "remove_stale_staging",
            "staging_name"]

@@ -27,6 +27,7 @@ from pathlib import Path
 
 from mjxskill.errors import RunError, quote
 from mjxskill.runs.atomic_write import DISK_FAULTS, open_nofollow
+from mjxskill.runs.folders import disown_folder, own_folder
 
 LOCK_FILE = ".lock"
 
@@ -38,8 +39,13 @@ class RunLock:
         self._fd: int | None
         self._dir_fd: int | None  # None once released
         self.path, self._fd, self._dir_fd = path, fd, dir_fd
+        # while held, every write below the run (or experiment) is reached from it, link-proof
+        self._owned: Path | None = own_folder(Path(path).parent)
 
     def release(self) -> None:
+        if self._owned is not None:
+            disown_folder(self._owned)
+            self._owned = None
         if self._fd is not None:
             os.close(self._fd)  # closing the descriptor drops the flock
             self._fd = None

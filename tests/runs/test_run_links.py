@@ -6,11 +6,15 @@ from mjxskill.evaluation.render import default_gl
 
 default_gl()
 
+import json  # noqa: E402
+import shutil  # noqa: E402
+
 import pytest  # noqa: E402
 
 from cli_helpers import error_line, invoke, snapshot  # noqa: E402
 from explore_runs import evaluations, make_push_run, push_config  # noqa: E402
 from mjxskill.errors import RunError  # noqa: E402
+from mjxskill.runs.atomic_write import append_text, write_json  # noqa: E402
 from mjxskill.runs.run_lock import lock_run  # noqa: E402
 
 USERS = "a file of the user's\n"
@@ -125,3 +129,27 @@ def test_a_link_that_stays_inside_the_run_is_read(run_and_outside, capsys):
     (run.path / "front.csv").symlink_to(run.path / "pareto.csv")  # absolute, inside
     code, err = invoke(capsys, "select", run.path, "--no-render")
     assert code == 0, err
+
+
+@pytest.mark.parametrize("given_root", [False, True])
+def test_a_folder_swapped_for_a_link_inside_a_locked_experiment_is_refused(tmp_path, given_root):
+    """While a command holds an experiment's lock, a repetition's folder swapped for a link (to a
+    folder outside, or to another repetition) is refused at the next write, whether the writer
+    names the repetition as its root or no root at all: nothing is written through it."""
+    exp = tmp_path / "exp"
+    seed = exp / "optimizer" / "seed-3"
+    seed.mkdir(parents=True)
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    with lock_run(exp):
+        write_json(seed / "state.json", {"batch": 1}, root=seed if given_root else None)
+        shutil.rmtree(seed)
+        seed.symlink_to(outside)
+        with pytest.raises(RunError, match="seed-3 is a symbolic link"):
+            write_json(seed / "state.json", {"batch": 2}, root=seed if given_root else None)
+        with pytest.raises(RunError, match="seed-3 is a symbolic link"):
+            append_text(seed / "evaluations.csv", "1,2\n", root=seed if given_root else None)
+    assert list(outside.iterdir()) == []
+    # the lock released, the folder the caller names is its own again (a link to it is followed)
+    write_json(seed / "state.json", {"batch": 3}, root=seed if given_root else None)
+    assert json.loads((outside / "state.json").read_text()) == {"batch": 3}
