@@ -97,3 +97,35 @@ def test_a_setting_saved_before_the_no_prior_runs_is_compared_with_them(tmp_path
     second = mp.report(mp.load_saved([save(tmp_path / "b.json", {"none": none, "good": good})]))["ZDT1 (d=6)"]
     np.testing.assert_array_equal(first["good"]["regret"], second["good"]["regret"])
     assert (first["good"]["regret"] < first["none"]["regret"]).all()
+
+
+def test_the_held_out_priors_good_on_the_front_and_misleading_where_objectives_are_poor():
+    for name in mp.HELD_OUT_PROBLEMS:
+        problem = mp.GP_PROBLEMS_BY_NAME[name]
+        priors = mp.gp_priors(name, problem["d"], 0.15)
+        good, bad = (np.asarray(priors[k].mean[0]) for k in ("good", "misleading"))
+        assert good.shape == bad.shape == (problem["d"],) and priors["none"] is None
+        if name.startswith(("ZDT2", "ZDT3")):
+            assert np.all(good[1:] == 0.0) and np.all(bad[1:] == 1.0)  # g = 1 (the front) and g = 10
+        if name.startswith("DTLZ2"):  # on the unit sphere, and beyond it by 1 + g = 1.75
+            assert np.linalg.norm(problem["f"](good[None])) == pytest.approx(1.0)
+            assert np.linalg.norm(problem["f"](bad[None])) == pytest.approx(1.75)
+        worse = mp.percentile_of(problem, bad, n=20_000)
+        if name.startswith("ZDT"):  # f1 = x1 = 0.5, f2 worse than nearly every draw
+            assert worse[1] > 99.0
+        else:  # worse than 70 % of the draws in every objective
+            assert min(worse) > 70.0
+
+
+def test_the_log_gap_in_decades_and_a_problem_without_a_front(tmp_path, capsys):
+    assert mp.log_gap(100.0, 99.0) == pytest.approx(0.0)
+    assert mp.log_gap(100.0, 90.0) == pytest.approx(1.0)
+    # CarSideImpact has no front to take a run's own regret by: the gap is about its reference.
+    y = [[30.0, 4.0, 12.0, 1.0], [40.0, 4.4, 13.0, 5.0]]
+    args = dict(ARGS, budget=2, init=1)
+    result = mp.report(mp.load_saved([save(tmp_path / "c.json", {"none": [{"seed": 0, "y": y}]}, args, "CarSideImpact")]))
+    o = result["CarSideImpact"]["none"]
+    assert len(o["regret"]) == 0 and len(o["log_gap"]) == 0
+    hv = mp.hypervolume(np.asarray(y), mp.GP_PROBLEMS_BY_NAME["CarSideImpact"]["ref"])
+    assert o["log_gap_problem_ref"][0, -1] == pytest.approx(np.log10(484.7265 - hv))
+    assert "no regret about a run's own reference" in capsys.readouterr().out
