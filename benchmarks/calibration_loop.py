@@ -26,8 +26,8 @@ Steps, each skipped when its output is there (a killed loop goes on where it sto
   worlds for both; ``DIR/loop.json`` and a line per pick. Must hold: the calibrated twin's pick
   succeeds in at least 95 % of them; the nominal one's is reported beside it.
 
-The full loop is two training runs of the paper's size (about an hour each on the project's
-2-core machine) and a calibration of minutes; ``tests/benchmarks/test_calibration_loop.py`` runs
+The full loop is two training runs of the scenario's size (about 200 s each on the project's
+2-core machine) and a calibration of about 8 minutes; ``tests/benchmarks/test_calibration_loop.py`` runs
 its pieces at a tiny size.
 """
 
