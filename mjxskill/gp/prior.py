@@ -196,5 +196,5 @@ def prior_rows(start: int, num: int, fraction: float) -> np.ndarray:
     return np.ceil((i + 1) * fraction - 1e-12) > np.ceil(i * fraction - 1e-12)
 
 
-__all__ = ["Prior", "UnitPrior", "log_density", "log_prior_unit", "pibo_weight", "prior_of", "prior_rows",
+__all__ = ["Prior", "UnitPrior", "pibo_weight", "prior_of", "prior_rows",
            "sample_unit", "unit_prior"]

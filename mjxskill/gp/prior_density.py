@@ -24,3 +24,6 @@ def log_density(prior: Prior, bounds, x) -> np.ndarray:
     with jax.enable_x64(True):
         up = jax.tree.map(jnp.asarray, unit_prior(prior, bounds))
         return np.asarray(log_prior_unit(up, jnp.asarray(u))) - np.sum(np.log(hi - lo))
+
+
+__all__ = ["log_density", "log_prior_unit"]

@@ -27,16 +27,17 @@ from types import MappingProxyType
 from typing import Mapping
 
 from mjxskill.errors import listing, quote
-from mjxskill.scenario.domain import Domain
+from mjxskill.scenario.domain import FRICTION, MASS, Domain
 from mjxskill.scenario.fields import Field
 
-# field -> (unit, the domain of its bounds)
+_COM = Domain(-1.0, 1.0, unit="m", why="a centre of mass within a metre of the shape's centroid")
+# field -> (unit, the domain of its bounds: the world model's own for mass and friction)
 FIELDS = {
-    "mass": ("kg", Domain(1e-6, 1e4, unit="kg", why="a mass MuJoCo can simulate")),
-    "friction": ("", Domain(0.0, 100.0, exclusive_minimum=True, why="a sliding friction coefficient")),
-    "com_offset.x": ("m", Domain(-1.0, 1.0, unit="m", why="a centre of mass within a metre of the shape's centroid")),
-    "com_offset.y": ("m", Domain(-1.0, 1.0, unit="m", why="a centre of mass within a metre of the shape's centroid")),
-    "com_offset.z": ("m", Domain(-1.0, 1.0, unit="m", why="a centre of mass within a metre of the shape's centroid")),
+    "mass": ("kg", MASS),
+    "friction": ("", FRICTION),
+    "com_offset.x": ("m", _COM),
+    "com_offset.y": ("m", _COM),
+    "com_offset.z": ("m", _COM),
 }
 # signal -> (unit, default standard deviation, why that default)
 NOISE = {

@@ -21,4 +21,3 @@ def tool_yaw(quat, xp=HOST):
     """Yaw (rad) about world z of a tool-down orientation (w, x, y, z)."""
     w, x, y, z = quat[0], quat[1], quat[2], quat[3]
     return xp.arctan2(-2.0 * (x * y + w * z), -(1.0 - 2.0 * (y * y + z * z)))
-

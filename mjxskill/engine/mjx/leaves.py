@@ -38,8 +38,7 @@ from mjxskill.engine.common.leaf_inputs import LeafInput, force_inputs, leaf_inp
 from mjxskill.engine.mjx.motion import MotionLimits, Pose, SpiralState, init_spiral, linear_trajectory, spiral_step
 from mjxskill.engine.common.arrays import JAX
 from mjxskill.engine.common.rotations import quat_mul
-from mjxskill.engine.common.tool import TOOL_DOWN, TOOL_SYMMETRY
-from mjxskill.engine.common.tool import tool_yaw as common_tool_yaw
+from mjxskill.engine.common.tool import TOOL_DOWN, TOOL_SYMMETRY, tool_yaw as common_tool_yaw
 from mjxskill.errors import quote
 
 
@@ -115,8 +114,6 @@ def advance(bb: Blackboard, dt: float) -> Blackboard:
         lambda new, old: jnp.where(bb.spiral_on, new, old), spiral_step(bb.spiral, radius, velocity, pitch, dt), bb.spiral
     )
     return bb._replace(mg_time=bb.mg_time + dt, spiral=spiral)
-
-
 
 
 def _yaw_of(object_quat) -> float:
