@@ -105,7 +105,7 @@ def _summary(fit: FitResult) -> str:
     return "\n".join(lines)
 
 
-def _main(args: argparse.Namespace) -> int:
+def _main(args: argparse.Namespace, argv: Sequence[str]) -> int:
     problem = missing_extra()
     if problem is not None:
         raise CommandError(problem)
@@ -130,7 +130,7 @@ def _main(args: argparse.Namespace) -> int:
           "(minutes: every residual evaluation replays each recording)", file=sys.stderr, flush=True)
     fit = calibrate(scn, task, recordings, max_evaluations=args.max_evaluations, confidence=args.confidence)
     sources = [f"{p.name} sha256:{sha256(p)}" for p in files]
-    command = "python -m mjxskill.calibrate " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else ""
+    command = " ".join(["python -m mjxskill.calibrate", *(shlex.quote(a) for a in argv)])
     values = {p.key: float(v) for p, v in zip(fit.parameters, fit.values)}
     friction = [k for k, p in enumerate(fit.parameters) if p.field == "friction" and p.object == scn.calibration.tracked]
     friction_range: object = False
@@ -149,4 +149,5 @@ def _main(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return cli.run(_main, build_parser(), argv)
+    arguments = list(sys.argv[1:] if argv is None else argv)  # the command the scenario records: the one parsed
+    return cli.run(lambda args: _main(args, arguments), build_parser(), arguments)

@@ -6,6 +6,7 @@ calibrated YAML keeps the source's text but the values it changes."""
 
 import numpy as np
 import pytest
+import yaml
 
 from capabilities import missing
 from cli_helpers import invoke
@@ -124,6 +125,8 @@ def test_the_command_writes_a_calibrated_scenario_and_its_report(friction_only, 
     assert scn.objects["ObjectToBePushed-1"].friction == pytest.approx(value, rel=1e-5)
     assert scn.randomization.friction_range == pytest.approx((low, high), rel=1e-5)  # the worlds' friction: the fit's
     assert len(scn.calibrated.sources) == 2 and all("sha256:" in s for s in scn.calibrated.sources)
+    command = yaml.safe_load(out.read_text())["calibrated"]["command"]  # the command parsed, not the test runner's
+    assert command.startswith("python -m mjxskill.calibrate ") and command.endswith("--max-evaluations 2")
     report = tmp_path / "push-calibrated.report"
     assert sorted(p.name for p in report.iterdir()) == ["report.html", "report.md", "trajectories.png"]
     assert "| ObjectToBePushed-1.friction |" in (report / "report.md").read_text()
