@@ -27,7 +27,8 @@ runs and skips the finished ones); the planned task's ``domain.pddl``, ``problem
 ``plan.txt`` and ``bt.txt`` are written once per task, in ``OUT/runs/<task>/``, and the runs
 hold no copies of them. After each finished run ``OUT/task_optimizers.jsonl`` is
 rewritten whole, one line per finished run: ``task``, ``method``, ``seed``, ``budget``,
-``batch_size``, ``n_init``, ``worlds``, ``episode_seconds``, ``hypervolume`` (final, about the
+``batch_size``, ``n_init``, ``worlds``, ``episode_seconds``, ``optimizer_options`` (ours: the
+acquisition settings given by ``--optimizer-option``), ``hypervolume`` (final, about the
 task's reference), ``hypervolume_history`` (after each batch), ``reference`` (rewards, larger
 is better), ``front`` (the final Pareto rewards), ``ask_seconds`` (the optimizer's own wall
 time per batch after the warm-up, the proposal alone), ``run_dir`` and the run's pick: as an
@@ -38,7 +39,8 @@ picked, ties by time), ``pick_params``, ``pick_training_success``, ``pick_valida
 in ``FRESH_PER_CONFIG`` worlds per known configuration of a stream of their own:
 ``pick_fresh_worlds``). ``--report`` prints, per task and method, the median and quartiles of
 the final hypervolume, a two-sided Mann-Whitney U p of ``mjxskill.gp`` against each other
-method, and the median pick's fresh success.
+method, and the median pick's fresh success; then the median hypervolume at 25, 50, 75 and
+100 % of the budget and where ours trails.
 
 ``--quick``: push and peg, 1 seed, budget 12 in batches of 6 after a 6-point warm-up, 1 world,
 0.3 s episodes and a cheap acquisition search for ``mjxskill.gp``: what the test runs.
@@ -64,6 +66,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import mjxskill  # noqa: E402,F401  (XLA flags before any JAX computation)
+from mjxskill.cli.run_settings import optimizer_option  # noqa: E402
 from mjxskill.engine.build import build_rollout  # noqa: E402
 from mjxskill.errors import UserError  # noqa: E402
 from mjxskill.evaluation.pooled import validated_best  # noqa: E402
@@ -109,6 +112,8 @@ def parse(argv=None) -> argparse.Namespace:
     ap.add_argument("--init", type=int, default=48)
     ap.add_argument("--worlds", type=int, default=7)
     ap.add_argument("--episode-seconds", type=float, default=None, help="default: the scenario's (full episodes)")
+    ap.add_argument("--optimizer-option", action="append", type=optimizer_option, metavar="KEY=VALUE", default=None,
+                    help="a setting of mjxskill.gp's acquisition for its runs (as train's); repeatable")
     ap.add_argument("--quick", action="store_true", help="tiny runs of every task and method (the test)")
     ap.add_argument("--out", type=Path, default=None,
                     help=f"results folder (default benchmarks/results/<date>/task_optimizers)")
@@ -177,7 +182,7 @@ def run_one(rollout, scn, task, method: str, seed: int, args, path: Path):
     settings = dict(budget=args.budget, batch_size=args.batch, n_init=args.init, worlds=args.worlds, seed=seed,
                     episode_seconds=args.episode_seconds or scn.episode_seconds, engine="native",
                     optimizer=METHODS[method], protocol="paper")
-    options = QUICK_GP if args.quick and method == OURS else {}
+    options = {**(QUICK_GP if args.quick else {}), **dict(args.optimizer_option or [])} if method == OURS else {}
     config = new_run_config(scn, task, scn.name, settings, options)
     run = Run(path)
     if not (path / "config.yaml").is_file():
@@ -227,6 +232,7 @@ def record(run: Run, task: str, method: str, seed: int, args) -> dict:
     ev = run.evaluations(config)
     return {"task": task, "method": method, "seed": seed, "budget": config.budget, "batch_size": config.batch_size,
             "n_init": config.n_init, "worlds": config.worlds, "episode_seconds": config.episode_seconds,
+            "optimizer_options": dict(config.optimizer_options),
             "objectives": config.objective_names, "iteration": ev.iteration.tolist(), "y": ev.objectives.tolist(),
             "ask_seconds": ask_seconds(run.path), "run_dir": str(run.path)}
 
@@ -335,7 +341,39 @@ def report(rows: list[dict]) -> str:
             lines.append(f"| {task} | {method} | {len(them)} | {them[0]['budget']} x {them[0]['worlds']} | "
                          f"{med:.4g} [{q1:.4g}, {q3:.4g}] | {p} | {fresh} | "
                          f"{np.median(asks) if asks else float('nan'):.3g} |")
-    return "\n".join(lines + [""] * bool(notes) + [f"Final hypervolumes about {n}." for n in notes])
+    return "\n".join(lines + [""] * bool(notes) + [f"Final hypervolumes about {n}." for n in notes]
+                     + ["", *budget_fractions(rows)])
+
+
+FRACTIONS = (0.25, 0.5, 0.75, 1.0)
+
+
+def budget_fractions(rows: list[dict]) -> list[str]:
+    """Per task and method, the median hypervolume at 25, 50, 75 and 100 % of the budget
+    (each run's history interpolated in evaluations, about the task's reference), with the
+    methods ours trails there; a task whose rows are about different references has no common
+    history and is said to."""
+    lines = ["| task | method | runs | " + " | ".join(f"{100 * f:g} %" for f in FRACTIONS) + " |",
+             "| --- | --- | --- | " + " | ".join("---:" for _ in FRACTIONS) + " |"]
+    trailing = []
+    for task in dict.fromkeys(r["task"] for r in rows):
+        given = on_common_reference([r for r in rows if r["task"] == task])
+        if any("hypervolume_history" not in r for r in given):
+            trailing.append(f"{task}: a run's directory is gone and its history is about another reference point")
+            continue
+        medians = {}
+        for method in dict.fromkeys(r["method"] for r in given):
+            them = [r for r in given if r["method"] == method]
+            at = np.array([[np.interp(f * r["budget"], r["evaluations"], r["hypervolume_history"]) for f in FRACTIONS]
+                           for r in them])
+            medians[method] = np.median(at, axis=0)
+            lines.append(f"| {task} | {method} | {len(them)} | " + " | ".join(f"{v:.4g}" for v in medians[method]) + " |")
+        if OURS in medians:
+            for k, f in enumerate(FRACTIONS):
+                ahead = [m for m, v in medians.items() if m != OURS and v[k] > medians[OURS][k]]
+                if ahead:
+                    trailing.append(f"{task} at {100 * f:g} %: {OURS}'s median below {', '.join(ahead)}")
+    return lines + [""] + (trailing or [f"{OURS}'s median is at least every other method's at every fraction."])
 
 
 def on_common_reference(rows: list[dict]) -> list[dict]:
@@ -343,7 +381,8 @@ def on_common_reference(rows: list[dict]) -> list[dict]:
     warm-ups and so, written by separate invocations, about different references: then each
     final hypervolume is computed again from the run's front about the lowest of them (every
     front dominates it; with nested seed sets, the reference of the most warm-ups), and the
-    history, about the run's own, is dropped (a new list; ``rows`` itself where they agree).
+    history is computed again from the run's directory, or dropped where that is gone (a new
+    list; ``rows`` itself where they agree).
     UserError where a run appears twice."""
     runs = [(r["method"], r["seed"]) for r in rows]
     repeated = sorted({run for run in runs if runs.count(run) > 1})
@@ -358,8 +397,24 @@ def on_common_reference(rows: list[dict]) -> list[dict]:
     return [{**r, "reference_from": stated} if np.array_equal(r["reference"], lowest) else
             {**{k: v for k, v in r.items() if k not in ("hypervolume_history", "evaluations")},
              "hypervolume": float(hypervolume(-np.asarray(r["front"], dtype=float), -lowest)),
-             "reference": lowest.tolist(), "reference_from": stated}
+             **history_about(r, lowest), "reference": lowest.tolist(), "reference_from": stated}
             for r in rows]
+
+
+def history_about(row: dict, reference: np.ndarray) -> dict:
+    """``hypervolume_history`` and ``evaluations`` of the row's run about ``reference``, from
+    its run directory's evaluations (relative paths: to the repository); {} where the
+    directory is gone or unreadable (then the row has no history)."""
+    path = Path(row.get("run_dir", ""))
+    path = path if path.is_absolute() else ROOT / path
+    try:
+        run = Run(path)
+        ev = run.evaluations(run.config())
+    except (OSError, UserError):
+        return {}
+    z, it = -np.asarray(ev.objectives, dtype=float), np.asarray(ev.iteration)
+    ends = np.flatnonzero(np.diff(np.append(it, -1)) != 0) + 1
+    return {"hypervolume_history": [float(hypervolume(z[:e], -reference)) for e in ends], "evaluations": ends.tolist()}
 
 
 ROW_KEYS = {"task", "method", "seed", "hypervolume", "budget", "worlds", "reference", "front"}  # what report reads

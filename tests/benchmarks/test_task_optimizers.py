@@ -128,7 +128,7 @@ def test_report_puts_rows_about_different_reference_points_on_the_lowest(quick, 
     # a run of another seed, written by another invocation: its warm-up set a higher reference
     own = np.array(rows[0]["reference"])
     other = {**rows[0], "seed": 99, "front": [(own + [3.0, 5.0]).tolist(), (own + [4.0, 2.0]).tolist()],
-             "reference": (own + 1.0).tolist(), "hypervolume": 3.0}
+             "reference": (own + 1.0).tolist(), "hypervolume": 3.0, "run_dir": str(tmp_path / "gone")}
     moved = tmp_path / "moved.jsonl"
     moved.write_text(json.dumps(other) + "\n")
     task = [r for r in bench.read_rows([out / bench.JSONL, moved]) if r["task"] == rows[0]["task"]]
@@ -136,7 +136,7 @@ def test_report_puts_rows_about_different_reference_points_on_the_lowest(quick, 
     assert all(r["reference"] == own.tolist() for r in common)
     # about the lower point, two boxes by hand: 3 x 5 and 4 x 2, less their 3 x 2 overlap
     assert common[-1]["hypervolume"] == pytest.approx(15.0 + 8.0 - 6.0)
-    assert "hypervolume_history" not in common[-1]
+    assert "hypervolume_history" not in common[-1]  # its directory is gone: no history about the lower point
     assert [r["hypervolume"] for r in common[:-1]] == [r["hypervolume"] for r in task[:-1]]  # already about it
     assert "Final hypervolumes about push: the lowest of the rows' 2 reference points" in bench.report(
         bench.read_rows([out / bench.JSONL, moved]))
@@ -162,3 +162,43 @@ def test_the_pick_is_the_validated_best_and_is_checked_again_in_fresh_worlds(qui
         assert r["pick_fresh_success"] * known == pytest.approx(round(r["pick_fresh_success"] * known))
         stored = json.loads((Path(r["run_dir"]) / bench.PICK).read_text())
         assert stored["params"] == r["pick_params"] and stored["seed"] == bench.FRESH_SEED
+
+
+def test_a_history_about_another_reference_is_computed_again_from_the_run_directory(quick):
+    out, rows = quick
+    row = rows[0]
+    lower = np.array(row["reference"]) - [2.0, 3.0]
+    moved = {**row, "seed": 99, "reference": lower.tolist()}  # another seed's row, about a lower point
+    common = bench.on_common_reference([row, moved])
+    y = Run(row["run_dir"]).evaluations().objectives
+    assert common[0]["evaluations"] == [6, 12]
+    assert common[0]["hypervolume_history"] == pytest.approx([hypervolume_2d(y[:e], lower) for e in (6, 12)], rel=1e-9)
+
+
+def test_the_report_gives_each_methods_median_at_fractions_of_the_budget(quick):
+    out, rows = quick
+    lines = bench.budget_fractions(bench.read_rows([out / bench.JSONL]))
+    for r in rows:  # one seed: the median is the run's history, interpolated at 3, 6, 9 and 12 evaluations
+        h = r["hypervolume_history"]
+        expected = [h[0], h[0], (h[0] + h[1]) / 2, h[1]]
+        assert f"| {r['task']} | {r['method']} | 1 | " + " | ".join(f"{v:.4g}" for v in expected) + " |" in lines
+    trailing = [line for line in lines if " below " in line]
+    for task in ("push", "peg"):
+        ours = next(r["hypervolume_history"] for r in rows if r["task"] == task and r["method"] == "mjxskill.gp")
+        for fraction, k in (("100 %", 1),):
+            ahead = [r["method"] for r in rows if r["task"] == task and r["hypervolume_history"][k] > ours[k]]
+            said = [line for line in trailing if line.startswith(f"{task} at {fraction}:")]
+            assert said == ([f"{task} at {fraction}: mjxskill.gp's median below {', '.join(ahead)}"] if ahead else [])
+
+
+def test_optimizer_options_reach_our_runs_only(tmp_path):
+    out = tmp_path / "bench"
+    rows = bench.main(["--quick", "--tasks", "push", "--methods", "mjxskill.gp,random", "--optimizer-option",
+                       "single_direction_share=0", "--out", str(out)])
+    assert {r["method"]: r["optimizer_options"] for r in rows}["random"] == {}
+    ours = next(r for r in rows if r["method"] == "mjxskill.gp")
+    assert ours["optimizer_options"]["single_direction_share"] == 0.0
+    assert Run(ours["run_dir"]).config().optimizer_options["single_direction_share"] == 0.0
+    done = subprocess.run([sys.executable, bench.__file__, "--optimizer-option", "n_raw=lots"], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 2 and "n_raw" in done.stderr and "Traceback" not in done.stderr
