@@ -126,7 +126,11 @@ def element_scalarizations(y_norm, mask, ref, key, q: int, settings: Acquisition
         if settings.pending == "values":  # static
             believed = jax.vmap(lambda lam: hvs.scalarize(pending / r, lam))(directions[j])  # (k, q)
             b = jnp.maximum(b, jnp.max(jnp.where(pending_mask, believed, -jnp.inf), axis=-1))
-        return lambda mean, var: hvs.log_ei_hv_draws(mean / r, var / r**2, directions[j], draws, b, settings.tau)
+        elif settings.pending == "draws":  # static: pending (s, q, m), a joint draw of them per shared draw
+            drawn = jax.vmap(lambda lam: jax.vmap(lambda v: hvs.scalarize(v / r, lam))(pending))(directions[j])  # (k, s, q)
+            b = jnp.maximum(b[:, None], jnp.max(jnp.where(pending_mask, drawn, -jnp.inf), axis=-1))  # (k, s)
+        return lambda mean, var, shift=None: hvs.log_ei_hv_draws(mean / r, var / r**2, directions[j], draws, b,
+                                                                 settings.tau, None if shift is None else shift / r)
 
     directed = Scalarization(u, targets, best_scalarized, log_ei_directions, directions, scale, factor, new_factor)
     if settings.hypervolume_improvement == "directions" or m > ehv.MAX_OBJECTIVES:  # static

@@ -189,7 +189,7 @@ def compress_beyond_reference_slope(u: jnp.ndarray) -> jnp.ndarray:
 
 
 def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.ndarray, draws: jnp.ndarray, best,
-                    tau: float = 1e-3) -> jnp.ndarray:
+                    tau: float = 1e-3, shift: jnp.ndarray | None = None) -> jnp.ndarray:
     """Quasi-MC log E[max(scalarize(f) - best, 0)] for independent f_i ~ N(mean_i, variance_i).
 
     Args:
@@ -199,9 +199,12 @@ def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.nda
         the expected hypervolume improvement.
       draws: (s, m) standard normal draws shared by the directions, or (k, s, m) each
         direction its own.
-      best: the incumbent, max of ``scalarize`` over the observations (per direction).
+      best: the incumbent, max of ``scalarize`` over the observations (per direction), or
+        (k, s) one per direction and shared draw (the front of that draw's pending values).
       tau: softplus width of the max (as in ``log_ei_draws``), keeping a gradient where no
         draw improves.
+      shift: (b, s, m) the mean's shift in each shared draw (the candidate conditioned on that
+        draw's pending values), or None.
     Returns:
       (b,) log-EI.
     """
@@ -218,14 +221,15 @@ def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.nda
     # directions, a posterior draw each", "A faster estimate").
     inv = jnp.broadcast_to((1.0 / lam)[:, None], (k, s, m)).reshape(k * s, m)
     slope = draws.reshape(k * s, m) * inv  # z_i / lambda_i
-    best = jnp.broadcast_to(jnp.broadcast_to(best, (k,))[:, None], (k, s)).reshape(k * s)
+    best = jnp.broadcast_to(best if jnp.ndim(best) == 2 else jnp.broadcast_to(best, (k,))[:, None], (k, s)).reshape(k * s)
     # Materialized before the (b, k s) loop: fused into it, their broadcasts would cost index
     # arithmetic per element of it.
     inv, slope, best = jax.lax.optimization_barrier((inv, slope, best))
     sd = jnp.sqrt(jnp.maximum(variance, 0.0))
     t = None
     for i in range(m):  # static
-        t_i = (1.0 - mean[:, i, None]) * inv[None, :, i] - sd[:, i, None] * slope[None, :, i]  # (b, k s)
+        centre = 1.0 - mean[:, i, None] if shift is None else jnp.tile(1.0 - mean[:, i, None] - shift[:, :, i], (1, k))
+        t_i = centre * inv[None, :, i] - sd[:, i, None] * slope[None, :, i]  # (b, k s)
         t = t_i if t is None else jnp.minimum(t, t_i)
     assert t is not None  # m >= 1 objectives
     # scalarize's extension below 0 (t^m above, t below), on the anchored Chebyshev values t.

@@ -75,7 +75,10 @@ from mjxskill.gp.element_scalarizations import Scalarization, element_scalarizat
 from mjxskill.gp.kernels import matern52
 from mjxskill.gp.prior import UnitPrior
 from mjxskill.gp.prior_density import log_prior_unit
+from mjxskill.gp.scalarized_posterior import normal_draws
 from mjxskill.gp.settings import AcquisitionSettings
+
+PENDING_DRAWS_SEED = 1  # the pending points' normals: a Sobol set of their own, not the candidates' (seed 0)
 
 
 def standardize(s: jnp.ndarray, mask: jnp.ndarray) -> jnp.ndarray:
@@ -87,13 +90,19 @@ def standardize(s: jnp.ndarray, mask: jnp.ndarray) -> jnp.ndarray:
     return jnp.where(mask, (s - mu) / sd, 0.0)
 
 
-def _believer_predictor(post: gpm.GPPosterior, fantasies, fantasy_mask, deflate: bool = False, new_noise=None):
+def _believer_predictor(post: gpm.GPPosterior, fantasies, fantasy_mask, deflate: bool = False, new_noise=None,
+                        weights: bool = False):
     """Posterior of one GP after the Kriging believer: xs (b, d) -> mean (b,), variance (b,).
 
     The believed values equal the posterior mean, so the mean is that of ``post`` and only
     the variance shrinks, by a Schur complement over the q fantasies (masked-out fantasies,
     not yet chosen, contribute nothing). Each fantasy's observation noise is the fitted
     noise, plus ``new_noise`` (a scalar, the GP's standardized units) when given.
+
+    With ``weights`` it returns (predict, chol) and predict also gives w (q, b): with the
+    fantasies' values drawn as mean + chol @ e (e standard normal, (q,)), the mean of xs given
+    that draw is mean + w.T @ e, its variance the one returned (conditioning on values moves
+    the mean and leaves the variance).
     """
     p = post.params
     ls, os, nv = gpm.lengthscales(p), gpm.outputscale(p), gpm.noise(p)
@@ -118,9 +127,11 @@ def _believer_predictor(post: gpm.GPPosterior, fantasies, fantasy_mask, deflate:
         var = var - jnp.sum(w * w, axis=0)
         if deflate:  # static
             var = var - nv
+        if weights:  # static
+            return mean, jnp.maximum(var, 1e-12), jnp.where(fantasy_mask[:, None], w, 0.0)
         return mean, jnp.maximum(var, 1e-12)
 
-    return predict
+    return (predict, s_chol) if weights else predict
 
 
 def _acquisition_for_element(post: gpm.GPPosterior, y_std, fantasies, fantasy_mask):
@@ -137,15 +148,19 @@ def _acquisition_for_element(post: gpm.GPPosterior, y_std, fantasies, fantasy_ma
 
 
 def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_for, fantasies, fantasy_mask,
-                               deflate: bool = False, new_noise=None):
+                               deflate: bool = False, new_noise=None, pending_draws=None):
     """Per-objective model: log-EI of the element's scalarization, xs (b, d) -> (b,).
 
     posts: the m per-objective posteriors stacked on a leading axis, fitted to the
     objectives standardized by y_mean, y_sd (m,); log_ei_for(pending, pending_mask) -> the
     element's log-EI of (mean, var) in unstandardized units, given the pending points' believed
     values; new_noise: (m,) the noise variance of a new observation in each GP's standardized
-    units, or None.
+    units, or None; pending_draws: (s, q, m) standard normals, or None (see
+    ``_acquisition_pending_draws``).
     """
+    if pending_draws is not None:  # static: the pending points drawn jointly with the candidate
+        return _acquisition_pending_draws(posts, y_mean, y_sd, log_ei_for, fantasies, fantasy_mask, deflate, new_noise,
+                                          pending_draws)
     predictors = [
         _believer_predictor(jax.tree.map(lambda a, i=i: a[i], posts), fantasies, fantasy_mask, deflate,
                             None if new_noise is None else new_noise[i])
@@ -161,6 +176,35 @@ def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_for,
         mean = jnp.stack([mu for mu, _ in moments], axis=-1) * y_sd + y_mean  # (b, m)
         var = jnp.stack([v for _, v in moments], axis=-1) * y_sd**2
         val = log_ei_of(mean, var)
+        return jnp.where(jnp.isnan(val), -jnp.inf, val)
+
+    return acq
+
+
+def _acquisition_pending_draws(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_for, fantasies, fantasy_mask, deflate,
+                               new_noise, e):
+    """As ``_acquisition_per_objective``, with the pending points not at their believed values
+    but drawn: in each of the shared draws, their values are one joint posterior draw (e:
+    (s, q, m) standard normals, fixed), the incumbent counts that draw's values, and the
+    candidate's mean is conditioned on them (qNEHVI's sequential greedy; a candidate beside a
+    pending point gains nothing in the draws where that point already improves)."""
+    m = y_mean.shape[0]
+    built = [_believer_predictor(jax.tree.map(lambda a, i=i: a[i], posts), fantasies, fantasy_mask, deflate,
+                                 None if new_noise is None else new_noise[i], weights=True) for i in range(m)]
+    pending = []
+    for i, (pr, chol) in enumerate(built):
+        mu = pr(fantasies)[0]  # (q,)
+        pending.append(mu[None] + e[:, :, i] @ chol.T)  # (s, q): mean + chol @ e per draw
+    drawn = jnp.stack(pending, axis=-1) * y_sd + y_mean  # (s, q, m)
+    log_ei_of = log_ei_for(drawn, fantasy_mask)
+
+    def acq(xs):
+        moments = [pr(xs) for pr, _ in built]
+        mean = jnp.stack([mu for mu, _, _ in moments], axis=-1) * y_sd + y_mean  # (b, m)
+        var = jnp.stack([v for _, v, _ in moments], axis=-1) * y_sd**2
+        shift = jnp.stack([jnp.einsum("qb,sq->bs", w, e[:, :, i]) for i, (_, _, w) in enumerate(moments)],
+                          axis=-1) * y_sd  # (b, s, m)
+        val = log_ei_of(mean, var, shift)
         return jnp.where(jnp.isnan(val), -jnp.inf, val)
 
     return acq
@@ -344,11 +388,16 @@ def _per_objective_points(x, mask, scal: Scalarization, fit, fantasies, acq_keys
     else:
         best = scal.incumbents(space, mask)
 
+    pending_draws = None
+    if settings.pending == "draws":  # static: the shared draws' partners, a joint draw of the q pending points each
+        q, m = fantasies[1].shape[0], space.shape[1]
+        pending_draws = jnp.asarray(normal_draws(settings.n_draws, q * m, seed=PENDING_DRAWS_SEED)).reshape(-1, q, m)
+
     def choose_o(carry, j):
         fant, fant_mask = carry
         best_j = jax.tree.map(lambda a: a[j], best)
         acq = _acquisition_per_objective(posts_o, y_mean, y_sd, partial(scal.log_ei, j, best_j), fant, fant_mask,
-                                         settings.variance == "deflated", new_noise)
+                                         settings.variance == "deflated", new_noise, pending_draws)
         acq = prior_weighted(acq, prior, prior_weight, settings.prior_share)
         xj = _maximize(acq, acq_keys[j], d, settings)
         return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj

@@ -26,7 +26,7 @@ CHOICES = {
     "reference": ("warmup", "front"),
     "beyond_reference": ("log", "linear"),
     "prior": ("gamma", "lognormal"),
-    "pending": ("variance", "values"),
+    "pending": ("variance", "values", "draws"),
     "incumbent": ("observed", "posterior_mean"),
     "variance": ("latent", "deflated"),
     "model": ("hybrid", "scalarized", "per_objective"),
@@ -107,6 +107,12 @@ class AcquisitionSettings:
         if self.scalarization == "hypervolume" and self.ei != "draws":
             raise ValueError(f"acquisition setting ei: {quote(self.ei)} needs scalarization 'chebyshev' (the hypervolume "
                              "scalarization, the default, has only the 'draws' estimate)")
+        if self.pending == "draws" and (self.model, self.scalarization, self.ei, self.draw_pairing,
+                                        self.hypervolume_improvement) != ("per_objective", "hypervolume", "draws",
+                                                                          "shared", "directions"):
+            raise ValueError("acquisition setting pending: 'draws' (the earlier elements drawn jointly with the "
+                             "candidate) needs model 'per_objective', scalarization 'hypervolume', ei 'draws', "
+                             "draw_pairing 'shared' and hypervolume_improvement 'directions'")
         if self.n_restarts > self.n_raw:
             raise ValueError(f"acquisition setting n_restarts ({self.n_restarts}) exceeds n_raw ({self.n_raw})")
 

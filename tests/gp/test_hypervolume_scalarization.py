@@ -107,6 +107,31 @@ def test_log_ei_of_draws_matches_numpy_monte_carlo_and_keeps_a_gradient():
         assert np.all(np.isfinite(g)) and np.all(g <= 0) and np.any(g < 0)
 
 
+def test_a_shift_and_an_incumbent_per_draw_average_each_draws_own_improvement():
+    """pending="draws": each shared draw s has its own mean shift (b, s, m) and incumbent
+    (k, s); the estimate is the mean over draws and directions of the improvement computed in
+    that draw alone (numpy, from the scalarization's definition)."""
+    rng = np.random.default_rng(2)
+    b, k, n_s, m = 3, 4, 5, 2
+    mean, var = rng.uniform(0.2, 0.8, (b, m)), rng.uniform(0.01, 0.05, (b, m))
+    lam = np.abs(rng.standard_normal((k, m)))
+    lam /= np.linalg.norm(lam, axis=1, keepdims=True)
+    draws = rng.standard_normal((n_s, m))
+    shift = 0.1 * rng.standard_normal((b, n_s, m))
+    best = rng.uniform(0.0, 0.2, (k, n_s))
+    tau = 1e-3
+    f = mean[:, None, None] + shift[:, None] + np.sqrt(var)[:, None, None] * draws[None, None]  # (b, 1, s, m)
+    t = np.min((1 - f) / lam[None, :, None], axis=-1)  # (b, k, s)
+    scal = np.where(t > 0, np.maximum(t, 0) ** m, t)
+    z = (scal - best[None]) / tau
+    softplus = np.maximum(z, 0) + np.log1p(np.exp(-np.abs(z)))
+    expected = np.log(softplus.reshape(b, -1).mean(1)) + np.log(tau)
+    with jax.enable_x64(True):
+        got = hvs.log_ei_hv_draws(jnp.asarray(mean), jnp.asarray(var), jnp.asarray(lam), jnp.asarray(draws),
+                                  jnp.asarray(best), tau, jnp.asarray(shift))
+    np.testing.assert_allclose(np.asarray(got), expected, rtol=1e-9, atol=1e-12)
+
+
 def test_per_direction_draws_estimate_the_average_over_directions_of_each_directions_ei():
     # Several directions, each with its own incumbent: the estimate with each direction's own
     # block of draws ((k, s, m), draw_pairing="per_direction") against an independent numpy

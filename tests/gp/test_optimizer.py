@@ -226,6 +226,9 @@ def test_non_finite_objectives_are_kept_and_do_not_break_the_model():
         (dict(n_raw=0), "acquisition setting n_raw: expected a positive integer, got 0"),
         (dict(n_raw=2.5), "acquisition setting n_raw: expected an integer, got 2.5"),
         (dict(n_restarts=100), r"n_restarts \(100\) exceeds n_raw \(64\)"),
+        (dict(pending="draws", model="hybrid"), "pending: 'draws' .* needs model 'per_objective'"),
+        (dict(pending="draws", hypervolume_improvement="exact"), "pending: 'draws' .* hypervolume_improvement 'directions'"),
+        (dict(pending="draws", draw_pairing="per_direction"), "pending: 'draws' .* draw_pairing 'shared'"),
         (dict(n_rwa=3), "unknown acquisition setting 'n_rwa'; valid settings: scalarization, alpha, reference, ref_margin"),
     ],
 )

@@ -1,6 +1,6 @@
 """Proposal internals: the Kriging believer's Schur-complement update against refactorizing,
-the deflated variance, pending points in the incumbent, and the per-objective and
-hypervolume-scalarization paths of the optimizer."""
+the deflated variance, pending points in the incumbent (at believed values, or drawn jointly
+with the candidate), and the per-objective and hypervolume-scalarization paths of the optimizer."""
 
 import mjxskill  # noqa: F401  (XLA flags before jax runs)
 
@@ -39,6 +39,35 @@ def test_believer_update_equals_conditioning_on_the_believed_points():
     np.testing.assert_allclose(mean, ref_mean, atol=1e-8)
     np.testing.assert_allclose(var, ref_var, rtol=1e-6, atol=1e-10)
     assert np.all(np.asarray(var) <= np.asarray(prior_var) + 1e-12)
+
+
+def test_a_draw_of_the_pending_values_moves_the_mean_as_conditioning_on_them_does():
+    """pending="draws": with the pending points' values drawn as mean + chol @ e, the
+    candidate's mean given them is mean + w.T @ e; the reference appends the pending points
+    with those values (observed with the fitted noise) and refactorizes."""
+    rng = np.random.default_rng(1)
+    x = rng.random((12, 2))
+    y = np.sin(5 * x[:, 0]) + x[:, 1]
+    y = (y - y.mean()) / y.std()
+    mask = np.arange(12) < 9
+    fantasies = rng.random((3, 2))
+    fantasy_mask = np.array([True, True, False])
+    xs = rng.random((5, 2))
+    e = rng.standard_normal(3)
+    with jax.enable_x64(True):
+        p = gpm.params_from_values([0.3, 0.5], 1.2, 1e-2, 0.1)
+        post = gpm.condition(p, jnp.asarray(x), jnp.asarray(y), jnp.asarray(mask))
+        predict, chol = _believer_predictor(post, jnp.asarray(fantasies), jnp.asarray(fantasy_mask), weights=True)
+        mean, var, w = predict(jnp.asarray(xs))
+        believed, _ = gpm.predict(post, jnp.asarray(fantasies[:2]))
+        drawn = np.asarray(believed) + (np.asarray(chol) @ e)[:2]
+        # the same noise on the appended rows as on the data: the GP's own conditioning
+        x2 = np.concatenate([x[mask], fantasies[:2]])
+        ref = gpm.condition(p, jnp.asarray(x2), jnp.asarray(np.concatenate([y[mask], drawn])), jnp.ones(len(x2), bool))
+        ref_mean, ref_var = gpm.predict(ref, jnp.asarray(xs))
+    np.testing.assert_allclose(np.asarray(mean) + np.asarray(w).T @ e, ref_mean, atol=1e-8)
+    np.testing.assert_allclose(var, ref_var, rtol=1e-6, atol=1e-10)
+    assert np.all(np.asarray(w)[2] == 0.0)  # the element not chosen yet moves nothing
 
 
 def test_per_objective_model_with_moment_matching_proposes_distinct_points_in_bounds():
@@ -95,22 +124,29 @@ def test_pending_values_take_away_the_improvement_a_pending_point_already_offers
         var = jnp.full((1, 2), 1e-10)  # (nearly) certain: EI is the improvement itself
         pend, pend_mask = jnp.asarray(better), jnp.array([True])
         got = {}
-        for pending in ("variance", "values"):
-            scal = element_scalarizations(*args, AcquisitionSettings(scalarization=scalarization, pending=pending, tau=1e-6,
-                                                             hypervolume_improvement=improvement))
+        drawn = (scalarization, improvement) == ("hypervolume", "directions")  # where pending="draws" applies
+        for pending in ("variance", "values") + ("draws",) * drawn:
+            settings = AcquisitionSettings(scalarization=scalarization, pending=pending, tau=1e-6,
+                                           hypervolume_improvement=improvement)
+            scal = element_scalarizations(*args, settings)
             best = jax.tree.map(lambda a: a[0], scal.incumbents(scal.space, jnp.asarray(mask)))
-            got[pending] = float(scal.log_ei(0, best, pend, pend_mask)(jnp.asarray(better), var)[0])
+            # drawn: every one of the n_draws joint draws puts the pending point at the same value
+            given = jnp.broadcast_to(pend, (settings.n_draws,) + pend.shape) if pending == "draws" else pend
+            got[pending] = float(scal.log_ei(0, best, given, pend_mask)(jnp.asarray(better), var)[0])
     assert got["variance"] > np.log(1e-3)  # a real improvement while the pending point is ignored
     assert got["values"] < np.log(1e-5)  # none left once the pending point counts at its believed value
+    assert not drawn or got["draws"] < np.log(1e-5)  # nor where it counts at drawn values that improve
 
 
-@pytest.mark.parametrize("draw_pairing, improvement", [("shared", "directions"), ("per_direction", "directions"),
-                                                       ("per_direction", "exact")])
-def test_hypervolume_scalarization_proposes_distinct_points_in_bounds(draw_pairing, improvement):
+@pytest.mark.parametrize("draw_pairing, improvement, pending", [("shared", "directions", "values"),
+                                                                ("per_direction", "directions", "values"),
+                                                                ("per_direction", "exact", "values"),
+                                                                ("shared", "directions", "draws")])
+def test_hypervolume_scalarization_proposes_distinct_points_in_bounds(draw_pairing, improvement, pending):
     cfg = MOBOConfig(bounds=[[0.0, 0.0], [1.0, 1.0]], n_objectives=2, batch_size=3, n_init=6, seed=1,
                      acquisition=AcquisitionSettings(bucket=16, n_raw=64, n_restarts=2, n_opt_steps=5, fit_starts=1,
                                                      fit_steps=5, scalarization="hypervolume", model="per_objective",
-                                                     n_directions=2, pending="values", variance="deflated",
+                                                     n_directions=2, pending=pending, variance="deflated",
                                                      directions="quasi_random", single_direction_share=0.34,
                                                      single_direction_reference="front", incumbent="posterior_mean",
                                                      draw_pairing=draw_pairing, hypervolume_improvement=improvement),
