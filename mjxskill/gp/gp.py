@@ -16,7 +16,8 @@ Conventions: inputs are scaled to the unit cube, targets standardized (zero mean
 variance over the real rows). Hyperparameters are log-parameterized above a floor, with the
 Gamma priors BoTorch used for Matern 5/2 GPs on such data before its 0.12 (lengthscale
 Gamma(3, 6), outputscale Gamma(2, 0.15), noise variance Gamma(1.1, 0.05)), or the
-dimension-scaled LogNormal lengthscale prior (:func:`log_prior`).
+dimension-scaled LogNormal lengthscale prior in their place, or BoTorch's default since 0.12
+(that lengthscale prior, the outputscale held at 1, noise LogNormal(-4, 1)) (:func:`log_prior`).
 
 All functions expect float64 arrays and must run with x64 enabled (``jax.enable_x64(True)``);
 they do not switch it on themselves so that the rest of the process stays float32.
@@ -107,14 +108,18 @@ def log_prior(p: GPParams, prior: str = "gamma") -> jnp.ndarray:
     prior: "gamma", the Gamma priors above on every hyperparameter; "lognormal", the
     lengthscales' replaced by the dimension-scaled LogNormal(sqrt(2) + log(d) / 2, sqrt(3))
     of Hvarfner et al. (2024), BoTorch's default since 0.12, whose heavy right tail lets a
-    smooth objective keep long lengthscales as d grows.
+    smooth objective keep long lengthscales as d grows; "dim_scaled", all of BoTorch's
+    default since 0.12: that lengthscale prior, no outputscale (:func:`fit` holds it at 1, the
+    standardized targets' variance) and the noise variance's LogNormal(-4, 1).
     """
     ls = lengthscales(p)
-    if prior == "lognormal":  # static
+    if prior in ("lognormal", "dim_scaled"):  # static
         d = ls.shape[0]
         ls_term = jnp.sum(_lognormal_logpdf(ls, math.sqrt(2.0) + 0.5 * math.log(d), math.sqrt(3.0)))
     else:
         ls_term = jnp.sum(_gamma_logpdf(ls, 3.0, 6.0))
+    if prior == "dim_scaled":  # static: the outputscale is held at 1 (fit), the noise BoTorch's LogNormal(-4, 1)
+        return ls_term + _lognormal_logpdf(noise(p), -4.0, 1.0)
     return ls_term + _gamma_logpdf(outputscale(p), 2.0, 0.15) + _gamma_logpdf(noise(p), 1.1, 0.05)
 
 
@@ -196,7 +201,10 @@ def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "
             [base.raw_lengthscales[None], jnp.log(rand_ls - LENGTHSCALE_FLOOR)], axis=0
         )
     )
-    loss = lambda p: fit_loss(p, x, y, mask, prior, obs_noise)
+    if prior == "dim_scaled":  # static: no outputscale, it is 1 (the loss does not see the parameter)
+        loss = lambda p: fit_loss(p._replace(raw_outputscale=base.raw_outputscale), x, y, mask, prior, obs_noise)
+    else:
+        loss = lambda p: fit_loss(p, x, y, mask, prior, obs_noise)
     opt = optax.lbfgs()
     value_and_grad = optax.value_and_grad_from_state(loss)
 
@@ -221,7 +229,8 @@ def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "
     # branch, which makes the fit many times slower on a CPU.
     finals, losses = jax.lax.map(run, starts)
     best = jnp.argmin(losses)
-    return jax.tree.map(lambda a: a[best], finals)
+    fitted = jax.tree.map(lambda a: a[best], finals)
+    return fitted._replace(raw_outputscale=base.raw_outputscale) if prior == "dim_scaled" else fitted
 
 
 def condition(p: GPParams, x, y, mask, obs_noise=None) -> GPPosterior:

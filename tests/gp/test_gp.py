@@ -82,6 +82,29 @@ def test_fit_recovers_lengthscale_of_data_drawn_from_the_prior():
     assert got[0] < got[1]
 
 
+def test_the_dim_scaled_prior_is_botorchs_and_its_fit_holds_the_outputscale_at_one(data):
+    """prior="dim_scaled": the log-prior is scipy's LogNormal densities of the lengthscales
+    (Hvarfner et al.'s loc sqrt(2) + log(d) / 2, scale sqrt(3)) and of the noise variance
+    (loc -4, scale 1), with no outputscale term; the fit leaves the outputscale at 1 and is,
+    among fits with the outputscale at 1, no worse than a nearby point."""
+    from scipy.stats import lognorm
+
+    x, y = data
+    ls, nv = np.array([0.2, 0.7, 1.5]), 0.03
+    with jax.enable_x64(True):
+        for os_ in (1.0, 5.0):  # the outputscale plays no part in the prior
+            got = float(gpm.log_prior(gpm.params_from_values(ls, os_, nv), "dim_scaled"))
+            lengthscales = lognorm.logpdf(ls, np.sqrt(3.0), scale=np.exp(np.sqrt(2.0) + 0.5 * np.log(3)))
+            np.testing.assert_allclose(got, lengthscales.sum() + lognorm.logpdf(nv, 1.0, scale=np.exp(-4.0)), rtol=1e-10)
+        mask = np.ones(len(y), bool)
+        p = gpm.fit(jnp.asarray(x), jnp.asarray(y), jnp.asarray(mask), jax.random.PRNGKey(0), n_starts=2, n_steps=60,
+                    prior="dim_scaled")
+        assert float(gpm.outputscale(p)) == pytest.approx(1.0, abs=1e-12)
+        loss = lambda q: float(gpm.fit_loss(q, x, y, mask, "dim_scaled"))  # noqa: E731
+        for moved in (p._replace(raw_noise=p.raw_noise + 0.05), p._replace(raw_lengthscales=p.raw_lengthscales - 0.05)):
+            assert loss(p) <= loss(moved) + 1e-9
+
+
 def test_importing_and_using_the_gp_leaves_float32_default():
     from mjxskill.gp import optimizer  # noqa: F401
 
