@@ -21,7 +21,7 @@ ROOT = HERE.parents[3]
 COMMITTED = ROOT / "benchmarks/results/task_optimizers-200x7"
 SOURCES = {"baseline": (COMMITTED / "task_optimizers.jsonl", "mjxskill.gp", COMMITTED / "runs/push/mjxskill.gp"),
            **{lever: (HERE / lever / "task_optimizers.jsonl", "mjxskill.gp", HERE / lever / "runs/push/mjxskill.gp")
-              for lever in ("given", "nosingle", "exact", "search", "draws")},
+              for lever in ("given", "nosingle", "exact", "search", "draws", "dimscaled", "dimscaled_draws")},
            "qLogNEHVI": (ROOT / "benchmarks/results/task_optimizers-200x7-botorch/task_optimizers.jsonl",
                          "botorch-qlognehvi",
                          ROOT / "benchmarks/results/task_optimizers-200x7-botorch/runs/push/botorch-qlognehvi")}
