@@ -67,10 +67,10 @@ import math
 from functools import partial
 import jax
 import jax.numpy as jnp
-import optax
 
 from mjxskill.gp import gp as gpm
 from mjxskill.gp.acquisition import log_ei
+from mjxskill.gp.acquisition_search import maximize
 from mjxskill.gp.element_scalarizations import Scalarization, element_scalarizations
 from mjxskill.gp.kernels import matern52
 from mjxskill.gp.prior import UnitPrior
@@ -223,51 +223,6 @@ def prior_weighted(acq, prior: UnitPrior | None, prior_weight, share: float):
     return lambda xs: acq(xs) + prior_weight * jnp.logaddexp(log_share + log_prior_unit(prior, xs), log_rest)
 
 
-def _raw_candidates(key, d: int, settings: AcquisitionSettings) -> jnp.ndarray:
-    """(n_raw, d) random candidates in [0, 1]^d: uniform, and a share ``raw_bounds_share`` of
-    them drawn uniformly in [-0.5, 1.5]^d and clipped, so that each of their coordinates lies on
-    a bound with probability 1/2. Where the parameter bounds are active on the front (a force at
-    its limit, a motion at the workspace's edge; VehicleSafety's front lies on the cube's faces
-    and edges), the improvement is confined to faces of the cube that uniform candidates never
-    reach, and Adam from the best of those stops at a local optimum short of them (RESULTS.md,
-    "Candidates on the bounds")."""
-    n_bounds = round(settings.raw_bounds_share * settings.n_raw)  # static
-    if n_bounds == 0:
-        return jax.random.uniform(key, (settings.n_raw, d), jnp.float64)
-    k_inner, k_bounds = jax.random.split(key)
-    inner = jax.random.uniform(k_inner, (settings.n_raw - n_bounds, d), jnp.float64)
-    on_bounds = jnp.clip(jax.random.uniform(k_bounds, (n_bounds, d), jnp.float64, -0.5, 1.5), 0.0, 1.0)
-    return jnp.concatenate([inner, on_bounds], axis=0)
-
-
-def _maximize(acq, key, d: int, settings: AcquisitionSettings) -> jnp.ndarray:
-    """Best point in [0, 1]^d: random candidates, then projected Adam from the best ones."""
-    raw = _raw_candidates(key, d, settings)
-    raw_vals = acq(raw)
-    _, top = jax.lax.top_k(raw_vals, settings.n_restarts)
-    x0 = raw[top]
-    # Adam's steps stay ~learning_rate long near an optimum; a cosine decay to
-    # final_learning_rate lets the starts settle (fronts along steep edges need ~1e-3 precision).
-    lr = optax.cosine_decay_schedule(settings.learning_rate, settings.n_opt_steps,
-                                     settings.final_learning_rate / settings.learning_rate)
-    opt = optax.adam(lr)
-    # Starts are independent: the gradient of the sum is each start's own gradient.
-    def loss(xs):
-        return -jnp.sum(acq(xs))
-
-    def step(carry, _):
-        xs, s = carry
-        g = jax.grad(loss)(xs)
-        g = jnp.where(jnp.isfinite(g), g, 0.0)
-        upd, s = opt.update(g, s, xs)
-        return (jnp.clip(optax.apply_updates(xs, upd), 0.0, 1.0), s), None
-
-    (xs, _), _ = jax.lax.scan(step, (x0, opt.init(x0)), None, length=settings.n_opt_steps)
-    cand = jnp.concatenate([xs, raw[top[:1]]], axis=0)
-    vals = acq(cand)
-    return cand[jnp.argmax(vals)]
-
-
 @partial(jax.jit, static_argnames=("q", "settings"))
 def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None, prior_weight=0.0, obs_noise=None,
                   new_noise=None, *, q: int, settings: AcquisitionSettings = AcquisitionSettings()):
@@ -350,7 +305,7 @@ def _scalarized_points(x, mask, scal: Scalarization, fit, fantasies, acq_keys, n
         post = jax.tree.map(lambda a: a[j], posts_s)
         acq = prior_weighted(_acquisition_for_element(post, targets[j], fant, fant_mask), prior, prior_weight,
                              settings.prior_share)
-        xj = _maximize(acq, acq_keys[j], d, settings)
+        xj = maximize(acq, acq_keys[j], d, settings)
         return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
 
     fantasies, pts = jax.lax.scan(choose_s, fantasies, jnp.arange(n_scal))
@@ -399,7 +354,7 @@ def _per_objective_points(x, mask, scal: Scalarization, fit, fantasies, acq_keys
         acq = _acquisition_per_objective(posts_o, y_mean, y_sd, partial(scal.log_ei, j, best_j), fant, fant_mask,
                                          settings.variance == "deflated", new_noise, pending_draws)
         acq = prior_weighted(acq, prior, prior_weight, settings.prior_share)
-        xj = _maximize(acq, acq_keys[j], d, settings)
+        xj = maximize(acq, acq_keys[j], d, settings)
         return (fant.at[j].set(xj), fant_mask.at[j].set(True)), xj
 
     _, pts = jax.lax.scan(choose_o, fantasies, jnp.arange(elements.start, elements.stop))

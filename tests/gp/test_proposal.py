@@ -13,7 +13,8 @@ from mjxskill.gp import AcquisitionSettings, MOBOConfig, ask, init, tell
 from mjxskill.gp import gp as gpm
 from mjxskill.gp import hypervolume_scalarization as hvs
 from mjxskill.gp.element_scalarizations import element_scalarizations
-from mjxskill.gp.proposal import _believer_predictor, _maximize, _raw_candidates
+from mjxskill.gp.acquisition_search import maximize, raw_candidates
+from mjxskill.gp.proposal import _believer_predictor
 
 
 def test_believer_update_equals_conditioning_on_the_believed_points():
@@ -236,8 +237,8 @@ def test_raw_candidates_on_the_bounds_put_half_their_coordinates_there_and_none_
     key = jax.random.PRNGKey(3)
     plain = AcquisitionSettings(n_raw=4000)
     # share 0: the uniform draw of the same key, unchanged (runs before the setting existed)
-    np.testing.assert_array_equal(_raw_candidates(key, 5, plain), jax.random.uniform(key, (4000, 5), jnp.float64))
-    raw = np.asarray(_raw_candidates(key, 5, AcquisitionSettings(n_raw=4000, raw_bounds_share=0.25)))
+    np.testing.assert_array_equal(raw_candidates(key, 5, plain), jax.random.uniform(key, (4000, 5), jnp.float64))
+    raw = np.asarray(raw_candidates(key, 5, AcquisitionSettings(n_raw=4000, raw_bounds_share=0.25)))
     assert raw.shape == (4000, 5) and raw.min() >= 0.0 and raw.max() <= 1.0
     on = (raw == 0.0) | (raw == 1.0)
     assert not on[:3000].any()  # the uniform ones
@@ -257,7 +258,7 @@ def test_candidates_on_the_bounds_find_an_improvement_confined_to_a_corner():
     found = {}
     for share in (0.0, 0.5):
         settings = AcquisitionSettings(n_raw=256, n_restarts=4, n_opt_steps=50, raw_bounds_share=share)
-        best = [_maximize(acq, jax.random.PRNGKey(k), 3, settings) for k in range(20)]
+        best = [maximize(acq, jax.random.PRNGKey(k), 3, settings) for k in range(20)]
         found[share] = sum(float(jnp.linalg.norm(b - corner)) < 1e-2 for b in best)
     # uniform: 256 x 5.2e-4 = 0.13 hits expected per key; on the bounds: 128 x 1/64 = 2 at the corner
     assert found[0.5] >= 17 and found[0.0] <= 5, found

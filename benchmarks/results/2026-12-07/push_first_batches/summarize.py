@@ -2,7 +2,8 @@
 
 Each lever's folder holds the JSONL that ``benchmarks/task_optimizers.py --tasks push --methods
 mjxskill.gp --seeds 10 --budget 102 --optimizer-option ... --out FOLDER`` wrote, and its runs'
-``evaluations.csv``; the baseline and qLogNEHVI are the committed 200 x 7 runs (their first 102
+``evaluations.csv`` (the planned task's files, the same for every lever: in ``given/runs/push/``); the
+baseline and qLogNEHVI are the committed 200 x 7 runs (their first 102
 rows: the baseline at budget 102 reproduced their history exactly). Run from the repository
 root: ``python benchmarks/results/2026-12-07/push_first_batches/summarize.py``.
 """
