@@ -237,6 +237,16 @@ def record(run: Run, task: str, method: str, seed: int, args) -> dict:
             "ask_seconds": ask_seconds(run.path), "run_dir": str(run.path)}
 
 
+def batch_history(objectives, iteration, reference) -> dict:
+    """``hypervolume_history`` (the hypervolume of the rows up to the end of each batch, about
+    ``reference``; objectives and reference are rewards, larger is better) and ``evaluations``
+    (the rows at each batch's end)."""
+    z, it = -np.asarray(objectives, dtype=float), np.asarray(iteration)
+    ends = np.flatnonzero(np.diff(np.append(it, -1)) != 0) + 1
+    return {"hypervolume_history": [float(hypervolume(z[:e], -np.asarray(reference))) for e in ends],
+            "evaluations": ends.tolist()}
+
+
 def with_hypervolumes(records: list[dict]) -> list[dict]:
     """Each record with the hypervolumes about its task's reference point (the union of the
     task's warm-ups), in the negated (minimized) objectives."""
@@ -246,14 +256,12 @@ def with_hypervolumes(records: list[dict]) -> list[dict]:
         warmups = np.concatenate([np.asarray(r["y"])[: r["n_init"]] for r in mine])
         ref = hypervolume_reference(warmups)
         for r in mine:
-            z, it = -np.asarray(r["y"]), np.asarray(r["iteration"])
-            ends = np.flatnonzero(np.diff(np.append(it, -1)) != 0) + 1
-            history = [float(hypervolume(z[:e], ref)) for e in ends]
-            front = np.asarray(r["y"])[pareto_mask(z)]
+            history = batch_history(np.asarray(r["y"]), r["iteration"], -ref)
+            front = np.asarray(r["y"])[pareto_mask(-np.asarray(r["y"]))]
             entry = {k: v for k, v in r.items() if k not in ("y", "iteration")}
-            out.append({**entry, "hypervolume": history[-1], "hypervolume_history": history,
-                        "evaluations": ends.tolist(), "reference": (-ref).tolist(),
-                        "reference_from": f"warm-ups of {len(mine)} runs of {task}", "front": front.tolist()})
+            out.append({**entry, "hypervolume": history["hypervolume_history"][-1], **history,
+                        "reference": (-ref).tolist(), "reference_from": f"warm-ups of {len(mine)} runs of {task}",
+                        "front": front.tolist()})
     return out
 
 
@@ -323,9 +331,10 @@ def report(rows: list[dict]) -> str:
              "| pick's success in fresh worlds, median [min, max] | ask s, median |",
              "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     notes = []
+    common = {}
     for task in dict.fromkeys(r["task"] for r in rows):
         given = [r for r in rows if r["task"] == task]
-        mine = on_common_reference(given)
+        mine = common[task] = on_common_reference(given)
         if mine is not given:
             notes.append(f"{task}: {mine[0]['reference_from']}, {mine[0]['reference']}")
         ours = [r["hypervolume"] for r in mine if r["method"] == OURS]
@@ -342,22 +351,21 @@ def report(rows: list[dict]) -> str:
                          f"{med:.4g} [{q1:.4g}, {q3:.4g}] | {p} | {fresh} | "
                          f"{np.median(asks) if asks else float('nan'):.3g} |")
     return "\n".join(lines + [""] * bool(notes) + [f"Final hypervolumes about {n}." for n in notes]
-                     + ["", *budget_fractions(rows)])
+                     + ["", *budget_fractions(common)])
 
 
 FRACTIONS = (0.25, 0.5, 0.75, 1.0)
 
 
-def budget_fractions(rows: list[dict]) -> list[str]:
+def budget_fractions(by_task: dict[str, list[dict]]) -> list[str]:
     """Per task and method, the median hypervolume at 25, 50, 75 and 100 % of the budget
-    (each run's history interpolated in evaluations, about the task's reference), with the
-    methods ours trails there; a task whose rows are about different references has no common
-    history and is said to."""
+    (each run's history interpolated in evaluations), with the methods ours trails there.
+    ``by_task``: each task's rows about one reference (``on_common_reference``); a task with a
+    row that has no history about it is said to."""
     lines = ["| task | method | runs | " + " | ".join(f"{100 * f:g} %" for f in FRACTIONS) + " |",
              "| --- | --- | --- | " + " | ".join("---:" for _ in FRACTIONS) + " |"]
     trailing = []
-    for task in dict.fromkeys(r["task"] for r in rows):
-        given = on_common_reference([r for r in rows if r["task"] == task])
+    for task, given in by_task.items():
         if any("hypervolume_history" not in r for r in given):
             trailing.append(f"{task}: a run's directory is gone and its history is about another reference point")
             continue
@@ -412,9 +420,7 @@ def history_about(row: dict, reference: np.ndarray) -> dict:
         ev = run.evaluations(run.config())
     except (OSError, UserError):
         return {}
-    z, it = -np.asarray(ev.objectives, dtype=float), np.asarray(ev.iteration)
-    ends = np.flatnonzero(np.diff(np.append(it, -1)) != 0) + 1
-    return {"hypervolume_history": [float(hypervolume(z[:e], -reference)) for e in ends], "evaluations": ends.tolist()}
+    return batch_history(ev.objectives, ev.iteration, reference)
 
 
 ROW_KEYS = {"task", "method", "seed", "hypervolume", "budget", "worlds", "reference", "front"}  # what report reads

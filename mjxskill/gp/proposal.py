@@ -153,58 +153,39 @@ def _acquisition_per_objective(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_for,
 
     posts: the m per-objective posteriors stacked on a leading axis, fitted to the
     objectives standardized by y_mean, y_sd (m,); log_ei_for(pending, pending_mask) -> the
-    element's log-EI of (mean, var) in unstandardized units, given the pending points' believed
-    values; new_noise: (m,) the noise variance of a new observation in each GP's standardized
-    units, or None; pending_draws: (s, q, m) standard normals, or None (see
-    ``_acquisition_pending_draws``).
-    """
-    if pending_draws is not None:  # static: the pending points drawn jointly with the candidate
-        return _acquisition_pending_draws(posts, y_mean, y_sd, log_ei_for, fantasies, fantasy_mask, deflate, new_noise,
-                                          pending_draws)
-    predictors = [
-        _believer_predictor(jax.tree.map(lambda a, i=i: a[i], posts), fantasies, fantasy_mask, deflate,
-                            None if new_noise is None else new_noise[i])
-        for i in range(y_mean.shape[0])
-    ]
+    element's log-EI of (mean, var) in unstandardized units, given the pending points' values;
+    new_noise: (m,) the noise variance of a new observation in each GP's standardized units,
+    or None.
 
-    # The believed values of the pending points: the posterior means (the believer keeps them).
-    pending = jnp.stack([pr(fantasies)[0] for pr in predictors], axis=-1) * y_sd + y_mean  # (q, m)
-    log_ei_of = log_ei_for(pending, fantasy_mask)
+    pending_draws: None, the Kriging believer (the pending points at their posterior means), or
+    (s, q, m) fixed standard normals: in each of the s shared draws the pending points take one
+    joint posterior draw of their values, the incumbent counts that draw's values, and the
+    candidate's mean is conditioned on them (qNEHVI's sequential greedy; a candidate beside a
+    pending point gains nothing in the draws where that point already improves).
+    """
+    drawn = pending_draws is not None  # static
+    built = [_believer_predictor(jax.tree.map(lambda a, i=i: a[i], posts), fantasies, fantasy_mask, deflate,
+                                 None if new_noise is None else new_noise[i], weights=drawn)
+             for i in range(y_mean.shape[0])]
+    predictors = [b[0] for b in built] if drawn else built
+    believed = jnp.stack([pr(fantasies)[0] for pr in predictors], axis=-1)  # (q, m), standardized
+    if drawn:  # mean + chol @ e per draw: (s, q, m)
+        pending = believed[None] + jnp.stack([pending_draws[:, :, i] @ chol.T for i, (_, chol) in enumerate(built)],
+                                             axis=-1)
+    else:
+        pending = believed
+    log_ei_of = log_ei_for(pending * y_sd + y_mean, fantasy_mask)
 
     def acq(xs):
         moments = [pr(xs) for pr in predictors]
-        mean = jnp.stack([mu for mu, _ in moments], axis=-1) * y_sd + y_mean  # (b, m)
-        var = jnp.stack([v for _, v in moments], axis=-1) * y_sd**2
-        val = log_ei_of(mean, var)
-        return jnp.where(jnp.isnan(val), -jnp.inf, val)
-
-    return acq
-
-
-def _acquisition_pending_draws(posts: gpm.GPPosterior, y_mean, y_sd, log_ei_for, fantasies, fantasy_mask, deflate,
-                               new_noise, e):
-    """As ``_acquisition_per_objective``, with the pending points not at their believed values
-    but drawn: in each of the shared draws, their values are one joint posterior draw (e:
-    (s, q, m) standard normals, fixed), the incumbent counts that draw's values, and the
-    candidate's mean is conditioned on them (qNEHVI's sequential greedy; a candidate beside a
-    pending point gains nothing in the draws where that point already improves)."""
-    m = y_mean.shape[0]
-    built = [_believer_predictor(jax.tree.map(lambda a, i=i: a[i], posts), fantasies, fantasy_mask, deflate,
-                                 None if new_noise is None else new_noise[i], weights=True) for i in range(m)]
-    pending = []
-    for i, (pr, chol) in enumerate(built):
-        mu = pr(fantasies)[0]  # (q,)
-        pending.append(mu[None] + e[:, :, i] @ chol.T)  # (s, q): mean + chol @ e per draw
-    drawn = jnp.stack(pending, axis=-1) * y_sd + y_mean  # (s, q, m)
-    log_ei_of = log_ei_for(drawn, fantasy_mask)
-
-    def acq(xs):
-        moments = [pr(xs) for pr, _ in built]
-        mean = jnp.stack([mu for mu, _, _ in moments], axis=-1) * y_sd + y_mean  # (b, m)
-        var = jnp.stack([v for _, v, _ in moments], axis=-1) * y_sd**2
-        shift = jnp.stack([jnp.einsum("qb,sq->bs", w, e[:, :, i]) for i, (_, _, w) in enumerate(moments)],
-                          axis=-1) * y_sd  # (b, s, m)
-        val = log_ei_of(mean, var, shift)
+        mean = jnp.stack([mo[0] for mo in moments], axis=-1) * y_sd + y_mean  # (b, m)
+        var = jnp.stack([mo[1] for mo in moments], axis=-1) * y_sd**2
+        if drawn:  # the mean given each draw of the pending values: mean + w.T @ e, (b, s, m)
+            shift = jnp.stack([jnp.einsum("qb,sq->bs", mo[2], pending_draws[:, :, i]) for i, mo in enumerate(moments)],
+                              axis=-1) * y_sd
+            val = log_ei_of(mean, var, shift)
+        else:
+            val = log_ei_of(mean, var)
         return jnp.where(jnp.isnan(val), -jnp.inf, val)
 
     return acq
