@@ -31,7 +31,10 @@ The default is the real workload: the scenario's full episode length at the trai
 ``physics_limit_steps_per_s``, ``best_share_of_limit``, ``episode_physics_steps_per_s`` (MuJoCo's
 step on the episodes' own states: the one-process, one-thread call's rate over its physics share)
 with ``episode_physics_share_of_limit`` (cores x that over the limit: the engine's ceiling were
-its Python free) and the rows.
+its Python free), ``episode_physics_limit_steps_per_s`` (the episodes' own steps replayed by
+``mujoco.rollout`` on every core at once, ``benchmarks/episode_physics.py``: the limit issue 48
+measures an engine against), ``best_share_of_episode_physics_limit``, ``episode_physics`` (that
+replay's figures) and the rows.
 """
 
 from __future__ import annotations
@@ -272,6 +275,9 @@ def main(argv=None) -> dict | None:
         rows += mjx(d, args)
     rows.append(loop(engine, params, worlds))
     rows.append(bare(engine, worlds, 50000))
+    from episode_physics import measure, report  # benchmarks/: the replay of these episodes' own steps
+
+    own = measure(engine, params, worlds, cores)
     loops = [r for r in rows if r["engine"] == "loop"]
     loop_rate = sum(r["steps_per_s"] for r in loops) / len(loops)
 
@@ -301,8 +307,11 @@ def main(argv=None) -> dict | None:
               f"({episode_physics / rows[-1]['steps_per_s']:.2f} x bare mj_step); the ceiling with no Python: "
               f"{cores * episode_physics / limit:.2f} of the limit")
 
+    print(report(own))
     fast = [r for r in rows if r["engine"] in ("native", "mjx")]
     best = max(fast, key=lambda r: r["steps_per_s"])
+    print(f"the best engine at {best['steps_per_s'] / own['all_cores_steps_per_s']:.2f} of the episodes' own physics "
+          f"on all cores")
     best_of = {e: max((r for r in fast if r["engine"] == e), key=lambda r: r["steps_per_s"], default=None)
                for e in ("mjx", "native")}
     result = dict(
@@ -315,6 +324,9 @@ def main(argv=None) -> dict | None:
         physics_limit_steps_per_s=limit, best_share_of_limit=best["steps_per_s"] / limit,
         episode_physics_steps_per_s=episode_physics,
         episode_physics_share_of_limit=cores * episode_physics / limit if episode_physics else None,
+        episode_physics_limit_steps_per_s=own["all_cores_steps_per_s"],
+        best_share_of_episode_physics_limit=best["steps_per_s"] / own["all_cores_steps_per_s"],
+        episode_physics=own,
         load_avg=[r["load_avg"] for r in rows],
         rows=rows,
     )

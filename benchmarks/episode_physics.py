@@ -1,0 +1,168 @@
+"""The episodes' own physics: MuJoCo's step on the states the training episodes visit, with no
+Python, on one core and on all cores at once. The ceiling of any engine that runs these episodes
+on this machine (issue 48).
+
+    python benchmarks/episode_physics.py --task push              # 6 sets x 7 worlds, full episodes
+    python benchmarks/episode_physics.py --task peg --json FILE
+
+How: the plain loop (``NativeRollout.run_episode``, the reference) runs every episode of the batch
+once and records, per episode, its model (the world's contact friction set) and initial full
+physics state, and the user inputs (``mjSTATE_USER``: the controller's torques and whatever else
+the episode sets) of every control step. ``mujoco.rollout`` then replays the recorded inputs open
+loop, in C: each thread steps whole episodes, with no Python between steps. Because the episode
+is deterministic, the replay visits the recorded states; ``replay_max_qpos_error`` (the largest
+difference of any final ``qpos`` from the recording's) shows it. The replay is timed on one
+thread and on one thread per core (``default_workers``, the cores this process may run on), all
+stepping at once, so cores that share a physical core, or memory bandwidth, show in the ratio.
+An episode that diverged (ended early) is left out of the replay.
+
+The figures: ``one_core_steps_per_s``, ``all_cores_steps_per_s`` (the limit an engine is measured
+against: ``episode_physics_limit_steps_per_s`` in ``throughput.py``'s JSON) and
+``all_cores_over_one_core``; control steps (one ``mj_step`` each) per second of wall time, the
+load average before and after.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+USER_INPUTS = "mjSTATE_USER"  # ctrl, applied forces, mocap, eq_active, userdata: whatever an episode sets
+
+
+def record(engine, params, worlds) -> dict:
+    """Per episode of the batch (``params`` (B, P), ``worlds`` of leading shape (B, W)) that ran its
+    full length: its model, initial state (``mjSTATE_FULLPHYSICS``), the user inputs of each step
+    and the final ``qpos``, stacked over those episodes; ``episodes``: the batch's count."""
+    import jax
+    import mujoco
+    import numpy as np
+
+    from mjxskill.engine.native.episode import initial_data
+
+    full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    models, starts, inputs, finals = [], [], [], []
+    b, w = worlds.config_index.shape
+    for i in range(b):
+        for j in range(w):
+            world = jax.tree.map(lambda x: np.asarray(x)[i, j], worlds)
+            model = copy.copy(engine.mj_model)  # initial_data sets the world's friction on it
+            data = initial_data(engine, model, world)
+            start = np.empty(mujoco.mj_stateSize(model, full))
+            mujoco.mj_getState(model, data, start, full)
+            recorder = Recorder(model)
+            engine.run_episode(params[i], world, on_step=recorder)
+            if len(recorder.rows) != engine.control_steps_per_episode:  # diverged: ended early
+                continue
+            models.append(model)
+            starts.append(start)
+            inputs.append(np.stack(recorder.rows))
+            finals.append(recorder.final)
+    return dict(models=models, starts=np.stack(starts), inputs=np.stack(inputs), finals=np.stack(finals),
+                episodes=b * w)
+
+
+class Recorder:
+    """``on_step`` for ``run_episode``: each step's user inputs (still in the data after the step:
+    ``mj_step`` does not change them) and the last step's ``qpos``."""
+
+    def __init__(self, model):
+        import mujoco
+
+        self.model, self.spec = model, getattr(mujoco.mjtState, USER_INPUTS)
+        self.size = mujoco.mj_stateSize(model, self.spec)
+        self.rows, self.final = [], None
+
+    def __call__(self, data, _tau) -> None:
+        import mujoco
+        import numpy as np
+
+        row = np.empty(self.size)
+        mujoco.mj_getState(self.model, data, row, self.spec)
+        self.rows.append(row)
+        self.final = data.qpos.copy()
+
+
+def replay(recording: dict, threads: int) -> tuple[float, float]:
+    """(wall seconds, largest final-qpos difference from the recording) of ``mujoco.rollout``
+    replaying every recorded episode on ``threads`` threads at once."""
+    import mujoco
+    import numpy as np
+    from mujoco import rollout
+
+    models = recording["models"]
+    n, nstep = recording["inputs"].shape[:2]
+    datas = [mujoco.MjData(models[0]) for _ in range(threads)]
+    spec = getattr(mujoco.mjtState, USER_INPUTS)
+    nstate = mujoco.mj_stateSize(models[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    state = np.empty((n, nstep, nstate))
+    sensordata = np.empty((n, nstep, models[0].nsensordata))
+    # One episode per task: the threads take whole episodes in turn.
+    with rollout.Rollout(nthread=threads) as runner:
+        t0 = time.perf_counter()
+        runner.rollout(models, datas, recording["starts"], recording["inputs"], control_spec=spec,
+                       state=state, sensordata=sensordata, chunk_size=1)
+        seconds = time.perf_counter() - t0
+    qpos = slice(1, 1 + models[0].nq)  # FULLPHYSICS: time, then qpos
+    error = float(np.max(np.abs(state[:, -1, qpos] - recording["finals"])))
+    return seconds, error
+
+
+def measure(engine, params, worlds, cores: int) -> dict:
+    """The figures of the module docstring for this batch."""
+    load_before = os.getloadavg()[0]
+    recording = record(engine, params, worlds)
+    n, nstep = recording["inputs"].shape[:2]
+    steps = n * nstep
+    one_s, one_error = replay(recording, 1)
+    all_s, all_error = replay(recording, cores)
+    result = dict(episodes=recording["episodes"], episodes_replayed=n, control_steps=steps, cores=cores,
+                  one_core_seconds=one_s, all_cores_seconds=all_s,
+                  one_core_steps_per_s=steps / one_s, all_cores_steps_per_s=steps / all_s,
+                  all_cores_over_one_core=one_s / all_s,
+                  replay_max_qpos_error=max(one_error, all_error),
+                  load_avg_before=load_before, load_avg_after=os.getloadavg()[0])
+    return result
+
+
+def report(r: dict) -> str:
+    return (f"the episodes' own physics ({r['episodes_replayed']} of {r['episodes']} episodes replayed by "
+            f"mujoco.rollout, final qpos within {r['replay_max_qpos_error']:.1e} of the recording): "
+            f"{r['one_core_steps_per_s']:.0f} control steps/s on one core, {r['all_cores_steps_per_s']:.0f} on "
+            f"{r['cores']} at once ({r['all_cores_over_one_core']:.2f} x one core); load {r['load_avg_before']:.2f} "
+            f"before, {r['load_avg_after']:.2f} after")
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--task", default="push", help="scenario (push, peg or a YAML path)")
+    parser.add_argument("--seconds", type=float, default=None, help="episode length, s (default: the scenario's)")
+    parser.add_argument("--sets", type=int, default=6, help="parameter sets (default 6, the training batch)")
+    parser.add_argument("--worlds", type=int, default=None, help="worlds per set (default: the scenario's)")
+    parser.add_argument("--json", type=Path, help="write the figures here")
+    args = parser.parse_args(argv)
+
+    import mjxskill  # noqa: F401
+
+    from mjxskill.engine.native.pool import default_workers
+    from throughput import workload  # benchmarks/: the same parameter sets and worlds as the engines'
+
+    scn, _, params, worlds, engine = workload(args.task, args.seconds, args.sets, args.worlds)
+    result = dict(task=scn.name, episode_seconds=engine.episode_seconds, **measure(engine, params, worlds, default_workers()))
+    print(report(result), flush=True)
+    if args.json:
+        args.json.write_text(json.dumps(result, indent=2))
+    return result
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,33 @@
+"""benchmarks/episode_physics.py replays the episodes' own steps: ``mujoco.rollout`` driven by the
+recorded inputs ends every episode in the state the plain loop (the reference interpreter over
+native MuJoCo) ended it in, and the figures count the replayed steps."""
+
+import json
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "benchmarks"))
+import episode_physics as ep
+
+
+def test_the_replay_ends_where_the_plain_loop_ended(tmp_path):
+    out = tmp_path / "physics.json"
+    result = ep.main(["--task", "push", "--seconds", "0.4", "--sets", "2", "--worlds", "2", "--json", str(out)])
+    assert result == json.loads(out.read_text())
+    assert result["episodes"] == 4 and result["episodes_replayed"] == 4
+    assert result["replay_max_qpos_error"] == 0.0  # deterministic physics: the very states
+    assert result["control_steps"] == 4 * 200  # 0.4 s at the 2 ms control step
+    assert result["one_core_steps_per_s"] > 0 and result["all_cores_steps_per_s"] > 0
+
+
+def test_a_recording_holds_the_inputs_of_every_step():
+    from throughput import workload
+
+    _, _, params, worlds, engine = workload("push", 0.2, 1, 1)
+    recording = ep.record(engine, params, worlds)
+    steps = engine.control_steps_per_episode
+    assert recording["inputs"].shape[:2] == (1, steps)
+    # The arm's torques change from step to step: a recording of one step repeated would not.
+    assert np.ptp(recording["inputs"][0, :, :7], axis=0).max() > 0
