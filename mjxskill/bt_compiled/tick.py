@@ -19,6 +19,11 @@ stops") was measured too: no faster at batch 1024 and 2-5x slower at batch 1 on 
 ``started_leaves(ct, previous_state, active)`` tells which active leaves start afresh (their
 programs must reset) rather than carry on from the last tick.
 
+``tick_rows(ct, state, leaf_status)`` is the same tick over N machines at once in numpy (state
+fields (N, n), statuses (N, L)): the walk is written over an array namespace with ``[..., k]``
+indexing, so the ops that run on one machine under ``vmap`` run on the rows of a native batch,
+in the same order, with no per-machine Python.
+
 Out-of-range leaf statuses: an Action's value other than RUNNING (0) or SUCCESS (1) counts as
 FAILURE. A Condition returning RUNNING is an error in the interpreter, but a jitted function
 cannot raise, so a Condition's value other than SUCCESS counts as FAILURE.
@@ -26,10 +31,11 @@ cannot raise, so a Condition's value other than SUCCESS counts as FAILURE.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from mjxskill.bt_compiled.compile import CompiledTree
 from mjxskill.ebt.nodes import Kind, Status
@@ -60,9 +66,9 @@ class BTState(NamedTuple):
         returned RUNNING: it carries on at its next tick (everything else starts afresh).
     """
 
-    memory: jax.Array
-    node_status: jax.Array
-    live: jax.Array
+    memory: jax.Array | np.ndarray  # numpy rows in ``tick_rows``
+    node_status: jax.Array | np.ndarray
+    live: jax.Array | np.ndarray
 
 
 def init_state(ct: CompiledTree) -> BTState:
@@ -91,40 +97,66 @@ def tick(ct: CompiledTree, state: BTState, leaf_status: jax.Array) -> tuple[BTSt
         active: (L,) bool, the leaves ticked this tick.
     """
     leaf_status = jnp.asarray(leaf_status)
-    _check_inputs(ct, state, leaf_status)
-    walk = _Walk(ct, _sanitized(ct, leaf_status), state.memory.astype(jnp.int32))
-    root_status = walk.visit(0, jnp.bool_(True))
-    live = _live(ct, walk.enabled, walk.status)
+    _check_inputs(ct, state, leaf_status, ())
+    return _tick(ct, state, leaf_status, jnp)
+
+
+def tick_rows(ct: CompiledTree, state: BTState, leaf_status: np.ndarray) -> tuple[BTState, np.ndarray, np.ndarray]:
+    """``tick`` for N machines at once in numpy: ``state`` with (N, n) fields, ``leaf_status``
+    (N, L). Returns the new state ((N, n) fields), the root statuses (N,) and the active leaves
+    (N, L), what ``jax.vmap(tick)`` returns for the same rows."""
+    leaf_status = np.asarray(leaf_status)
+    _check_inputs(ct, state, leaf_status, leaf_status.shape[:1])
+    return _tick(ct, state, leaf_status, np)
+
+
+def init_rows(ct: CompiledTree, n: int) -> BTState:
+    """``n`` fresh state machines for ``tick_rows``: numpy fields (n, nodes)."""
+    return BTState(*(np.repeat(np.asarray(field)[None], n, axis=0) for field in init_state(ct)))
+
+
+def _tick(ct: CompiledTree, state: BTState, leaf_status, xp) -> tuple[BTState, Any, Any]:
+    """The tick in namespace ``xp`` (jax.numpy for one machine, numpy for rows): every per-node
+    value is indexed ``[..., k]`` and stacked on the last axis, so leading axes are machines."""
+    walk = _Walk(ct, _sanitized(ct, leaf_status, xp), state.memory.astype(xp.int32), xp)
+    root_status = walk.visit(0, xp.ones(leaf_status.shape[:-1], dtype=bool))  # every machine ticks its root
+    live = _live(ct, walk.enabled, walk.status, xp)
     new_state = BTState(
-        memory=jnp.where(live, jnp.stack(walk.new_memory), 0),
-        node_status=jnp.where(jnp.stack(walk.enabled), jnp.stack(walk.status), NOT_TICKED),
+        memory=xp.where(live, _stacked(walk.new_memory, xp), 0),
+        node_status=xp.where(_stacked(walk.enabled, xp), _stacked(walk.status, xp), NOT_TICKED),
         live=live,
     )
-    active = jnp.stack([walk.enabled[int(nid)] for nid in ct.leaf_ids])
+    active = _stacked([walk.enabled[int(nid)] for nid in ct.leaf_ids], xp)
     return new_state, root_status, active
 
 
-def _check_inputs(ct: CompiledTree, state: BTState, leaf_status: jax.Array) -> None:
-    """Raises ValueError unless ``leaf_status`` is (L,) integer and every state field is (n,)."""
-    if leaf_status.shape != (ct.num_leaves,):
+def _stacked(values: list, xp):
+    """Per-node values (scalars and per-machine arrays mixed) stacked on a last axis."""
+    return xp.stack(xp.broadcast_arrays(*values), axis=-1)
+
+
+def _check_inputs(ct: CompiledTree, state: BTState, leaf_status, rows: tuple) -> None:
+    """Raises ValueError unless ``leaf_status`` is ``rows`` + (L,) integer and every state field
+    is ``rows`` + (n,)."""
+    if leaf_status.shape != rows + (ct.num_leaves,):
         raise ValueError(
             f"leaf_status has shape {leaf_status.shape}; this tree has {ct.num_leaves} leaves, so it "
-            f"must be ({ct.num_leaves},) (use jax.vmap for batches)"
+            f"must be {rows + (ct.num_leaves,)}" + ("" if rows else " (use jax.vmap for batches)")
         )
-    if not jnp.issubdtype(leaf_status.dtype, jnp.integer):
+    if not np.issubdtype(leaf_status.dtype, np.integer):
         raise ValueError(f"leaf_status must hold integer Status values, got dtype {leaf_status.dtype}")
     for field, value in zip(state._fields, state):
-        if value.shape != (ct.num_nodes,):
-            raise ValueError(f"state.{field} has shape {value.shape}; this tree needs ({ct.num_nodes},)")
+        if value.shape != rows + (ct.num_nodes,):
+            raise ValueError(f"state.{field} has shape {value.shape}; this tree needs {rows + (ct.num_nodes,)}")
 
 
-def _sanitized(ct: CompiledTree, leaf_status: jax.Array) -> jax.Array:
-    """(L,) int32 ``leaf_status`` with out-of-range values mapped to FAILURE in one vectorised
-    pass (see the module docstring)."""
-    leaf_status = leaf_status.astype(jnp.int32)
+def _sanitized(ct: CompiledTree, leaf_status, xp):
+    """int32 ``leaf_status`` (..., L) with out-of-range values mapped to FAILURE in one
+    vectorised pass (see the module docstring)."""
+    leaf_status = leaf_status.astype(xp.int32)
     is_condition = ct.kind[ct.leaf_ids] == int(Kind.CONDITION)
-    valid = jnp.where(is_condition, leaf_status == SUCCESS, (leaf_status == SUCCESS) | (leaf_status == RUNNING))
-    return jnp.where(valid, leaf_status, FAILURE)
+    valid = xp.where(is_condition, leaf_status == SUCCESS, (leaf_status == SUCCESS) | (leaf_status == RUNNING))
+    return xp.where(valid, leaf_status, FAILURE)
 
 
 class _Walk:
@@ -138,8 +170,8 @@ class _Walk:
     kinds without it.
     """
 
-    def __init__(self, ct: CompiledTree, leaf_status: jax.Array, memory: jax.Array):
-        self.ct, self.leaf_status, self.memory = ct, leaf_status, memory
+    def __init__(self, ct: CompiledTree, leaf_status, memory, xp):
+        self.ct, self.leaf_status, self.memory, self.xp = ct, leaf_status, memory, xp
         n = ct.num_nodes
         self.enabled: list = [None] * n
         self.status: list = [None] * n
@@ -147,15 +179,15 @@ class _Walk:
 
     def visit(self, nid: int, on) -> jax.Array:
         kind = Kind(int(self.ct.kind[nid]))
-        mem = self.memory[nid] if kind in _KINDS_WITH_MEMORY else None
+        mem = self.memory[..., nid] if kind in _KINDS_WITH_MEMORY else None
         out, new_mem = _VISITORS[kind](self, nid, kind, on, mem)
         self.enabled[nid] = on
-        self.status[nid] = jnp.asarray(out, jnp.int32)
-        self.new_memory[nid] = jnp.asarray(new_mem, jnp.int32)
+        self.status[nid] = self.xp.asarray(out, dtype=self.xp.int32)
+        self.new_memory[nid] = self.xp.asarray(new_mem, dtype=self.xp.int32)
         return self.status[nid]
 
     def leaf(self, nid, kind, on, mem):
-        return self.leaf_status[int(self.ct.leaf_index[nid])], 0
+        return self.leaf_status[..., int(self.ct.leaf_index[nid])], 0
 
     def serial(self, nid, kind, on, mem):
         """Sequences go on while children succeed, selectors while they fail; the starred kinds
@@ -169,9 +201,9 @@ class _Walk:
             child_on = going & (mem <= i) if has_memory else going
             s = self.visit(cid, child_on)
             stop = child_on & (s != go_on)
-            out = jnp.where(stop, s, out)
+            out = self.xp.where(stop, s, out)
             if has_memory:
-                new_mem = jnp.where(stop & (s == RUNNING), i, new_mem)
+                new_mem = self.xp.where(stop & (s == RUNNING), i, new_mem)
             going = going & ~stop
         return out, new_mem
 
@@ -186,9 +218,9 @@ class _Walk:
             s = self.visit(cid, child_on)
             failed = failed | (child_on & (s == FAILURE))
             running = running | (child_on & (s == RUNNING))
-            done = jnp.where(child_on & (s == SUCCESS), done | (1 << i), done)
+            done = self.xp.where(child_on & (s == SUCCESS), done | (1 << i), done)
             going = going & ~failed  # the children after a failure are not ticked
-        return jnp.where(failed, FAILURE, jnp.where(running, RUNNING, SUCCESS)), done
+        return self.xp.where(failed, FAILURE, self.xp.where(running, RUNNING, SUCCESS)), done
 
     def parallel_fs(self, nid, kind, on, mem):
         """First-stop Parallel: the first child that does not return RUNNING decides."""
@@ -197,17 +229,17 @@ class _Walk:
         for cid in self.ct.children(nid):
             s = self.visit(cid, going)
             stop = going & (s != RUNNING)
-            out = jnp.where(stop, s, out)
+            out = self.xp.where(stop, s, out)
             going = going & ~stop
         return out, 0
 
     def inverter(self, nid, kind, on, mem):
         s = self.visit(self.ct.children(nid)[0], on)
-        return jnp.where(s == SUCCESS, FAILURE, jnp.where(s == FAILURE, SUCCESS, s)), 0
+        return self.xp.where(s == SUCCESS, FAILURE, self.xp.where(s == FAILURE, SUCCESS, s)), 0
 
     def force_success(self, nid, kind, on, mem):
         s = self.visit(self.ct.children(nid)[0], on)
-        return jnp.where(s == FAILURE, SUCCESS, s), 0
+        return self.xp.where(s == FAILURE, SUCCESS, s), 0
 
     def counted(self, nid, kind, on, mem):
         """Repeat counts successes, Retry failures; below n, the node restarts its (finished)
@@ -216,14 +248,14 @@ class _Walk:
         s = self.visit(self.ct.children(nid)[0], on)
         runs = mem + 1
         restart = (s == counted) & (runs < int(self.ct.count[nid]))
-        return jnp.where(restart, RUNNING, s), jnp.where(restart, runs, mem)
+        return self.xp.where(restart, RUNNING, s), self.xp.where(restart, runs, mem)
 
     def timeout(self, nid, kind, on, mem):
         """FAILURE once its child has been RUNNING for ``count`` consecutive ticks."""
         ticks = mem + 1
         s = self.visit(self.ct.children(nid)[0], on)
         fire = (s == RUNNING) & (ticks >= int(self.ct.count[nid]))
-        return jnp.where(fire, FAILURE, s), ticks
+        return self.xp.where(fire, FAILURE, s), ticks
 
 
 _VISITORS = {
@@ -243,15 +275,15 @@ _VISITORS = {
 }
 
 
-def _live(ct: CompiledTree, enabled: list, status: list) -> jax.Array:
+def _live(ct: CompiledTree, enabled: list, status: list, xp):
     """(n,) bool, the halting pass: a node keeps its memory only if it was ticked and it and all
     its ancestors returned RUNNING. Parents come before children in pre-order, so one pass
     suffices."""
     live_flags: list = [None] * ct.num_nodes
     for nid in range(ct.num_nodes):
-        parent_live = jnp.bool_(True) if ct.parent[nid] < 0 else live_flags[int(ct.parent[nid])]
+        parent_live = xp.asarray(True) if ct.parent[nid] < 0 else live_flags[int(ct.parent[nid])]
         live_flags[nid] = parent_live & enabled[nid] & (status[nid] == RUNNING)
-    return jnp.stack(live_flags)
+    return _stacked(live_flags, xp)
 
 
 def started_leaves(ct: CompiledTree, previous: BTState, active: jax.Array) -> jax.Array:
@@ -265,7 +297,7 @@ def started_leaves(ct: CompiledTree, previous: BTState, active: jax.Array) -> ja
     Args:
         previous: the state *before* this tick. active: (L,) bool, this tick's active leaves.
     """
-    return active & ~previous.live[ct.leaf_ids]
+    return active & ~previous.live[..., ct.leaf_ids]
 
 
 def tick_sequence(

@@ -18,7 +18,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import mjxskill  # noqa: F401  (XLA flags before jax runs anything)
-from mjxskill.bt_compiled import compile_tree, format_trace, init_state, started_leaves, tick, tick_sequence
+from mjxskill.bt_compiled import (compile_tree, format_trace, init_rows, init_state, started_leaves, tick, tick_rows,
+                                  tick_sequence)
 from mjxskill.ebt import nodes as N
 from mjxskill.ebt.interpreter import Interpreter, run_script
 
@@ -148,3 +149,29 @@ def test_jitted_vmapped_sequence_matches_reference_interpreter(tree, seed):
     for b in range(BATCH):
         reference = reference_trace(tree, leaf_status[b])
         assert_same_trace(ct, leaf_status[b], root[b], trace.node_status[b], active[b], trace.live[b], reference)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(tree=trees(max_nodes=25), seed=st.integers(0, 2**31 - 1))
+def test_rows_tick_matches_reference_interpreter(tree, seed):
+    """The numpy tick over a batch of machines (what a native batch's rows run) does, row by row,
+    what the reference interpreter does with that row's script; started leaves as well."""
+    ct = compile_tree(tree)
+    rng = np.random.default_rng(seed)
+    rows, ticks = 6, 15
+    leaf_status = rng.integers(0, 3, size=(rows, ticks, ct.num_leaves), dtype=np.int32)
+    is_condition = ct.kind[ct.leaf_ids] == N.Kind.CONDITION
+    leaf_status[..., is_condition] = rng.integers(1, 3, size=leaf_status[..., is_condition].shape)
+    state = init_rows(ct, rows)
+    root, node_status, active, live, started = [], [], [], [], []
+    for t in range(ticks):
+        new, r, a = tick_rows(ct, state, leaf_status[:, t])
+        started.append(started_leaves(ct, state, a))
+        state = new
+        root.append(r), node_status.append(new.node_status), active.append(a), live.append(new.live)
+    root, node_status, active, live, started = (np.stack(x, axis=1) for x in (root, node_status, active, live, started))
+    for b in range(rows):
+        reference = reference_trace(tree, leaf_status[b])
+        assert_same_trace(ct, leaf_status[b], root[b], node_status[b], active[b], live[b], reference)
+        was_live = np.concatenate([np.zeros((1, ct.num_nodes), bool), reference[3][:-1]])[:, ct.leaf_ids]
+        np.testing.assert_array_equal(started[b], reference[2] & ~was_live)
