@@ -310,8 +310,9 @@ def main(argv=None) -> dict | None:
     print(report(own))
     fast = [r for r in rows if r["engine"] in ("native", "mjx")]
     best = max(fast, key=lambda r: r["steps_per_s"])
-    print(f"the best engine at {best['steps_per_s'] / own['all_cores_steps_per_s']:.2f} of the episodes' own physics "
-          f"on all cores")
+    limit_own = own["all_cores_steps_per_s"]
+    if limit_own:
+        print(f"the best engine at {best['steps_per_s'] / limit_own:.2f} of the episodes' own physics on all cores")
     best_of = {e: max((r for r in fast if r["engine"] == e), key=lambda r: r["steps_per_s"], default=None)
                for e in ("mjx", "native")}
     result = dict(
@@ -325,7 +326,7 @@ def main(argv=None) -> dict | None:
         episode_physics_steps_per_s=episode_physics,
         episode_physics_share_of_limit=cores * episode_physics / limit if episode_physics else None,
         episode_physics_limit_steps_per_s=own["all_cores_steps_per_s"],
-        best_share_of_episode_physics_limit=best["steps_per_s"] / own["all_cores_steps_per_s"],
+        best_share_of_episode_physics_limit=best["steps_per_s"] / limit_own if limit_own else None,
         episode_physics=own,
         load_avg=[r["load_avg"] for r in rows],
         rows=rows,
