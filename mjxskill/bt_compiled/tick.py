@@ -106,13 +106,19 @@ def tick_rows(ct: CompiledTree, state: BTState, leaf_status: np.ndarray) -> tupl
     (N, L). Returns the new state ((N, n) fields), the root statuses (N,) and the active leaves
     (N, L), what ``jax.vmap(tick)`` returns for the same rows."""
     leaf_status = np.asarray(leaf_status)
+    if leaf_status.ndim != 2:
+        raise ValueError(f"leaf_status has shape {leaf_status.shape}; tick_rows needs (N, {ct.num_leaves}): a row per machine")
     _check_inputs(ct, state, leaf_status, leaf_status.shape[:1])
+    if state.live.dtype != bool:  # ``~live`` (started_leaves) would be a bitwise not
+        raise ValueError(f"state.live must be bool, got dtype {state.live.dtype}")
     return _tick(ct, state, leaf_status, np)
 
 
 def init_rows(ct: CompiledTree, n: int) -> BTState:
-    """``n`` fresh state machines for ``tick_rows``: numpy fields (n, nodes)."""
-    return BTState(*(np.repeat(np.asarray(field)[None], n, axis=0) for field in init_state(ct)))
+    """``n`` fresh state machines for ``tick_rows``: numpy fields (n, nodes), as ``init_state``'s."""
+    shape = (n, ct.num_nodes)
+    return BTState(memory=np.zeros(shape, np.int32), node_status=np.full(shape, NOT_TICKED, np.int32),
+                   live=np.zeros(shape, bool))
 
 
 def _tick(ct: CompiledTree, state: BTState, leaf_status, xp) -> tuple[BTState, Any, Any]:
@@ -295,7 +301,8 @@ def started_leaves(ct: CompiledTree, previous: BTState, active: jax.Array) -> ja
     but the second time is a fresh start).
 
     Args:
-        previous: the state *before* this tick. active: (L,) bool, this tick's active leaves.
+        previous: the state *before* this tick. active: (L,) bool, this tick's active leaves
+            (or (N, n) state and (N, L) leaves of ``tick_rows``'s machines).
     """
     return active & ~previous.live[..., ct.leaf_ids]
 

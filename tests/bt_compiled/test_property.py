@@ -14,6 +14,7 @@ import itertools
 
 import jax
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -175,3 +176,14 @@ def test_rows_tick_matches_reference_interpreter(tree, seed):
         assert_same_trace(ct, leaf_status[b], root[b], node_status[b], active[b], live[b], reference)
         was_live = np.concatenate([np.zeros((1, ct.num_nodes), bool), reference[3][:-1]])[:, ct.leaf_ids]
         np.testing.assert_array_equal(started[b], reference[2] & ~was_live)
+
+
+def test_rows_tick_refuses_what_it_cannot_run():
+    ct = compile_tree(N.Node(N.Kind.SEQUENCE, "s", (N.Node(N.Kind.ACTION, "a", primitive="a"),)))
+    state = init_rows(ct, 3)
+    with pytest.raises(ValueError, match=r"needs \(N, 1\)"):
+        tick_rows(ct, state, np.zeros(1, np.int32))
+    with pytest.raises(ValueError, match="must be bool"):
+        tick_rows(ct, state._replace(live=state.live.astype(np.int32)), np.zeros((3, 1), np.int32))
+    with pytest.raises(ValueError, match=r"this tree needs \(2, 2\)"):  # 3 machines' state, 2 rows of statuses
+        tick_rows(ct, state, np.zeros((2, 1), np.int32))
