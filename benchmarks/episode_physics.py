@@ -42,34 +42,41 @@ if str(ROOT) not in sys.path:
 USER_INPUTS = "mjSTATE_USER"  # ctrl, applied forces, mocap, eq_active, userdata: whatever an episode sets
 
 
+def full_state(model, data):
+    """(nstate,) the data's ``mjSTATE_FULLPHYSICS`` state: what an episode starts and ends in."""
+    import mujoco
+    import numpy as np
+
+    full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.empty(mujoco.mj_stateSize(model, full))
+    mujoco.mj_getState(model, data, state, full)
+    return state
+
+
 def record(engine, params, worlds) -> dict:
-    """Per episode of the batch (``params`` (B, P), ``worlds`` of leading shape (B, W)) that ran its
-    full length: its model, initial state (``mjSTATE_FULLPHYSICS``), the user inputs of each step
+    """Per episode of the batch (``params`` (B, P), ``worlds`` of leading shape (B, W)) that did
+    not diverge: its model, initial state (``mjSTATE_FULLPHYSICS``), the user inputs of each step
     and the final full physics state, stacked over those episodes; ``episodes``: the batch's count
     (with none kept, only ``models`` (empty) and ``episodes``)."""
     import jax
-    import mujoco
     import numpy as np
 
     from mjxskill.engine.native.episode import initial_data
 
-    full = mujoco.mjtState.mjSTATE_FULLPHYSICS
     models, starts, inputs, finals = [], [], [], []
     b, w = worlds.config_index.shape
     for i in range(b):
         for j in range(w):
             world = jax.tree.map(lambda x: np.asarray(x)[i, j], worlds)
             model = copy.copy(engine.mj_model)  # initial_data sets the world's friction on it
-            data = initial_data(engine, model, world)
-            start = np.empty(mujoco.mj_stateSize(model, full))
-            mujoco.mj_getState(model, data, start, full)
+            start = full_state(model, initial_data(engine, model, world))
             recorder = Recorder(model)
             if engine.run_episode(params[i], world, on_step=recorder).diverged:
                 continue
             models.append(model)
             starts.append(start)
             inputs.append(np.stack(recorder.rows))
-            finals.append(recorder.final_state())
+            finals.append(full_state(model, recorder.data))
     if not models:
         return dict(models=[], episodes=b * w)
     return dict(models=models, starts=np.stack(starts), inputs=np.stack(inputs), finals=np.stack(finals),
@@ -78,7 +85,8 @@ def record(engine, params, worlds) -> dict:
 
 class Recorder:
     """``on_step`` for ``run_episode``: each step's user inputs (still in the data after the step:
-    ``mj_step`` does not change them), and the data, for the state after the last step."""
+    ``mj_step`` does not change them), and the data, whose state after the last step is the
+    episode's end."""
 
     def __init__(self, model):
         import mujoco
@@ -95,16 +103,6 @@ class Recorder:
         mujoco.mj_getState(self.model, data, row, self.spec)
         self.rows.append(row)
         self.data = data
-
-    def final_state(self):
-        """The full physics state after the last step."""
-        import mujoco
-        import numpy as np
-
-        full = mujoco.mjtState.mjSTATE_FULLPHYSICS
-        state = np.empty(mujoco.mj_stateSize(self.model, full))
-        mujoco.mj_getState(self.model, self.data, state, full)
-        return state
 
 
 def replay(recording: dict, threads: int, runs: int = 2) -> tuple[float, int, float]:

@@ -325,7 +325,7 @@ def main(argv=None) -> dict | None:
         physics_limit_steps_per_s=limit, best_share_of_limit=best["steps_per_s"] / limit,
         episode_physics_steps_per_s=episode_physics,
         episode_physics_share_of_limit=cores * episode_physics / limit if episode_physics else None,
-        episode_physics_limit_steps_per_s=own["all_cores_steps_per_s"],
+        episode_physics_limit_steps_per_s=limit_own,
         best_share_of_episode_physics_limit=best["steps_per_s"] / limit_own if limit_own else None,
         episode_physics=own,
         load_avg=[r["load_avg"] for r in rows],

@@ -73,12 +73,13 @@ class BTState(NamedTuple):
 
 def init_state(ct: CompiledTree) -> BTState:
     """A fresh state machine: all memory 0, nothing ticked yet."""
-    n = ct.num_nodes
-    return BTState(
-        memory=jnp.zeros(n, jnp.int32),
-        node_status=jnp.full(n, NOT_TICKED, jnp.int32),
-        live=jnp.zeros(n, jnp.bool_),
-    )
+    return _fresh((ct.num_nodes,), jnp)
+
+
+def _fresh(shape: tuple, xp) -> BTState:
+    """Fresh state machines of ``shape`` (leading machines, then nodes) in namespace ``xp``."""
+    return BTState(memory=xp.zeros(shape, xp.int32), node_status=xp.full(shape, NOT_TICKED, xp.int32),
+                   live=xp.zeros(shape, bool))
 
 
 def tick(ct: CompiledTree, state: BTState, leaf_status: jax.Array) -> tuple[BTState, jax.Array, jax.Array]:
@@ -116,9 +117,7 @@ def tick_rows(ct: CompiledTree, state: BTState, leaf_status: np.ndarray) -> tupl
 
 def init_rows(ct: CompiledTree, n: int) -> BTState:
     """``n`` fresh state machines for ``tick_rows``: numpy fields (n, nodes), as ``init_state``'s."""
-    shape = (n, ct.num_nodes)
-    return BTState(memory=np.zeros(shape, np.int32), node_status=np.full(shape, NOT_TICKED, np.int32),
-                   live=np.zeros(shape, bool))
+    return _fresh((n, ct.num_nodes), np)
 
 
 def _tick(ct: CompiledTree, state: BTState, leaf_status, xp) -> tuple[BTState, Any, Any]:
