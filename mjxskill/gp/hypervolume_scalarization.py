@@ -210,6 +210,8 @@ def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.nda
     """
     lam = jnp.atleast_2d(direction)  # (k, m)
     k, m = lam.shape
+    if shift is not None:  # static
+        return _log_ei_hv_shifted(mean, variance, lam, draws, best, tau, shift)
     if draws.ndim == 2:  # (s, m) shared: every direction pairs with every draw
         draws = jnp.broadcast_to(draws[None], (k,) + draws.shape)
     s = draws.shape[1]
@@ -228,13 +230,41 @@ def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.nda
     sd = jnp.sqrt(jnp.maximum(variance, 0.0))
     t = None
     for i in range(m):  # static
-        centre = 1.0 - mean[:, i, None] if shift is None else jnp.tile(1.0 - mean[:, i, None] - shift[:, :, i], (1, k))
-        t_i = centre * inv[None, :, i] - sd[:, i, None] * slope[None, :, i]  # (b, k s)
+        t_i = (1.0 - mean[:, i, None]) * inv[None, :, i] - sd[:, i, None] * slope[None, :, i]  # (b, k s)
         t = t_i if t is None else jnp.minimum(t, t_i)
     assert t is not None  # m >= 1 objectives
-    # scalarize's extension below 0 (t^m above, t below), on the anchored Chebyshev values t.
+    return _log_ei_of_chebyshev(t, best, m, tau, axis=-1)
+
+
+def _log_ei_hv_shifted(mean, variance, lam, draws, best, tau: float, shift):
+    """``log_ei_hv_draws`` with a mean shifted per shared draw (s, m): the pairs as (k, s) axes,
+    the draws minor, so that a candidate's shifted centres (b, 1, s) broadcast over the
+    directions instead of being tiled into a (b, k s) array per objective (measured 1.7x
+    faster on the raw candidates, benchmarks/NOTES.md section 29)."""
+    k, m = lam.shape
+    if draws.ndim != 2:  # static
+        raise ValueError(f"log_ei_hv_draws: a shift needs draws (s, m) shared by the directions, got {draws.shape}")
+    s = draws.shape[0]
+    inv = 1.0 / lam  # (k, m)
+    slope = draws[None] * inv[:, None]  # (k, s, m): z_i / lambda_i
+    best = jnp.broadcast_to(best if jnp.ndim(best) == 2 else jnp.broadcast_to(best, (k,))[:, None], (k, s))
+    inv, slope, best = jax.lax.optimization_barrier((inv, slope, best))
+    sd = jnp.sqrt(jnp.maximum(variance, 0.0))
+    t = None
+    for i in range(m):  # static
+        centre = (1.0 - mean[:, i, None] - shift[:, :, i])[:, None, :]  # (b, 1, s)
+        t_i = centre * inv[None, :, i, None] - sd[:, i, None, None] * slope[None, :, :, i]  # (b, k, s)
+        t = t_i if t is None else jnp.minimum(t, t_i)
+    assert t is not None  # m >= 1 objectives
+    return _log_ei_of_chebyshev(t, best, m, tau, axis=(-2, -1))
+
+
+def _log_ei_of_chebyshev(t, best, m: int, tau: float, axis):
+    """The log-EI over the (direction, draw) pairs on ``axis`` of the anchored Chebyshev values
+    t, against the incumbent ``best`` (broadcast to t's pair axes)."""
+    # scalarize's extension below 0 (t^m above, t below).
     scalarized = jnp.where(t > 0.0, jnp.maximum(t, 0.0) ** m, t)
-    return log_mean_softplus((scalarized - best) / tau, axis=-1) + jnp.log(tau)
+    return log_mean_softplus((scalarized - best) / tau, axis=axis) + jnp.log(tau)
 
 
 def reference_point(y: np.ndarray, margin: float = 0.1) -> np.ndarray:
