@@ -33,6 +33,7 @@ from mjxskill.engine.common.worlds import world_pair_friction
 from mjxskill.engine.native.controller import NativeControllerState
 from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode
 from mjxskill.engine.native.kernels import add_forces, impedance_rows
+from mjxskill.engine.native.leaves import references_rows
 from mjxskill.sim.controller_config import N_ARM
 
 # Bound before the batch's first call: a field bound later is only filled from the next call on.
@@ -172,9 +173,7 @@ class _Stepper:
         """The control steps of one tick for ``rows`` (m,), the batch rows of ``episodes``.
         Returns which rows (m,) MuJoCo reset or stopped: their episodes diverged."""
         f, m, steps = self.fields, len(rows), self.steps
-        refs = [e.bb.references(steps, self.cfg.dt) for e in episodes]
-        ref_pos = np.stack([r[0] for r in refs], axis=1)  # (steps, m, 3)
-        ref_quat = np.stack([r[1] for r in refs], axis=1)  # (steps, m, 4)
+        ref_pos, ref_quat = references_rows([e.bb for e in episodes], steps, self.cfg.dt)  # (steps, m, 3), (steps, m, 4)
         cmd_wrench = np.stack([e.bb.wrench for e in episodes])
         cmd_stiffness = np.stack([e.bb.stiffness for e in episodes])
         nullspace_target = np.stack([e.nullspace_target for e in episodes])

@@ -17,7 +17,7 @@ from mjxskill.engine.common.leaf_inputs import LeafInput, force_inputs, leaf_inp
 from mjxskill.engine.common.rotations import quat_mul
 from mjxskill.engine.common.tool import TOOL_DOWN, TOOL_SYMMETRY, tool_yaw
 from mjxskill.engine.native.kernels import spiral_offsets
-from mjxskill.engine.native.motion import LinearMotion, plane_basis, spiral_step
+from mjxskill.engine.native.motion import LinearMotion, plane_basis, references_at, spiral_step
 from mjxskill.errors import quote
 
 
@@ -86,6 +86,26 @@ class NativeBlackboard:
             self.spiral_theta, self.spiral_radius = spiral_step(
                 self.spiral_theta, self.spiral_radius, radius_max, velocity, pitch, dt
             )
+
+
+def references_rows(bbs: list[NativeBlackboard], n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """``NativeBlackboard.references`` of many blackboards at once: positions (n, N, 3) and
+    quaternions (n, N, 4), the N blackboards advanced past them; every motion evaluated in one
+    pass over (n, N) times (``motion.references_at``), bit for bit what each blackboard's own
+    call gives (the same operations, elementwise); the spirals, on few rows, row by row."""
+    start = np.array([bb.mg_time for bb in bbs])
+    # sequential sums down each column, as a blackboard's own cumsum and += dt
+    times = np.cumsum(np.concatenate([start[None], np.full((n, len(bbs)), dt)]), axis=0)
+    pos, quat = references_at(np.stack([bb.motion.row for bb in bbs]), times[:-1])
+    for r, bb in enumerate(bbs):
+        bb.mg_time = float(times[-1, r])
+        if bb.spiral_on:
+            radius_max, velocity, pitch = bb.spiral_params
+            e1, e2 = bb.spiral_axes
+            offsets, bb.spiral_theta, bb.spiral_radius = spiral_offsets(
+                bb.spiral_theta, bb.spiral_radius, radius_max, velocity, pitch, dt, e1, e2, n)
+            pos[:, r] = pos[:, r] + offsets
+    return pos, quat
 
 
 # status(bb, tool_pos, live) -> Status; effect(bb, fresh, params) -> None (writes bb).

@@ -50,11 +50,38 @@ def trapezoid_position(t: float, distance: float, duration: float, speed: float,
 
 def trapezoid_positions(t: np.ndarray, distance: float, duration: float, speed: float, lim: AxisLimits) -> np.ndarray:
     """``trapezoid_position`` at every time of ``t`` (n,) at once."""
-    t_acc, t_dec = speed / lim.acc, speed / lim.dec
+    return _trapezoid(t, distance, duration, speed, lim.acc, lim.dec)
+
+
+def _trapezoid(t, distance, duration, speed, acc, dec):
+    """The trapezoid's distance at times t; every argument a float or an array, broadcast
+    (one motion at n times, or N motions, one per last axis, at (n, N) times)."""
+    t_acc, t_dec = speed / acc, speed / dec
     t = HOST.clip(t, 0.0, duration)
-    cruise = 0.5 * lim.acc * t_acc**2 + speed * (t - t_acc)
-    braking = distance - 0.5 * lim.dec * (duration - t) ** 2
-    return np.where(t < t_acc, 0.5 * lim.acc * t**2, np.where(t < duration - t_dec, cruise, braking))
+    cruise = 0.5 * acc * t_acc**2 + speed * (t - t_acc)
+    braking = distance - 0.5 * dec * (duration - t) ** 2
+    return np.where(t < t_acc, 0.5 * acc * t**2, np.where(t < duration - t_dec, cruise, braking))
+
+
+# The columns of ``LinearMotion.row``: what the motion's reference at a time depends on.
+_START_POS, _START_QUAT, _DELTA, _ROTVEC = slice(0, 3), slice(3, 7), slice(7, 10), slice(10, 13)
+_LENGTH, _ANGLE, _DURATION, _SPEED_POS, _SPEED_ROT, _ACC_POS, _DEC_POS, _ACC_ROT, _DEC_ROT = range(13, 22)
+
+
+def references_at(rows: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The references of N motions (their ``LinearMotion.row``, stacked (N, 22)) at times t
+    (n, N), one column per motion: positions (n, N, 3) and quaternions (n, N, 4), the values
+    ``at_times`` gives each motion (the same operations, elementwise: bit for bit)."""
+    c = rows.T
+    length, angle = c[_LENGTH], c[_ANGLE]
+    moves, turns = length > 0, angle > 0
+    along = _trapezoid(t, length, c[_DURATION], c[_SPEED_POS], c[_ACC_POS], c[_DEC_POS])
+    frac_pos = np.where(moves, along / np.where(moves, length, 1.0), 1.0)
+    turned = _trapezoid(t, angle, c[_DURATION], c[_SPEED_ROT], c[_ACC_ROT], c[_DEC_ROT])
+    frac_rot = np.where(turns, turned / np.where(turns, angle, 1.0), 1.0)
+    pos = rows[:, _START_POS] + frac_pos[..., None] * rows[:, _DELTA]
+    quat = quat_mul(rotvec_to_quat(frac_rot[..., None] * rows[:, _ROTVEC], HOST), rows[:, _START_QUAT], HOST)
+    return pos, quat
 
 
 class LinearMotion:
@@ -74,6 +101,11 @@ class LinearMotion:
         self.duration = max(min_duration(self.length, limits.translation), min_duration(self.angle, limits.rotation))
         self.speed_pos = cruise_speed(self.length, self.duration, limits.translation)
         self.speed_rot = cruise_speed(self.angle, self.duration, limits.rotation)
+        # what ``references_at`` reads, one row for many motions at once (columns: _START_POS ...)
+        self.row = np.concatenate([self.start_pos, self.start_quat, self.delta, self.rotvec,
+                                   [self.length, self.angle, self.duration, self.speed_pos, self.speed_rot,
+                                    limits.translation.acc, limits.translation.dec, limits.rotation.acc,
+                                    limits.rotation.dec]])
         # the reference at and after ``duration``, by ``at``'s scalar and ``at_times``'s array
         # arithmetic (which may differ in the last bit), once asked for
         self._end_scalar: tuple[np.ndarray, np.ndarray] | None = None

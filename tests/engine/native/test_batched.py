@@ -11,7 +11,8 @@ compiled law of ``mjxskill.engine.native.kernels``) against its references.
   seconds): every result bit for bit.
 - Results bit-identical whatever the threads of the batch, and whichever episodes share it.
 - The references of a tick at once (the spiral compiled, the ended motion cached) bit-identical
-  to the uncompiled, uncached code.
+  to the uncompiled, uncached code; and those of many blackboards in one pass (``references_rows``,
+  the engine's) bit-identical to the same code run per blackboard.
 """
 
 import math
@@ -28,7 +29,7 @@ from mjxskill.engine.common.types import EpisodeResult
 from mjxskill.engine.native import NativeRollout
 from mjxskill.engine.native.batched import kinematic_chain, run_batched, start_batch
 from mjxskill.engine.native.kernels import _mat2quat, impedance_rows
-from mjxskill.engine.native.leaves import NativeBlackboard
+from mjxskill.engine.native.leaves import NativeBlackboard, references_rows
 from mjxskill.engine.native.motion import LinearMotion, spiral_step
 from mjxskill.engine.native_reference import BatchedControllerState, batched_impedance_control, run_lockstep
 from mjxskill.sim.controller_config import N_ARM
@@ -182,3 +183,36 @@ def test_a_ticks_references_are_those_of_the_uncompiled_uncached_code(start, goa
             want_pos, want_quat = bb.motion._at(min(t, bb.motion.duration))
             np.testing.assert_array_equal(got_pos, want_pos)
             np.testing.assert_array_equal(got_quat, want_quat)
+
+
+motion_row = st.fixed_dictionaries({
+    "start": st.tuples(finite, finite, finite),
+    # a zero offset or turn: a motion that does not move or does not turn (its fraction is 1)
+    "goal_offset": st.one_of(st.just((0.0, 0.0, 0.0)), st.tuples(finite, finite, finite)),
+    "turn": st.one_of(st.just((0.0, 1.0, 0.0, 0.0)),
+                      st.tuples(unit, unit, unit, unit).filter(lambda q: sum(x * x for x in q) > 1e-3)),
+    "elapsed": st.floats(0.0, 3.0), "spiral": st.booleans(), "theta": st.floats(0.0, 60.0),
+    "radius": st.floats(0.0, 0.01),
+    "spiral_params": st.tuples(st.floats(0.0, 0.01), st.floats(1e-4, 0.05), st.floats(0.0, 0.005)),
+})
+
+
+@settings(max_examples=100, deadline=None)
+@given(rows=st.lists(motion_row, min_size=1, max_size=6))
+def test_the_references_of_many_blackboards_at_once_are_each_blackboards_own(rows):
+    q0 = np.array([0.0, 1.0, 0.0, 0.0])
+    bbs = []
+    for r in rows:
+        bb = NativeBlackboard(np.array(r["start"]) * 0.5, q0, np.full(6, 400.0), 2)
+        bb.motion = LinearMotion(bb.goal_pos, q0, bb.goal_pos + 0.1 * np.array(r["goal_offset"]),
+                                 np.array(r["turn"]) / np.linalg.norm(r["turn"]))
+        bb.mg_time, bb.spiral_on, bb.spiral_params = r["elapsed"], r["spiral"], r["spiral_params"]
+        bb.spiral_theta, bb.spiral_radius = r["theta"], r["radius"]
+        bbs.append(bb)
+    want = [references_one_by_one(bb, 50, 0.002) for bb in bbs]
+    pos, quat = references_rows(bbs, 50, 0.002)
+    assert pos.shape == (50, len(bbs), 3) and quat.shape == (50, len(bbs), 4)
+    for i, (bb, (w_pos, w_quat, theta, radius, time)) in enumerate(zip(bbs, want)):
+        np.testing.assert_array_equal(pos[:, i], w_pos)
+        np.testing.assert_array_equal(quat[:, i], w_quat)
+        assert (bb.spiral_theta, bb.spiral_radius, bb.mg_time) == (theta, radius, time)
