@@ -2,7 +2,8 @@
 written once for both engines.
 
 Each term maps an :class:`Observation` of one world at the end of a BT tick to a raw per-tick
-value; an engine sums ``weight * raw`` over the episode's ticks, and an objective is the sum of
+value (or of many worlds at once, each field with a leading (N,) axis, to (N,) values: the
+native engine's batch); an engine sums ``weight * raw`` over the episode's ticks, and an objective is the sum of
 its rewards, averaged over the worlds of a parameter set. Larger is better everywhere. A term
 also knows the worst raw value per tick, which a diverged world is charged.
 
@@ -81,7 +82,7 @@ def raw_rewards(terms: tuple[RewardTerm, ...], obs: Observation, xp):
 def _target(reward: Reward, slot_of: dict, xp):
     slot = slot_of[reward.target]
     offset = np.zeros(3) if reward.target_offset is None else np.asarray(reward.target_offset, xp.float_dtype)
-    return lambda obs: obs.slot_pos[slot] + offset
+    return lambda obs: obs.slot_pos[..., slot, :] + offset
 
 
 def _raw_term(reward: Reward, slot_of: dict, xp):
@@ -96,10 +97,10 @@ def _raw_term(reward: Reward, slot_of: dict, xp):
         w, d_o = reward.constant("w"), reward.constant("d_o")
         target = _target(reward, slot_of, xp)
         largest = 1.0 / (w * d_o) if d_o > 0 else math.inf
-        return (lambda obs: 1.0 / (w * (xp.linalg.norm(obs.tool_pos - target(obs)) + d_o))), 0.0, largest
+        return (lambda obs: 1.0 / (w * (xp.linalg.norm(obs.tool_pos - target(obs), axis=-1) + d_o))), 0.0, largest
     if kind == "applied_wrench":
         cap = reward.constant("cap")
-        return (lambda obs: xp.minimum(xp.sum(xp.abs(obs.wrench[:3])), cap)), 0.0, cap
+        return (lambda obs: xp.minimum(xp.sum(xp.abs(obs.wrench[..., :3]), axis=-1), cap)), 0.0, cap
     if kind == "contact_force":
         cap = reward.constant("cap")
         return (lambda obs: xp.minimum(obs.contact_force, cap)), 0.0, cap
@@ -107,16 +108,16 @@ def _raw_term(reward: Reward, slot_of: dict, xp):
     best = math.exp(-d_o / (2.0 * sigma_w**2))
     if kind == "exp_ee_to_goal":
         target = _target(reward, slot_of, xp)
-        return (lambda obs: exp_reward(xp.linalg.norm(obs.tool_pos - target(obs)), sigma_w, d_o, xp)), 0.0, best
+        return (lambda obs: exp_reward(xp.linalg.norm(obs.tool_pos - target(obs), axis=-1), sigma_w, d_o, xp)), 0.0, best
     if kind == "exp_ee_to_reference":
-        return (lambda obs: exp_reward(xp.linalg.norm(obs.tool_pos - obs.ref_pos), sigma_w, d_o, xp)), 0.0, best
+        return (lambda obs: exp_reward(xp.linalg.norm(obs.tool_pos - obs.ref_pos, axis=-1), sigma_w, d_o, xp)), 0.0, best
     if kind == "object_pose_divergence":
         w_pos, w_rot = reward.constant("position_weight"), reward.constant("orientation_weight")
         obj, tgt = slot_of[reward.object], slot_of[reward.target]
 
         def divergence(obs):
-            d_pos = xp.linalg.norm(obs.slot_pos[obj] - obs.slot_pos[tgt])
-            d_rot = quat_angle(obs.slot_quat[obj], obs.slot_quat[tgt], xp)
+            d_pos = xp.linalg.norm(obs.slot_pos[..., obj, :] - obs.slot_pos[..., tgt, :], axis=-1)
+            d_rot = quat_angle(obs.slot_quat[..., obj, :], obs.slot_quat[..., tgt, :], xp)
             return w_pos * exp_reward(d_pos, sigma_w, d_o, xp) + w_rot * exp_reward(d_rot, sigma_w, d_o, xp)
 
         return divergence, 0.0, (w_pos + w_rot) * best

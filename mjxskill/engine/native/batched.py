@@ -25,14 +25,16 @@ import mujoco
 import numpy as np
 from mujoco.batch import Batch, SimulationError
 
+from mjxskill.ebt.nodes import Status
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import FREE, MOCAP
 from mjxskill.engine.common.health import free_object_z_addresses, healthy_state
+from mjxskill.engine.common.rewards import Observation
 from mjxskill.engine.common.types import EpisodeResult
 from mjxskill.engine.common.worlds import world_pair_friction
 from mjxskill.engine.native.controller import NativeControllerState
-from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode
-from mjxskill.engine.native.kernels import add_forces, impedance_rows
+from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode, TickEnd
+from mjxskill.engine.native.kernels import add_forces, impedance_rows, site_quats
 from mjxskill.engine.native.leaves import references_rows
 from mjxskill.sim.controller_config import N_ARM
 
@@ -122,18 +124,47 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
         for i in alive:
             episodes[i].begin_tick(None if bad[i] else _RowSnapshot(frame, i))
         rows: list[int] | np.ndarray = [i for i in alive if not bad[i]]
+        ends: dict[int, TickEnd] = {}
         if rows:
             rows = np.array(rows, dtype=np.int64)
             reset = stepper.tick([episodes[i] for i in rows], rows)
             # NativeEpisode.healthy for these rows at once: MuJoCo did not reset them, and the test.
             healthy[rows] = ~reset & healthy_state(HOST, fields["qpos"][rows], fields["qvel"][rows], z_adr)
+            ends = tick_ends(engine, [episodes[i] for i in rows], rows, fields, worlds)
         for i in alive:
             if bad[i]:
                 episodes[i].plain_steps()
-            episodes[i].end_tick(t, None if bad[i] else bool(healthy[i]))
+            episodes[i].end_tick(t, None if bad[i] else bool(healthy[i]), ends.get(i))
     if timing is not None:
         timing["physics_s"] = timing.get("physics_s", 0.0) + stepper.physics_s
     return [e.result() for e in episodes]
+
+
+def tick_ends(engine, episodes: list[NativeEpisode], rows: np.ndarray, fields: dict, worlds) -> dict[int, TickEnd]:
+    """The tool pose and raw rewards at a tick's end of ``episodes``, the batch rows ``rows``
+    (m,), for all at once: {row: TickEnd}. The rewards' terms run on (m, ...) observations
+    (``rewards.Observation``'s fields with a leading row axis), what each episode's
+    ``observation`` holds row by row. Their values equal the episode's own to rounding: numpy's
+    exp over rows may differ from ``math.exp`` on one value in the last bit, a quaternion's
+    inner product over rows sums where one vector's is a dot product (tests/engine/native/
+    test_batched.py finds whole episodes bit for bit equal on push and the peg)."""
+    spec = engine.setup
+    site, b = spec.ctrl.site_id, spec.bindings
+    tool_pos = fields["site_xpos"][rows, site]
+    tool_quat = np.empty((len(rows), 4))
+    site_quats(rows, site, fields["site_xmat"], tool_quat)
+    slot_pos = np.array(worlds.object_pos[rows], float)  # (m, K, 3): the fixed objects' poses
+    slot_quat = np.array(worlds.object_quat[rows], float)
+    for k, slot in enumerate(b.slots):
+        if slot.how == FREE:
+            slot_pos[:, k], slot_quat[:, k] = fields["xpos"][rows, slot.body_id], fields["xquat"][rows, slot.body_id]
+    obs = Observation(tool_pos, tool_quat, np.stack([e.bb.reference()[0] for e in episodes]), slot_pos, slot_quat,
+                      np.stack([e.cstate.wrench for e in episodes]),
+                      np.array([e.root == Status.SUCCESS for e in episodes]),
+                      np.array([e.tick_force[0] for e in episodes]) / spec.steps_per_tick)
+    with np.errstate(all="ignore"):  # a row that diverged this tick: its values are not used
+        raw = np.stack([term.raw(obs) for term in engine.terms], axis=-1) if engine.terms else np.zeros((len(rows), 0))
+    return {int(i): TickEnd(tool_pos[r], tool_quat[r], raw[r]) for r, i in enumerate(rows)}
 
 
 def _world(worlds, i: int):

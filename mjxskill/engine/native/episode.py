@@ -12,7 +12,7 @@ divergence check and the tick's rewards.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from typing import Any, Callable, NamedTuple
 
 import mujoco
 import numpy as np
@@ -29,6 +29,15 @@ from mjxskill.engine.common.worlds import world_pair_friction
 from mjxskill.engine.common.health import free_object_z_addresses, healthy_state
 from mjxskill.engine.common.types import EpisodeResult, TickRecord
 from mjxskill.sim.controller_config import N_ARM
+
+
+class TickEnd(NamedTuple):
+    """An episode's tool pose, position (3,) and quaternion (4,), and raw rewards (R,) at a
+    tick's end, computed by a caller for many episodes at once."""
+
+    tool_pos: np.ndarray
+    tool_quat: np.ndarray
+    raw: np.ndarray
 
 
 _RESET_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
@@ -195,11 +204,13 @@ class NativeEpisode:
         self.cstate = cstate
         self.tick_force = (force_sum, force_peak)
 
-    def end_tick(self, t: int, healthy: bool | None = None) -> bool:
+    def end_tick(self, t: int, healthy: bool | None = None, tick: TickEnd | None = None) -> bool:
         """Divergence check and the tick's rewards; False when the episode has ended (diverged:
         frozen at the last good state, charged the worst rewards in ``result``). ``healthy``:
         what ``healthy()`` says now, found by the caller (a batch checks all its rows at once),
-        or None to check here."""
+        or None to check here; ``tick``: the tool pose and raw rewards now, computed by the caller
+        for all its rows at once (``batched.tick_ends``; not while recording), or None to compute
+        them here."""
         if not (self.healthy() if healthy is None else healthy):
             # The compiled rollout keeps ticking a frozen world, which changes nothing.
             snapshot, self.cstate, self.bb = self._before  # type: ignore[misc]  # begin_tick set it
@@ -210,13 +221,17 @@ class NativeEpisode:
         if root != Status.RUNNING and not self.done:
             self.done, self.done_tick = True, t
         self.status = root
-        tool_pos, tool_quat = self._tool = self.tool_pose()
-        slot_pos, slot_quat = self.slot_poses()
         force_sum, force_peak = self.tick_force
         self.force_sum, self.force_peak = self.force_sum + force_sum, max(self.force_peak, force_peak)
-        obs = Observation(tool_pos, tool_quat, self.bb.reference()[0], slot_pos, slot_quat,
-                                self.cstate.wrench, root == Status.SUCCESS, force_sum / self.engine.setup.steps_per_tick)
-        raw = [term.raw(obs) for term in self.engine.terms]
+        if tick is None:
+            tool_pos, tool_quat = self.tool_pose()
+            obs = self.observation(tool_pos, tool_quat)
+            raw = [term.raw(obs) for term in self.engine.terms]
+        else:
+            if self.record:
+                raise ValueError("end_tick: a recorded episode computes its own tick end")
+            tool_pos, tool_quat, raw = tick
+        self._tool = (tool_pos, tool_quat)
         self.totals += raw
         if self.record:
             self.records.append(TickRecord(self.data.qpos.copy(), self.data.mocap_pos.copy(), self.data.mocap_quat.copy(),
@@ -224,6 +239,12 @@ class NativeEpisode:
                                            np.array(self.active), np.array(raw)))
         self.peak_commanded_force = max(self.peak_commanded_force, float(HOST.linalg.norm(self.cstate.wrench[:3])))
         return True
+
+    def observation(self, tool_pos, tool_quat) -> Observation:
+        """What the rewards see at the end of this tick, given the tool pose now."""
+        slot_pos, slot_quat = self.slot_poses()
+        return Observation(tool_pos, tool_quat, self.bb.reference()[0], slot_pos, slot_quat, self.cstate.wrench,
+                           self.root == Status.SUCCESS, self.tick_force[0] / self.engine.setup.steps_per_tick)
 
     # -- the end ----------------------------------------------------------------------------
     def result(self) -> EpisodeResult:

@@ -200,6 +200,14 @@ def impedance_rows(rows, chain, site, root, cdof, subtree_com, site_xpos, site_x
 
 
 @_compiled
+def site_quats(rows, site, site_xmat, quats):
+    """The orientation of ``site`` in each row of ``rows`` as ``mju_mat2Quat`` gives it, into
+    quats (m, 4) (a tick's end reads the tool's pose of every row at once)."""
+    for r in range(rows.shape[0]):
+        _mat2quat(site_xmat[rows[r], site], quats[r])
+
+
+@_compiled
 def add_forces(rows, sensordata, sensors, force_sum, force_peak):
     """This step's contact force per row of ``rows``: the sum of the tool's touch ``sensors``,
     added to force_sum and folded into force_peak (m,), in place."""
