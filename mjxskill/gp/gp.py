@@ -176,9 +176,11 @@ def fit_loss(p: GPParams, x, y, mask, prior: str = "gamma", obs_noise=None) -> j
 
 
 def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "gamma",
-        obs_noise=None) -> GPParams:
+        obs_noise=None, gradient_tolerance: float = 0.0) -> GPParams:
     """MAP hyperparameters by ``n_steps`` L-BFGS steps from ``n_starts`` starts:
-    :func:`default_params` and ``n_starts - 1`` random lengthscales.
+    :func:`default_params` and ``n_starts - 1`` random lengthscales. With
+    ``gradient_tolerance`` > 0 a start stops earlier, once the loss's gradient (2-norm over the
+    raw parameters) falls below it.
 
     Args:
       x: (n, d) float64 unit-cube inputs; y: (n,) float64 standardized targets;
@@ -222,7 +224,18 @@ def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "
             p_new = jax.tree.map(lambda a, b: jnp.where(ok, a, b), p_new, p)
             return (p_new, s_new), None
 
-        (p, _), _ = jax.lax.scan(step, (p0, opt.init(p0)), None, length=n_steps)
+        if gradient_tolerance > 0.0:  # static
+            # The state's gradient is that of the last point L-BFGS's line search evaluated, the
+            # current one; a NaN step zeroes it, which stops the start there too.
+            def going(carry):
+                _, s = carry
+                count = optax.tree_utils.tree_get(s, "count")
+                return (count == 0) | ((count < n_steps) & (optax.tree_utils.tree_norm(
+                    optax.tree_utils.tree_get(s, "grad")) >= gradient_tolerance))
+
+            p, _ = jax.lax.while_loop(going, lambda carry: step(carry, None)[0], (p0, opt.init(p0)))
+        else:
+            (p, _), _ = jax.lax.scan(step, (p0, opt.init(p0)), None, length=n_steps)
         return p, loss(p)
 
     # lax.map, not vmap: under vmap the line search's lax.cond becomes a select that runs every

@@ -239,6 +239,7 @@ def propose_batch(x, y_norm, mask, key, ref=None, prior: UnitPrior | None = None
 
     def fit(y, noise=None):
         return gpm.fit(x[rows], y[rows], mask[rows], k_fit, n_starts=settings.fit_starts, n_steps=settings.fit_steps,
+                       gradient_tolerance=settings.fit_gradient_tolerance,
                        prior=settings.prior, obs_noise=None if noise is None else noise[rows])
 
     acq_keys = jax.random.split(k_acq, q)

@@ -76,6 +76,8 @@ class AcquisitionSettings:
     # The GP's hyperparameter prior: the dimension-scaled LogNormal lengthscale prior, not BoTorch's former Gamma priors.
     prior: str = "lognormal"
     fit_steps: int = 50  # L-BFGS steps per start
+    # A start stops before fit_steps once its gradient's norm is below this (0: never): the fits dominate the ask.
+    fit_gradient_tolerance: float = 0.0
     # One fit per batch element up to this many padded rows, one shared fit above: q fits of O(n^3) dominate the ask.
     per_element_fit_max_rows: int = 128
     # Hyperparameters fit on a random subset of at most this many rows (the posterior conditions on all):
@@ -165,7 +167,8 @@ def acquisition_defaults(generation: int = GENERATION, reference_given: bool = F
 NAMES = tuple(f.name for f in dataclasses.fields(AcquisitionSettings))
 # Each field's type as its name ("int", "float", "str"): this module's annotations are postponed (strings)
 _KINDS = {f.name: cast(str, f.type) for f in dataclasses.fields(AcquisitionSettings)}
-_NONNEGATIVE = ("alpha", "ref_margin", "pibo_beta", "prior_share", "single_direction_share", "raw_bounds_share")
+_NONNEGATIVE = ("alpha", "ref_margin", "pibo_beta", "prior_share", "single_direction_share", "raw_bounds_share",
+                "fit_gradient_tolerance")
 _AT_MOST_ONE = ("prior_share", "single_direction_share", "raw_bounds_share")
 _POSITIVE = ("tau", "learning_rate", "final_learning_rate")
 # The largest value of each numeric setting: what a setting sizes (candidates, directions, draws,
@@ -175,7 +178,7 @@ _POSITIVE = ("tau", "learning_rate", "final_learning_rate")
 MAXIMUM = {"n_raw": 1 << 16, "n_restarts": 1024, "n_opt_steps": 100_000, "n_directions": 1 << 16, "n_draws": 4096,
            "exact_max_points": 256, "bucket": 4096, "fit_starts": 64, "fit_steps": 10_000,
            "per_element_fit_max_rows": 100_000, "fit_max_rows": 100_000,
-           "alpha": 1e3, "ref_margin": 1e3, "tau": 1e6, "learning_rate": 10.0, "final_learning_rate": 10.0,
+           "fit_gradient_tolerance": 1.0, "alpha": 1e3, "ref_margin": 1e3, "tau": 1e6, "learning_rate": 10.0, "final_learning_rate": 10.0,
            "pibo_beta": 1e6}
 
 

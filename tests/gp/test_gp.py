@@ -82,6 +82,27 @@ def test_fit_recovers_lengthscale_of_data_drawn_from_the_prior():
     assert got[0] < got[1]
 
 
+@pytest.mark.parametrize("prior", ["lognormal", "dim_scaled"])
+def test_a_fit_stopped_at_a_small_gradient_ends_where_every_step_ends_and_a_large_tolerance_stops_early(data, prior):
+    # The reference: every start run for 200 steps, far past convergence. A start stopped once its
+    # gradient is below 1e-6 reaches the same loss; one stopped at a tolerance of 1 (the largest
+    # allowed) stops after its first step, well short of it, so the tolerance decides the steps.
+    x, y = data
+    mask = np.ones(len(y), bool)
+    with jax.enable_x64(True):
+        def fitted_loss(**kw):
+            p = jax.jit(lambda k: gpm.fit(x, y, mask, k, n_starts=2, prior=prior, **kw))(jax.random.PRNGKey(1))
+            if prior == "dim_scaled":
+                p = p._replace(raw_outputscale=gpm.default_params(x.shape[1]).raw_outputscale)
+            return float(gpm.fit_loss(p, jnp.asarray(x), jnp.asarray(y), jnp.asarray(mask), prior))
+
+        full = fitted_loss(n_steps=200)
+        stopped = fitted_loss(n_steps=200, gradient_tolerance=1e-6)
+        early = fitted_loss(n_steps=200, gradient_tolerance=1.0)
+    assert abs(stopped - full) < 1e-9
+    assert early > full + 1e-3
+
+
 def test_the_dim_scaled_prior_is_botorchs_and_its_fit_holds_the_outputscale_at_one(data):
     """prior="dim_scaled": the log-prior is scipy's LogNormal densities of the lengthscales
     (Hvarfner et al.'s loc sqrt(2) + log(d) / 2, scale sqrt(3)) and of the noise variance
