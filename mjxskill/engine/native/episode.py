@@ -226,7 +226,7 @@ class NativeEpisode:
         if tick is None:
             tool_pos, tool_quat = self.tool_pose()
             obs = self.observation(tool_pos, tool_quat)
-            raw = [term.raw(obs) for term in self.engine.terms]
+            raw: list | np.ndarray = [term.raw(obs) for term in self.engine.terms]
         else:
             if self.record:
                 raise ValueError("end_tick: a recorded episode computes its own tick end")
