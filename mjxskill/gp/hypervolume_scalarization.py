@@ -223,7 +223,7 @@ def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.nda
     # directions, a posterior draw each", "A faster estimate").
     inv = jnp.broadcast_to((1.0 / lam)[:, None], (k, s, m)).reshape(k * s, m)
     slope = draws.reshape(k * s, m) * inv  # z_i / lambda_i
-    best = jnp.broadcast_to(best if jnp.ndim(best) == 2 else jnp.broadcast_to(best, (k,))[:, None], (k, s)).reshape(k * s)
+    best = _pair_incumbents(best, k, s).reshape(k * s)
     # Materialized before the (b, k s) loop: fused into it, their broadcasts would cost index
     # arithmetic per element of it.
     inv, slope, best = jax.lax.optimization_barrier((inv, slope, best))
@@ -239,15 +239,15 @@ def log_ei_hv_draws(mean: jnp.ndarray, variance: jnp.ndarray, direction: jnp.nda
 def _log_ei_hv_shifted(mean, variance, lam, draws, best, tau: float, shift):
     """``log_ei_hv_draws`` with a mean shifted per shared draw (s, m): the pairs as (k, s) axes,
     the draws minor, so that a candidate's shifted centres (b, 1, s) broadcast over the
-    directions instead of being tiled into a (b, k s) array per objective (measured 1.7x
-    faster on the raw candidates, benchmarks/NOTES.md section 29)."""
+    directions instead of being tiled into a (b, k s) array per objective (the draws' ask 6 %
+    cheaper, benchmarks/NOTES.md section 29)."""
     k, m = lam.shape
     if draws.ndim != 2:  # static
         raise ValueError(f"log_ei_hv_draws: a shift needs draws (s, m) shared by the directions, got {draws.shape}")
     s = draws.shape[0]
     inv = 1.0 / lam  # (k, m)
     slope = draws[None] * inv[:, None]  # (k, s, m): z_i / lambda_i
-    best = jnp.broadcast_to(best if jnp.ndim(best) == 2 else jnp.broadcast_to(best, (k,))[:, None], (k, s))
+    best = _pair_incumbents(best, k, s)
     inv, slope, best = jax.lax.optimization_barrier((inv, slope, best))
     sd = jnp.sqrt(jnp.maximum(variance, 0.0))
     t = None
@@ -257,6 +257,12 @@ def _log_ei_hv_shifted(mean, variance, lam, draws, best, tau: float, shift):
         t = t_i if t is None else jnp.minimum(t, t_i)
     assert t is not None  # m >= 1 objectives
     return _log_ei_of_chebyshev(t, best, m, tau, axis=(-2, -1))
+
+
+def _pair_incumbents(best, k: int, s: int) -> jnp.ndarray:
+    """(k, s): the incumbent of each (direction, draw) pair, from ``best`` given once, per
+    direction (k,) or per pair (k, s)."""
+    return jnp.broadcast_to(best if jnp.ndim(best) == 2 else jnp.broadcast_to(best, (k,))[:, None], (k, s))
 
 
 def _log_ei_of_chebyshev(t, best, m: int, tau: float, axis):

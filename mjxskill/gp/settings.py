@@ -76,7 +76,7 @@ class AcquisitionSettings:
     # The GP's hyperparameter prior: the dimension-scaled LogNormal lengthscale prior, not BoTorch's former Gamma priors.
     prior: str = "lognormal"
     fit_steps: int = 50  # L-BFGS steps per start
-    # A start stops before fit_steps once its gradient's norm is below this (0: never): the fits dominate the ask.
+    # A start stops before fit_steps once its gradient's norm is below this (0: never): the fits are the ask's largest part.
     fit_gradient_tolerance: float = 0.0
     # One fit per batch element up to this many padded rows, one shared fit above: q fits of O(n^3) dominate the ask.
     per_element_fit_max_rows: int = 128

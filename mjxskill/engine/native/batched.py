@@ -33,7 +33,7 @@ from mjxskill.engine.common.rewards import Observation
 from mjxskill.engine.common.types import EpisodeResult
 from mjxskill.engine.common.worlds import world_pair_friction
 from mjxskill.engine.native.controller import NativeControllerState
-from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode, TickEnd
+from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode, TickEnd, slot_poses
 from mjxskill.engine.native.kernels import add_forces, impedance_rows, site_quats
 from mjxskill.engine.native.leaves import references_rows
 from mjxskill.sim.controller_config import N_ARM
@@ -149,15 +149,12 @@ def tick_ends(engine, episodes: list[NativeEpisode], rows: np.ndarray, fields: d
     inner product over rows sums where one vector's is a dot product (tests/engine/native/
     test_batched.py finds whole episodes bit for bit equal on push and the peg)."""
     spec = engine.setup
-    site, b = spec.ctrl.site_id, spec.bindings
+    site = spec.ctrl.site_id
     tool_pos = fields["site_xpos"][rows, site]
     tool_quat = np.empty((len(rows), 4))
     site_quats(rows, site, fields["site_xmat"], tool_quat)
-    slot_pos = np.array(worlds.object_pos[rows], float)  # (m, K, 3): the fixed objects' poses
-    slot_quat = np.array(worlds.object_quat[rows], float)
-    for k, slot in enumerate(b.slots):
-        if slot.how == FREE:
-            slot_pos[:, k], slot_quat[:, k] = fields["xpos"][rows, slot.body_id], fields["xquat"][rows, slot.body_id]
+    slot_pos, slot_quat = slot_poses(spec.bindings, worlds.object_pos[rows], worlds.object_quat[rows],
+                                     fields["xpos"][rows], fields["xquat"][rows])
     obs = Observation(tool_pos, tool_quat, np.stack([e.bb.reference()[0] for e in episodes]), slot_pos, slot_quat,
                       np.stack([e.cstate.wrench for e in episodes]),
                       np.array([e.root == Status.SUCCESS for e in episodes]),

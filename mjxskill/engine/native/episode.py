@@ -69,6 +69,17 @@ def data_was_reset(data) -> bool:
     return data.was_reset
 
 
+def slot_poses(bindings, object_pos, object_quat, xpos, xquat) -> tuple[np.ndarray, np.ndarray]:
+    """The bound objects' poses now, (..., K, 3) and (..., K, 4): the world's object_pos and
+    object_quat (..., K, ...), a free object's taken from the simulation's xpos and xquat
+    (..., nbody, ...): one episode's, or a batch's rows with a leading axis on every argument."""
+    pos, quat = np.array(object_pos, float), np.array(object_quat, float)
+    for k, slot in enumerate(bindings.slots):
+        if slot.how == FREE:
+            pos[..., k, :], quat[..., k, :] = xpos[..., slot.body_id, :], xquat[..., slot.body_id, :]
+    return pos, quat
+
+
 # What is read of an episode's data after it has ended: its state and the kinematics ``mj_step`` left.
 SNAPSHOT_FIELDS = ("qpos", "qvel", "xpos", "xquat", "site_xpos", "site_xmat")
 
@@ -135,12 +146,8 @@ class NativeEpisode:
         return self.data.site_xpos[site].copy(), quat
 
     def slot_poses(self) -> tuple[np.ndarray, np.ndarray]:
-        pos = np.array(self.world.object_pos, float)
-        quat = np.array(self.world.object_quat, float)
-        for k, slot in enumerate(self.engine.setup.bindings.slots):
-            if slot.how == FREE:
-                pos[k], quat[k] = self.data.xpos[slot.body_id], self.data.xquat[slot.body_id]
-        return pos, quat
+        return slot_poses(self.engine.setup.bindings, self.world.object_pos, self.world.object_quat, self.data.xpos,
+                          self.data.xquat)
 
     def healthy(self) -> bool:
         data = self.data
