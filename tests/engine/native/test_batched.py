@@ -155,21 +155,33 @@ def references_one_by_one(bb, n, dt):
     return pos, quat, theta, radius, float(times[-1])
 
 
-@settings(max_examples=200, deadline=None)
-@given(
+START_QUAT = (0.0, 1.0, 0.0, 0.0)
+# A blackboard's motion, time and spiral (``blackboard``'s arguments).
+BLACKBOARD = dict(
     start=st.tuples(finite, finite, finite), goal_offset=st.tuples(finite, finite, finite),
     turn=st.tuples(unit, unit, unit, unit).filter(lambda q: sum(x * x for x in q) > 1e-3),
     elapsed=st.floats(0.0, 3.0), spiral=st.booleans(), theta=st.floats(0.0, 60.0), radius=st.floats(0.0, 0.01),
     spiral_params=st.tuples(st.floats(0.0, 0.01), st.floats(1e-4, 0.05), st.floats(0.0, 0.005)),
 )
-def test_a_ticks_references_are_those_of_the_uncompiled_uncached_code(start, goal_offset, turn, elapsed, spiral,
-                                                                        theta, radius, spiral_params):
-    q1 = np.array(turn) / np.linalg.norm(turn)
-    q0 = np.array([0.0, 1.0, 0.0, 0.0])
+
+
+def blackboard(start, goal_offset, turn, elapsed, spiral, theta, radius, spiral_params):
+    """A blackboard ``elapsed`` s into a motion from ``start`` (scaled by 0.5) by ``goal_offset``
+    (scaled by 0.1), turning from START_QUAT to ``turn`` (normalized), with its spiral as given."""
+    q0 = np.array(START_QUAT)
     bb = NativeBlackboard(np.array(start) * 0.5, q0, np.full(6, 400.0), 2)
-    bb.motion = LinearMotion(bb.goal_pos, q0, bb.goal_pos + 0.1 * np.array(goal_offset), q1)
+    bb.motion = LinearMotion(bb.goal_pos, q0, bb.goal_pos + 0.1 * np.array(goal_offset),
+                             np.array(turn) / np.linalg.norm(turn))
     bb.mg_time, bb.spiral_on, bb.spiral_params = elapsed, spiral, spiral_params
     bb.spiral_theta, bb.spiral_radius = theta, radius
+    return bb
+
+
+@settings(max_examples=200, deadline=None)
+@given(**BLACKBOARD)
+def test_a_ticks_references_are_those_of_the_uncompiled_uncached_code(start, goal_offset, turn, elapsed, spiral,
+                                                                        theta, radius, spiral_params):
+    bb = blackboard(start, goal_offset, turn, elapsed, spiral, theta, radius, spiral_params)
     pos, quat, theta, radius, time = references_one_by_one(bb, 50, 0.002)
     for _ in range(2):  # the second call reads the ended motion from its cache
         got_pos, got_quat = bb.copy().references(50, 0.002)
@@ -185,30 +197,16 @@ def test_a_ticks_references_are_those_of_the_uncompiled_uncached_code(start, goa
             np.testing.assert_array_equal(got_quat, want_quat)
 
 
-motion_row = st.fixed_dictionaries({
-    "start": st.tuples(finite, finite, finite),
-    # a zero offset or turn: a motion that does not move or does not turn (its fraction is 1)
-    "goal_offset": st.one_of(st.just((0.0, 0.0, 0.0)), st.tuples(finite, finite, finite)),
-    "turn": st.one_of(st.just((0.0, 1.0, 0.0, 0.0)),
-                      st.tuples(unit, unit, unit, unit).filter(lambda q: sum(x * x for x in q) > 1e-3)),
-    "elapsed": st.floats(0.0, 3.0), "spiral": st.booleans(), "theta": st.floats(0.0, 60.0),
-    "radius": st.floats(0.0, 0.01),
-    "spiral_params": st.tuples(st.floats(0.0, 0.01), st.floats(1e-4, 0.05), st.floats(0.0, 0.005)),
-})
+# a zero offset or turn too: a motion that does not move or does not turn (its fraction is 1)
+motion_row = st.fixed_dictionaries({**BLACKBOARD,
+                                    "goal_offset": st.one_of(st.just((0.0, 0.0, 0.0)), BLACKBOARD["goal_offset"]),
+                                    "turn": st.one_of(st.just(START_QUAT), BLACKBOARD["turn"])})
 
 
 @settings(max_examples=100, deadline=None)
 @given(rows=st.lists(motion_row, min_size=1, max_size=6))
 def test_the_references_of_many_blackboards_at_once_are_each_blackboards_own(rows):
-    q0 = np.array([0.0, 1.0, 0.0, 0.0])
-    bbs = []
-    for r in rows:
-        bb = NativeBlackboard(np.array(r["start"]) * 0.5, q0, np.full(6, 400.0), 2)
-        bb.motion = LinearMotion(bb.goal_pos, q0, bb.goal_pos + 0.1 * np.array(r["goal_offset"]),
-                                 np.array(r["turn"]) / np.linalg.norm(r["turn"]))
-        bb.mg_time, bb.spiral_on, bb.spiral_params = r["elapsed"], r["spiral"], r["spiral_params"]
-        bb.spiral_theta, bb.spiral_radius = r["theta"], r["radius"]
-        bbs.append(bb)
+    bbs = [blackboard(**r) for r in rows]
     want = [references_one_by_one(bb, 50, 0.002) for bb in bbs]
     pos, quat = references_rows(bbs, 50, 0.002)
     assert pos.shape == (50, len(bbs), 3) and quat.shape == (50, len(bbs), 4)
