@@ -110,16 +110,19 @@ def log_prior(p: GPParams, prior: str = "gamma") -> jnp.ndarray:
     of Hvarfner et al. (2024), BoTorch's default since 0.12, whose heavy right tail lets a
     smooth objective keep long lengthscales as d grows; "dim_scaled", all of BoTorch's
     default since 0.12: that lengthscale prior, no outputscale (:func:`fit` holds it at 1, the
-    standardized targets' variance) and the noise variance's LogNormal(-4, 1).
+    standardized targets' variance) and the noise variance's LogNormal(-4, 1); "small_noise",
+    "lognormal" with that noise prior instead of the Gamma(1.1, 0.05), the outputscale fitted.
     """
     ls = lengthscales(p)
-    if prior in ("lognormal", "dim_scaled"):  # static
+    if prior in ("lognormal", "dim_scaled", "small_noise"):  # static
         d = ls.shape[0]
         ls_term = jnp.sum(_lognormal_logpdf(ls, math.sqrt(2.0) + 0.5 * math.log(d), math.sqrt(3.0)))
     else:
         ls_term = jnp.sum(_gamma_logpdf(ls, 3.0, 6.0))
     if prior == "dim_scaled":  # static: the outputscale is held at 1 (fit), the noise BoTorch's LogNormal(-4, 1)
         return ls_term + _lognormal_logpdf(noise(p), -4.0, 1.0)
+    if prior == "small_noise":  # static
+        return ls_term + _gamma_logpdf(outputscale(p), 2.0, 0.15) + _lognormal_logpdf(noise(p), -4.0, 1.0)
     return ls_term + _gamma_logpdf(outputscale(p), 2.0, 0.15) + _gamma_logpdf(noise(p), 1.1, 0.05)
 
 

@@ -25,7 +25,7 @@ CHOICES = {
     "single_direction_reference": ("global", "front"),
     "reference": ("warmup", "front"),
     "beyond_reference": ("log", "linear"),
-    "prior": ("gamma", "lognormal", "dim_scaled"),
+    "prior": ("gamma", "lognormal", "dim_scaled", "small_noise"),
     "pending": ("variance", "values", "draws"),
     "incumbent": ("observed", "posterior_mean"),
     "variance": ("latent", "deflated"),

@@ -126,6 +126,21 @@ def test_the_dim_scaled_prior_is_botorchs_and_its_fit_holds_the_outputscale_at_o
             assert loss(p) <= loss(moved) + 1e-9
 
 
+def test_the_small_noise_prior_is_the_lognormal_prior_with_botorchs_noise_prior():
+    """prior="small_noise": scipy's LogNormal densities of the lengthscales (as "lognormal")
+    and of the noise variance (loc -4, scale 1, BoTorch's since 0.12), and the Gamma(2, 0.15)
+    of the outputscale, which it fits."""
+    from scipy.stats import gamma, lognorm
+
+    ls, nv = np.array([0.2, 0.7, 1.5]), 0.03
+    lengthscales = lognorm.logpdf(ls, np.sqrt(3.0), scale=np.exp(np.sqrt(2.0) + 0.5 * np.log(3))).sum()
+    with jax.enable_x64(True):
+        for os_ in (0.5, 5.0):
+            got = float(gpm.log_prior(gpm.params_from_values(ls, os_, nv), "small_noise"))
+            want = lengthscales + gamma.logpdf(os_, 2.0, scale=1 / 0.15) + lognorm.logpdf(nv, 1.0, scale=np.exp(-4.0))
+            np.testing.assert_allclose(got, want, rtol=1e-10)
+
+
 def test_importing_and_using_the_gp_leaves_float32_default():
     from mjxskill.gp import optimizer  # noqa: F401
 
