@@ -7,7 +7,8 @@ inherited from a parent that has started JAX's threads, and no re-import of the 
 script as ``multiprocessing``'s spawn would do) rebuilds the engine once from a recipe: the
 scenario file and its skill libraries (checked by their sha256), the goal, the settings and the MuJoCo model (MJB
 bytes in a frame of their own: no temporary file, so a killed pool leaves nothing on disk). It
-then runs contiguous slices of the episodes, each on one MuJoCo batch (``NativeRollout.run_episodes``).
+then runs its slice of the episodes (``rollout.episode_slices``: round-robin) on one MuJoCo batch
+(``NativeRollout.run_episodes``).
 Episodes are deterministic and never interact, so the results equal one process's bit for bit
 (tests/engine/native/test_engine.py).
 
@@ -32,7 +33,7 @@ import numpy as np
 
 from mjxskill.engine.common.types import EpisodeResult
 from mjxskill.engine.common.worlds import Worlds
-from mjxskill.engine.native.rollout import NativeRollout, PooledRollout
+from mjxskill.engine.native.rollout import NativeRollout, PooledRollout, episode_slices, in_order
 
 
 # -- framing (both sides) -----------------------------------------------------------------------
@@ -144,7 +145,7 @@ class WorkerPool:
 
     def run(self, params: np.ndarray, worlds) -> list[EpisodeResult]:
         """Results of the episodes params (N, P) in worlds (N,), in order."""
-        parts = [p for p in np.array_split(np.arange(len(params)), self.n) if len(p)]
+        parts = episode_slices(len(params), self.n)
         try:
             for proc, part in zip(self.procs, parts):
                 fields = {f"world_{name}": np.asarray(x)[part] for name, x in zip(worlds._fields, worlds)}
@@ -152,11 +153,11 @@ class WorkerPool:
             results = []
             for proc, part in zip(self.procs, parts):
                 arrays = unpack_arrays(self._expect(proc, b"O"))
-                results += [EpisodeResult(*(arrays[f][i] for f in EpisodeResult._fields)) for i in range(len(part))]
+                results.append([EpisodeResult(*(arrays[f][i] for f in EpisodeResult._fields)) for i in range(len(part))])
         except BaseException:  # Ctrl-C or a failure: stop the workers now, not after their slices
             self.close()
             raise
-        return results
+        return in_order(parts, results)
 
     def close(self) -> None:
         self._stop()  # runs _stop_workers once, however often close is called

@@ -206,6 +206,23 @@ class EpisodePool(Protocol):
     def close(self) -> None: ...
 
 
+def episode_slices(n_episodes: int, n_slices: int) -> list[np.ndarray]:
+    """The episode indices each of ``n_slices`` workers runs, in round-robin order (episode i in
+    slice i mod n), the empty slices left out: a call's episodes are its parameter sets' worlds in
+    turn, and the sets' physics differ (one that misses the object steps a third faster), so
+    contiguous slices left one worker waiting for the other (benchmarks/NOTES.md section 33)."""
+    return [part for part in (np.arange(k, n_episodes, n_slices) for k in range(max(1, n_slices))) if len(part)]
+
+
+def in_order(parts: list[np.ndarray], results: list[list]) -> list:
+    """Every slice's results (``results[k]`` for the episodes ``parts[k]``) back in episode order."""
+    out: list = [None] * sum(len(part) for part in parts)
+    for part, got in zip(parts, results):
+        for i, r in zip(part, got):
+            out[i] = r
+    return out
+
+
 class PooledRollout(RolloutBase):
     """A ``Rollout`` around a one-process ``NativeRollout`` (``inner``, as Brax wraps an env)
     whose calls' episodes run on a pool elsewhere: ``ProcessPoolRollout``
