@@ -291,7 +291,7 @@ def _live(ct: CompiledTree, enabled: list, status: list, xp):
     return _stacked(live_flags, xp)
 
 
-def started_leaves(ct: CompiledTree, previous: BTState, active: jax.Array) -> jax.Array:
+def started_leaves(ct: CompiledTree, previous: BTState, active: jax.Array | np.ndarray) -> jax.Array | np.ndarray:
     """(L,) bool: leaves ticked this tick that were not running on from the last one.
 
     A leaf program with internal state (a motion generator's trajectory start, a spiral's

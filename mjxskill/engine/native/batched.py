@@ -1,5 +1,6 @@
-"""Many native episodes on one ``mujoco.batch.Batch``: the BT ticks per episode in Python, the
-control steps between two ticks for all episodes at MuJoCo's speed.
+"""Many native episodes on one ``mujoco.batch.Batch``: the BT ticked for all episodes at once
+(``RowsTree``, the compiled tree over rows), each episode's active leaves' effects in Python,
+the control steps between two ticks for all episodes at MuJoCo's speed.
 
 The batch holds one simulation per episode, each world's contact friction as a per-simulation
 model field (``Batch.expand``: no model copy per episode), and binds the fields the law reads
@@ -25,6 +26,7 @@ import mujoco
 import numpy as np
 from mujoco.batch import Batch, SimulationError
 
+from mjxskill.bt_compiled import BTState, compile_tree, init_rows, started_leaves, tick_rows
 from mjxskill.ebt.nodes import Status
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import FREE, MOCAP
@@ -114,6 +116,7 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
     stepper = _Stepper(engine, batch, fields, timed=timing is not None)
     z_adr = free_object_z_addresses(engine.setup.bindings)
     healthy = np.ones(len(episodes), bool)
+    tree, site = RowsTree(engine, len(episodes)), engine.setup.ctrl.site_id
     for t in range(engine.setup.ticks):
         alive = [i for i, e in enumerate(episodes) if not e.diverged]
         if not alive:
@@ -121,8 +124,10 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
         # The batch rows' state at the tick's start, for all rows at once (an episode that
         # diverges during the tick is frozen at its row of it).
         frame = {name: fields[name].copy() for name in SNAPSHOT_FIELDS}
+        ticking = [i for i in alive if not bad[i] and not episodes[i].done]
+        ticked = tree.tick(episodes, ticking, fields["site_xpos"][ticking, site]) if ticking else {}
         for i in alive:
-            episodes[i].begin_tick(None if bad[i] else _RowSnapshot(frame, i))
+            episodes[i].begin_tick(None if bad[i] else _RowSnapshot(frame, i), ticked.get(i))
         rows: list[int] | np.ndarray = [i for i in alive if not bad[i]]
         ends: dict[int, TickEnd] = {}
         if rows:
@@ -138,6 +143,33 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
     if timing is not None:
         timing["physics_s"] = timing.get("physics_s", 0.0) + stepper.physics_s
     return [e.result() for e in episodes]
+
+
+class RowsTree:
+    """The behavior tree of a batch's episodes ticked for all rows at once: every leaf's status
+    from the rows' blackboards (``LeafStatus.rows``), then the compiled tree's tick over the
+    rows (``bt_compiled.tick_rows``, tested against the reference interpreter), which each
+    episode's own tick would give; the episodes then apply their active leaves' effects
+    (``NativeEpisode.begin_tick``'s ``ticked``)."""
+
+    def __init__(self, engine, n: int):
+        self.ct = compile_tree(engine.tree)
+        self.state = init_rows(self.ct, n)
+        self.statuses = [status for status, _ in engine.programs]
+
+    def tick(self, episodes: list[NativeEpisode], rows: list[int], tool_pos: np.ndarray) -> dict[int, tuple]:
+        """The tick of ``episodes[i]`` for the batch rows ``rows`` whose trees still run, given
+        their tool positions (len(rows), 3): {row: (root status, active, started)}, the leaf
+        flags as lists in ``engine.programs``' order."""
+        previous = BTState(*(field[rows] for field in self.state))
+        live = previous.live[:, self.ct.leaf_ids]
+        bbs = [episodes[i].bb for i in rows]
+        status = np.stack([s.rows(bbs, tool_pos, live[:, k]) for k, s in enumerate(self.statuses)], axis=-1)
+        state, root, active = tick_rows(self.ct, previous, status)
+        started = started_leaves(self.ct, previous, active)
+        for field, new in zip(self.state, state):
+            field[rows] = new
+        return {i: (Status(r), a, s) for i, r, a, s in zip(rows, root.tolist(), active.tolist(), started.tolist())}
 
 
 def tick_ends(engine, episodes: list[NativeEpisode], rows: np.ndarray, fields: dict, worlds) -> dict[int, TickEnd]:

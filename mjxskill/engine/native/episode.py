@@ -160,24 +160,31 @@ class NativeEpisode:
         return bool(healthy_state(HOST, data.qpos, data.qvel, free_object_z_addresses(self.engine.setup.bindings)))
 
     # -- one tick ---------------------------------------------------------------------------
-    def begin_tick(self, snapshot=None) -> None:
+    def begin_tick(self, snapshot=None, ticked: tuple | None = None) -> None:
         """The BT tick and the active leaves' effects (the blackboard then holds this tick's
         commanded stiffness, wrench, motion and spiral). ``snapshot``: the data's state now, taken
-        by the caller (a batch snapshots all its rows at once), or None to take it here."""
+        by the caller (a batch snapshots all its rows at once), or None to take it here.
+        ``ticked``: (root status, active (L,) bool, started (L,) bool) of this tick, found by the
+        caller (a batch ticks the compiled tree for all its rows at once, ``batched.RowsTree``;
+        then this episode's reference interpreter is never ticked), or None to tick the
+        interpreter here."""
         engine, bb = self.engine, self.bb
         # the tool pose the last ``end_tick`` read (nothing has stepped since), or read now
-        tool_pos = self.tool_pose()[0] if self._tool is None else self._tool[0]
+        tool = self._tool
         self._tool = None
         if self.done:  # the tree is no longer ticked: every leaf is idle
             root, active, started = self.status, [False] * self.n_leaves, [False] * self.n_leaves
+        elif ticked is not None:
+            root, active, started = ticked
         else:
+            tool_pos = self.tool_pose()[0] if tool is None else tool[0]
             # A leaf's status is read from the state before the tick, which nothing writes during
             # it: asked for the leaves the tick reaches only, when it reaches them.
             programs, position, live = engine.programs, engine.leaf_position, self.live
             result = self.interp.tick(lambda nid, node: programs[position[nid]][0](bb, tool_pos, nid in live))
             root = result.status
-            ticked = set(result.active_leaves)
-            active = [nid in ticked for nid in engine.leaf_ids]
+            reached = set(result.active_leaves)
+            active = [nid in reached for nid in engine.leaf_ids]
             started = [a and nid not in live for a, nid in zip(active, engine.leaf_ids)]
             self.live = self.interp.live  # ticked, and they and all ancestors RUNNING
         # Held effects fall back to their defaults unless an active leaf sets them again.

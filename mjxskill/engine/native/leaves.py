@@ -108,9 +108,65 @@ def references_rows(bbs: list[NativeBlackboard], n: int, dt: float) -> tuple[np.
     return pos, quat
 
 
-# status(bb, tool_pos, live) -> Status; effect(bb, fresh, params) -> None (writes bb).
-StatusFn = Callable[[NativeBlackboard, np.ndarray, bool], Status]
+class LeafStatus:
+    """A leaf's status from the state before the tick: called with one blackboard, the tool
+    position (3,) and whether the leaf runs on from the last tick; ``rows(bbs, tool_pos, live)``
+    for m blackboards at once, tool positions (m, 3) and live (m,) bool, as
+    (m,) int Status values (what a batch's compiled tree ticks on, ``bt_compiled.tick_rows``)."""
+
+    def __call__(self, bb: NativeBlackboard, tool_pos: np.ndarray, live: bool) -> Status:
+        raise NotImplementedError
+
+    def rows(self, bbs: list[NativeBlackboard], tool_pos: np.ndarray, live: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+class Always(LeafStatus):
+    """The same status every tick."""
+
+    def __init__(self, status: Status):
+        self.status = status
+
+    def __call__(self, bb, tool_pos, live):
+        return self.status
+
+    def rows(self, bbs, tool_pos, live):
+        return np.full(len(bbs), int(self.status))
+
+
+class Reached(LeafStatus):
+    """SUCCESS once the tool is within ``threshold`` (m) of the running motion's goal, on a tick
+    after the leaf's first (its first tick starts the motion it waits for)."""
+
+    def __init__(self, threshold: float):
+        self.threshold = threshold
+
+    def __call__(self, bb, tool_pos, live):
+        close = HOST.linalg.norm(tool_pos - bb.motion.goal_pos) < self.threshold
+        return Status.SUCCESS if live and close else Status.RUNNING
+
+    def rows(self, bbs, tool_pos, live):
+        close = HOST.linalg.norm(tool_pos - np.stack([bb.motion.goal_pos for bb in bbs]), axis=-1) < self.threshold
+        return np.where(live & close, int(Status.SUCCESS), int(Status.RUNNING))
+
+
+class Waited(LeafStatus):
+    """SUCCESS once leaf ``leaf`` has been ticked ``ticks`` times in a row."""
+
+    def __init__(self, leaf: int, ticks: int):
+        self.leaf, self.ticks = leaf, ticks
+
+    def __call__(self, bb, tool_pos, live):
+        return Status.SUCCESS if live and bb.leaf_ticks[self.leaf] >= self.ticks else Status.RUNNING
+
+    def rows(self, bbs, tool_pos, live):
+        waited = np.array([bb.leaf_ticks[self.leaf] for bb in bbs]) >= self.ticks
+        return np.where(live & waited, int(Status.SUCCESS), int(Status.RUNNING))
+
+
+# effect(bb, fresh, params) -> None (writes bb).
 EffectFn = Callable[[NativeBlackboard, bool, np.ndarray], None]
+_running = Always(Status.RUNNING)
 
 
 def _input(leaf: Node, name: str, index: dict) -> Callable[[np.ndarray], float]:
@@ -122,10 +178,6 @@ def _reader(source: LeafInput) -> Callable[[np.ndarray], float]:
     if source.index is not None:
         return lambda params: float(params[source.index])
     return lambda params: source.value
-
-
-def _running(bb, tool_pos, live):
-    return Status.RUNNING
 
 
 def _keep(bb, fresh, params):
@@ -149,7 +201,7 @@ def tool_down_aligned(current_quat, object_yaw: float, tilt=None) -> np.ndarray:
 
 
 def build_native_leaves(leaves: list[Node], parameter_names, slot_of: dict, nominal_pos: np.ndarray,
-                        nominal_quat: np.ndarray, tick_seconds: float) -> list[tuple[StatusFn, EffectFn]]:
+                        nominal_quat: np.ndarray, tick_seconds: float) -> list[tuple[LeafStatus, EffectFn]]:
     """(status, effect) per leaf, in pre-order. nominal_pos (K, 3), nominal_quat (K, 4): the
     world model's object poses (the skills see the YAML, not the randomized world)."""
     ctx = _Context({name: i for i, name in enumerate(parameter_names)}, slot_of, nominal_pos, nominal_quat, tick_seconds)
@@ -201,7 +253,7 @@ def _set_goal_from_object(i: int, leaf, ctx: _Context):
         bb.goal_quat = tool_down_aligned(current, target, tilt)
         bb.goal_memo[i] = (key, bb.goal_quat)
 
-    return (lambda bb, tool_pos, live: Status.SUCCESS), set_goal
+    return Always(Status.SUCCESS), set_goal
 
 
 @LEAF_PROGRAMS.register
@@ -258,21 +310,9 @@ def _overlay_spiral(i: int, leaf, ctx: _Context):
 
 @LEAF_PROGRAMS.register
 def _ee_pose_distance(i: int, leaf, ctx: _Context):
-    threshold = float(leaf.args["threshold"])
-
-    def reached(bb, tool_pos, live):
-        close = HOST.linalg.norm(tool_pos - bb.motion.goal_pos) < threshold
-        return Status.SUCCESS if live and close else Status.RUNNING
-
-    return reached, _keep
+    return Reached(float(leaf.args["threshold"])), _keep
 
 
 @LEAF_PROGRAMS.register
 def _wait(i: int, leaf, ctx: _Context):
-    tick_seconds = ctx.tick_seconds
-    ticks = wait_ticks(leaf, tick_seconds)
-
-    def waited(bb, tool_pos, live):
-        return Status.SUCCESS if live and bb.leaf_ticks[i] >= ticks else Status.RUNNING
-
-    return waited, _keep
+    return Waited(i, wait_ticks(leaf, ctx.tick_seconds)), _keep

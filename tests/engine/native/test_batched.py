@@ -13,6 +13,10 @@ compiled law of ``mjxskill.engine.native.kernels``) against its references.
 - The references of a tick at once (the spiral compiled, the ended motion cached) bit-identical
   to the uncompiled, uncached code; and those of many blackboards in one pass (``references_rows``,
   the engine's) bit-identical to the same code run per blackboard.
+- Every leaf status over many blackboards at once (``LeafStatus.rows``, what the batch's
+  compiled tree ticks on) is each blackboard's own status. (The compiled tree's tick over rows
+  is tested against the reference interpreter in tests/bt_compiled/test_property.py; the whole
+  episodes above tick it.)
 """
 
 import math
@@ -29,7 +33,8 @@ from mjxskill.engine.common.types import EpisodeResult
 from mjxskill.engine.native import NativeRollout
 from mjxskill.engine.native.batched import kinematic_chain, run_batched, start_batch
 from mjxskill.engine.native.kernels import _mat2quat, impedance_rows
-from mjxskill.engine.native.leaves import NativeBlackboard, references_rows
+from mjxskill.ebt.nodes import Status
+from mjxskill.engine.native.leaves import Always, NativeBlackboard, Reached, Waited, references_rows
 from mjxskill.engine.native.motion import LinearMotion, spiral_step
 from mjxskill.engine.native_reference import BatchedControllerState, batched_impedance_control, run_lockstep
 from mjxskill.sim.controller_config import N_ARM
@@ -214,3 +219,26 @@ def test_the_references_of_many_blackboards_at_once_are_each_blackboards_own(row
         np.testing.assert_array_equal(pos[:, i], w_pos)
         np.testing.assert_array_equal(quat[:, i], w_quat)
         assert (bb.spiral_theta, bb.spiral_radius, bb.mg_time) == (theta, radius, time)
+
+
+status_row = st.fixed_dictionaries({**BLACKBOARD, "tool_offset": st.tuples(finite, finite, finite),
+                                    "scale": st.sampled_from([1e-3, 0.01, 0.05]), "live": st.booleans(),
+                                    "ticks": st.integers(0, 8)})
+
+
+@settings(max_examples=100, deadline=None)
+@given(rows=st.lists(status_row, min_size=1, max_size=6), threshold=st.sampled_from([0.005, 0.02, 0.1]),
+       wait=st.integers(1, 6))
+def test_every_leaf_status_over_many_blackboards_is_each_blackboards_own(rows, threshold, wait):
+    # tools near their motions' goals, some within the threshold and some not
+    bbs, tool_pos = [], []
+    for r in rows:
+        bb = blackboard(**{k: r[k] for k in BLACKBOARD})
+        bb.leaf_ticks = [0, r["ticks"]]
+        bbs.append(bb)
+        tool_pos.append(bb.motion.goal_pos + r["scale"] * np.array(r["tool_offset"]))
+    tool_pos, live = np.array(tool_pos), np.array([r["live"] for r in rows])
+    for status in (Always(Status.SUCCESS), Always(Status.RUNNING), Reached(threshold), Waited(1, wait)):
+        got = status.rows(bbs, tool_pos, live)
+        assert got.shape == (len(bbs),)
+        assert got.tolist() == [int(status(bb, p, bool(lv))) for bb, p, lv in zip(bbs, tool_pos, live)]
