@@ -94,6 +94,10 @@ def default_params(d: int) -> GPParams:
     return params_from_values(jnp.full((d,), 1.0 / 3.0), 1.0, 1e-3)
 
 
+# The priors whose fit holds the outputscale at 1, the standardized targets' variance.
+UNIT_OUTPUTSCALE = ("dim_scaled", "unit_outputscale")
+
+
 def _gamma_logpdf(x, concentration, rate):
     return jax.scipy.stats.gamma.logpdf(x, concentration, scale=1.0 / rate)
 
@@ -111,10 +115,11 @@ def log_prior(p: GPParams, prior: str = "gamma") -> jnp.ndarray:
     smooth objective keep long lengthscales as d grows; "dim_scaled", all of BoTorch's
     default since 0.12: that lengthscale prior, no outputscale (:func:`fit` holds it at 1, the
     standardized targets' variance) and the noise variance's LogNormal(-4, 1); "small_noise",
-    "lognormal" with that noise prior instead of the Gamma(1.1, 0.05), the outputscale fitted.
+    "lognormal" with that noise prior instead of the Gamma(1.1, 0.05), the outputscale fitted;
+    "unit_outputscale", "lognormal" with the outputscale held at 1 (no term), the noise's Gamma kept.
     """
     ls = lengthscales(p)
-    if prior in ("lognormal", "dim_scaled", "small_noise"):  # static
+    if prior in ("lognormal", "dim_scaled", "small_noise", "unit_outputscale"):  # static
         d = ls.shape[0]
         ls_term = jnp.sum(_lognormal_logpdf(ls, math.sqrt(2.0) + 0.5 * math.log(d), math.sqrt(3.0)))
     else:
@@ -123,6 +128,8 @@ def log_prior(p: GPParams, prior: str = "gamma") -> jnp.ndarray:
         return ls_term + _lognormal_logpdf(noise(p), -4.0, 1.0)
     if prior == "small_noise":  # static
         return ls_term + _gamma_logpdf(outputscale(p), 2.0, 0.15) + _lognormal_logpdf(noise(p), -4.0, 1.0)
+    if prior == "unit_outputscale":  # static: the outputscale is held at 1 (fit)
+        return ls_term + _gamma_logpdf(noise(p), 1.1, 0.05)
     return ls_term + _gamma_logpdf(outputscale(p), 2.0, 0.15) + _gamma_logpdf(noise(p), 1.1, 0.05)
 
 
@@ -206,7 +213,7 @@ def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "
             [base.raw_lengthscales[None], jnp.log(rand_ls - LENGTHSCALE_FLOOR)], axis=0
         )
     )
-    if prior == "dim_scaled":  # static: no outputscale, it is 1 (the loss does not see the parameter)
+    if prior in UNIT_OUTPUTSCALE:  # static: no outputscale, it is 1 (the loss does not see the parameter)
         loss = lambda p: fit_loss(p._replace(raw_outputscale=base.raw_outputscale), x, y, mask, prior, obs_noise)
     else:
         loss = lambda p: fit_loss(p, x, y, mask, prior, obs_noise)
@@ -246,7 +253,7 @@ def fit(x, y, mask, key, *, n_starts: int = 3, n_steps: int = 50, prior: str = "
     finals, losses = jax.lax.map(run, starts)
     best = jnp.argmin(losses)
     fitted = jax.tree.map(lambda a: a[best], finals)
-    return fitted._replace(raw_outputscale=base.raw_outputscale) if prior == "dim_scaled" else fitted
+    return fitted._replace(raw_outputscale=base.raw_outputscale) if prior in UNIT_OUTPUTSCALE else fitted
 
 
 def condition(p: GPParams, x, y, mask, obs_noise=None) -> GPPosterior:

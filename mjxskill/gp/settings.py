@@ -25,7 +25,7 @@ CHOICES = {
     "single_direction_reference": ("global", "front"),
     "reference": ("warmup", "front"),
     "beyond_reference": ("log", "linear"),
-    "prior": ("gamma", "lognormal", "dim_scaled", "small_noise"),
+    "prior": ("gamma", "lognormal", "dim_scaled", "small_noise", "unit_outputscale"),
     "pending": ("variance", "values", "draws"),
     "incumbent": ("observed", "posterior_mean"),
     "variance": ("latent", "deflated"),

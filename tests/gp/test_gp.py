@@ -141,6 +141,24 @@ def test_the_small_noise_prior_is_the_lognormal_prior_with_botorchs_noise_prior(
             np.testing.assert_allclose(got, want, rtol=1e-10)
 
 
+def test_the_unit_outputscale_prior_has_no_outputscale_term_and_its_fit_holds_it_at_one(data):
+    """prior="unit_outputscale": the "lognormal" prior's lengthscale and noise terms (scipy's
+    LogNormal and Gamma(1.1, 0.05) densities), no outputscale term; the fit leaves it at 1."""
+    from scipy.stats import gamma, lognorm
+
+    x, y = data
+    ls, nv = np.array([0.2, 0.7, 1.5]), 0.03
+    with jax.enable_x64(True):
+        for os_ in (1.0, 5.0):
+            got = float(gpm.log_prior(gpm.params_from_values(ls, os_, nv), "unit_outputscale"))
+            want = (lognorm.logpdf(ls, np.sqrt(3.0), scale=np.exp(np.sqrt(2.0) + 0.5 * np.log(3))).sum()
+                    + gamma.logpdf(nv, 1.1, scale=1 / 0.05))
+            np.testing.assert_allclose(got, want, rtol=1e-10)
+        p = gpm.fit(jnp.asarray(x), jnp.asarray(y), jnp.asarray(np.ones(len(y), bool)), jax.random.PRNGKey(0),
+                    n_starts=2, n_steps=60, prior="unit_outputscale")
+        assert float(gpm.outputscale(p)) == pytest.approx(1.0, abs=1e-12)
+
+
 def test_importing_and_using_the_gp_leaves_float32_default():
     from mjxskill.gp import optimizer  # noqa: F401
 
