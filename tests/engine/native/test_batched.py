@@ -9,7 +9,7 @@ compiled law of ``mjxskill.engine.native.kernels``) against its references.
 - Whole episodes against the numpy lockstep (the reference's ``run_lockstep``) on push and on
   the round peg (whose mesh contacts turn a last-bit difference into a visible one within
   seconds): every result bit for bit.
-- Results bit-identical whatever the threads of the batch, and whichever episodes share it.
+- Results bit-identical whatever the threads of the batch (1, 2, 4), and whichever episodes share it.
 - The references of a tick at once (the spiral compiled, the ended motion cached) bit-identical
   to the uncompiled, uncached code; and those of many blackboards in one pass (``references_rows``,
   the engine's) bit-identical to the same code run per blackboard.
@@ -74,9 +74,11 @@ def test_results_do_not_depend_on_threads_or_on_the_other_episodes(engine):
     worlds = flat_worlds(engine, 2, seed=4)
     one = fields_of(run_batched(engine, params, worlds, threads=1))
     two = fields_of(run_batched(engine, params, worlds, threads=2))
+    four = fields_of(run_batched(engine, params, worlds, threads=4))
     tail = fields_of(run_batched(engine, params[2:], jax.tree.map(lambda x: x[2:], worlds)))
     for name in EpisodeResult._fields:
         np.testing.assert_array_equal(one[name], two[name], err_msg=name)
+        np.testing.assert_array_equal(one[name], four[name], err_msg=name)
         np.testing.assert_array_equal(one[name][2:], tail[name], err_msg=name)
 
 

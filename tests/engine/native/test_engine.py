@@ -6,7 +6,7 @@ The plain loop (``mjxskill.engine.native_reference.run_plain``: every episode in
 reference. The engine's own stepping (``mjxskill.engine.native.batched``: MuJoCo batches and the
 compiled law) evaluates the same law in a different order of floating-point operations, so the
 two may differ in the last bits. The worker processes of ``ProcessPoolRollout`` run the engine
-on slices of the episodes, which never interact: bit-identical.
+on slices of the episodes (2 and 4 workers), which never interact: bit-identical.
 """
 
 import json
@@ -68,8 +68,10 @@ def test_the_engine_equals_the_plain_loop_with_the_search_spiral():
 def test_worker_processes_give_one_process_results_bit_for_bit(push):
     scn, task, params = push
     one = NativeRollout(scn, task, worlds=3, episode_seconds=1.0)
+    key = jax.random.key(7)
+    with ProcessPoolRollout(NativeRollout(scn, task, worlds=3, episode_seconds=1.0), workers=4) as four:
+        assert_same_outputs(one(params, key), four(params, key))  # 9 episodes round-robin over 4 workers
     with ProcessPoolRollout(NativeRollout(scn, task, worlds=3, episode_seconds=1.0), workers=2) as two:
-        key = jax.random.key(7)
         assert_same_outputs(one(params, key), two(params, key))
         # an episode's result does not depend on which episodes share its call
         worlds = one.sample_worlds(key, len(params))
