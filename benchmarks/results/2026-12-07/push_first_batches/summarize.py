@@ -23,7 +23,7 @@ COMMITTED = ROOT / "benchmarks/results/task_optimizers-200x7"
 SOURCES = {"baseline": (COMMITTED / "task_optimizers.jsonl", "mjxskill.gp", COMMITTED / "runs/push/mjxskill.gp"),
            **{lever: (HERE / lever / "task_optimizers.jsonl", "mjxskill.gp", HERE / lever / "runs/push/mjxskill.gp")
               for lever in ("given", "nosingle", "exact", "search", "draws", "dimscaled", "dimscaled_draws", "draws_steps60", "draws_restarts5", "draws_ndraws8",
-                                "small_noise", "small_noise_draws")},
+                                "small_noise", "small_noise_draws", "unit_outputscale_draws")},
            "qLogNEHVI": (ROOT / "benchmarks/results/task_optimizers-200x7-botorch/task_optimizers.jsonl",
                          "botorch-qlognehvi",
                          ROOT / "benchmarks/results/task_optimizers-200x7-botorch/runs/push/botorch-qlognehvi")}
