@@ -13,8 +13,9 @@ worlds from key 0), and prints as a table with the load average of each row:
   time): the baseline, measured before and after everything else (ratios use the mean);
 * ``native``: the native engine (episodes on MuJoCo batches with the compiled law: the
   one-process ``NativeRollout`` wrapped by ``ProcessPoolRollout`` over ``--workers`` processes,
-  or alone, its batch stepped on ``--threads`` threads); with one process and one thread, the
-  share of the call spent in MuJoCo's step;
+  or alone, its batch stepped on ``--threads`` threads), the median of ``--native-calls``
+  calls (default 3: this machine's rate moves by 10-25 % between single calls); with one
+  process and one thread, the share of the calls spent in MuJoCo's step;
 * ``mjx``: the compiled MJX rollout on 1 and on ``--devices`` host devices (a fresh process
   each: the device count is fixed when jax starts), at ``--batches`` parameter sets per call;
   compile time and XLA's buffers;
@@ -152,10 +153,12 @@ def loop(engine, params, worlds) -> dict:
                 steps_per_s=b * w * engine.control_steps_per_episode / run_s, load_avg=os.getloadavg()[0])
 
 
-def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1) -> dict:
+def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1, calls: int = 1) -> dict:
     """The native engine with ``workers`` processes (their start-up timed apart), or with one
-    process whose batch steps on ``threads`` threads. With one process and one thread, also the
-    share of the time spent in MuJoCo's step (``physics_share``)."""
+    process whose batch steps on ``threads`` threads; ``calls`` timed calls, the median counts
+    (``run_s``; each in ``call_s``: this machine's rate moves 10-25 % between calls). With one
+    process and one thread, also the share of the time spent in MuJoCo's step
+    (``physics_share``, over all the calls)."""
     import numpy as np
 
     from mjxskill.engine.native import NativeRollout, ProcessPoolRollout
@@ -174,12 +177,15 @@ def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1) -
     timing = {}
     if workers == 1 and threads == 1:  # time MuJoCo's step inside the call
         inner.timing = timing
-    t0 = time.perf_counter()
-    out = engine.run_worlds(params, worlds)
-    run_s = time.perf_counter() - t0
+    call_s = []
+    for _ in range(calls):
+        t0 = time.perf_counter()
+        out = engine.run_worlds(params, worlds)
+        call_s.append(time.perf_counter() - t0)
+    run_s = float(np.median(call_s))
     engine.close()
     return dict(engine="native", workers=workers, threads=threads, episodes=b * w, start_s=start_s, run_s=run_s,
-                physics_share=timing["physics_s"] / run_s if timing else None,
+                call_s=call_s, physics_share=timing["physics_s"] / sum(call_s) if timing else None,
                 steps_per_s=b * w * engine.control_steps_per_episode / run_s,
                 memory_per_episode_mb=inner.memory_per_episode() / 2**20, load_avg=os.getloadavg()[0],
                 success=np.asarray(out.success).tolist(), objectives=np.asarray(out.objectives).tolist())
@@ -236,12 +242,16 @@ def main(argv=None) -> dict | None:
     parser.add_argument("--threads", default=None, help="threads of one native process's batch, e.g. 2 (default: "
                         "cores, if more than 1)")
     parser.add_argument("--reps", type=int, default=1, help="timed MJX calls per configuration (the fastest counts)")
+    parser.add_argument("--native-calls", type=int, default=3, help="timed native engine calls per configuration "
+                        "(the median counts; default 3)")
     parser.add_argument("--quick", action="store_true", help="2 s episodes (a smoke test; not the workload)")
     parser.add_argument("--cache-check", action="store_true", help="only MJX's compile-cache check")
     parser.add_argument("--json", type=Path, help="write the results here")
     parser.add_argument("--mjx-worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--out", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.native_calls < 1 or args.reps < 1:
+        parser.error(f"--native-calls and --reps must be at least 1, got {args.native_calls} and {args.reps}")
     if args.quick and args.seconds is None:
         args.seconds = 2.0
     if args.mjx_worker:
@@ -269,8 +279,8 @@ def main(argv=None) -> dict | None:
           f"jax {jax.__version__}, mujoco {mujoco.__version__}, load average {os.getloadavg()[0]:.2f}", flush=True)
     rows = [loop(engine, params, worlds)]
     threads = sorted({int(t) for t in (args.threads or str(cores)).split(",")} - {0, 1})
-    rows += [native(scn, task, params, worlds, n, args.seconds) for n in workers]
-    rows += [native(scn, task, params, worlds, 1, args.seconds, threads=t) for t in threads]
+    rows += [native(scn, task, params, worlds, n, args.seconds, calls=args.native_calls) for n in workers]
+    rows += [native(scn, task, params, worlds, 1, args.seconds, threads=t, calls=args.native_calls) for t in threads]
     for d in devices:
         rows += mjx(d, args)
     rows.append(loop(engine, params, worlds))

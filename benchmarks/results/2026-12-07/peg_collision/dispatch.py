@@ -1,5 +1,5 @@
 import sys, time
-sys.path.insert(0, "/work/main/benchmarks"); sys.path.insert(0, "/work/main")
+import os; sys.path.insert(0, os.getcwd() + "/benchmarks"); sys.path.insert(0, os.getcwd())
 import numpy as np, jax
 from throughput import workload
 from mjxskill.engine.native.rollout import NativeRollout
