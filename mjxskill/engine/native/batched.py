@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 from mujoco.batch import Batch, SimulationError
 
-from mjxskill.bt_compiled import BTState, compile_tree, init_rows, started_leaves, tick_rows
+from mjxskill.bt_compiled import BTState, init_rows, started_leaves, tick_rows
 from mjxskill.ebt.nodes import Status
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import FREE, MOCAP
@@ -153,7 +153,7 @@ class RowsTree:
     (``NativeEpisode.begin_tick``'s ``ticked``)."""
 
     def __init__(self, engine, n: int):
-        self.ct = compile_tree(engine.tree)
+        self.ct = engine.compiled_tree
         self.state = init_rows(self.ct, n)
         self.statuses = [status for status, _ in engine.programs]
 
