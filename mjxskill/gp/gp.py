@@ -94,8 +94,19 @@ def default_params(d: int) -> GPParams:
     return params_from_values(jnp.full((d,), 1.0 / 3.0), 1.0, 1e-3)
 
 
+# Each hyperparameter prior as its three parts: the lengthscales' prior ("gamma": Gamma(3, 6);
+# "lognormal": the dimension-scaled LogNormal), whether the outputscale is held at 1 (no term; else
+# Gamma(2, 0.15)), and the noise variance's prior ("gamma": Gamma(1.1, 0.05); "lognormal":
+# LogNormal(-4, 1)). What each is for: ``log_prior``.
+PRIORS = {
+    "gamma": ("gamma", False, "gamma"),
+    "lognormal": ("lognormal", False, "gamma"),
+    "dim_scaled": ("lognormal", True, "lognormal"),
+    "small_noise": ("lognormal", False, "lognormal"),
+    "unit_outputscale": ("lognormal", True, "gamma"),
+}
 # The priors whose fit holds the outputscale at 1, the standardized targets' variance.
-UNIT_OUTPUTSCALE = ("dim_scaled", "unit_outputscale")
+UNIT_OUTPUTSCALE = tuple(name for name, (_, held, _) in PRIORS.items() if held)
 
 
 def _gamma_logpdf(x, concentration, rate):
@@ -118,19 +129,18 @@ def log_prior(p: GPParams, prior: str = "gamma") -> jnp.ndarray:
     "lognormal" with that noise prior instead of the Gamma(1.1, 0.05), the outputscale fitted;
     "unit_outputscale", "lognormal" with the outputscale held at 1 (no term), the noise's Gamma kept.
     """
+    lengthscale_prior, outputscale_held, noise_prior = PRIORS[prior]  # static
     ls = lengthscales(p)
-    if prior in ("lognormal", "dim_scaled", "small_noise", "unit_outputscale"):  # static
+    if lengthscale_prior == "lognormal":
         d = ls.shape[0]
-        ls_term = jnp.sum(_lognormal_logpdf(ls, math.sqrt(2.0) + 0.5 * math.log(d), math.sqrt(3.0)))
+        total = jnp.sum(_lognormal_logpdf(ls, math.sqrt(2.0) + 0.5 * math.log(d), math.sqrt(3.0)))
     else:
-        ls_term = jnp.sum(_gamma_logpdf(ls, 3.0, 6.0))
-    if prior == "dim_scaled":  # static: the outputscale is held at 1 (fit), the noise BoTorch's LogNormal(-4, 1)
-        return ls_term + _lognormal_logpdf(noise(p), -4.0, 1.0)
-    if prior == "small_noise":  # static
-        return ls_term + _gamma_logpdf(outputscale(p), 2.0, 0.15) + _lognormal_logpdf(noise(p), -4.0, 1.0)
-    if prior == "unit_outputscale":  # static: the outputscale is held at 1 (fit)
-        return ls_term + _gamma_logpdf(noise(p), 1.1, 0.05)
-    return ls_term + _gamma_logpdf(outputscale(p), 2.0, 0.15) + _gamma_logpdf(noise(p), 1.1, 0.05)
+        total = jnp.sum(_gamma_logpdf(ls, 3.0, 6.0))
+    if not outputscale_held:  # held at 1 by :func:`fit`: no term
+        total = total + _gamma_logpdf(outputscale(p), 2.0, 0.15)
+    if noise_prior == "lognormal":
+        return total + _lognormal_logpdf(noise(p), -4.0, 1.0)
+    return total + _gamma_logpdf(noise(p), 1.1, 0.05)
 
 
 def observation_noise(obs_noise: jnp.ndarray) -> jnp.ndarray:

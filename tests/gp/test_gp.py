@@ -159,6 +159,12 @@ def test_the_unit_outputscale_prior_has_no_outputscale_term_and_its_fit_holds_it
         assert float(gpm.outputscale(p)) == pytest.approx(1.0, abs=1e-12)
 
 
+def test_every_prior_setting_is_a_prior_the_gp_knows():
+    from mjxskill.gp.settings import CHOICES
+
+    assert set(CHOICES["prior"]) == set(gpm.PRIORS)
+
+
 def test_importing_and_using_the_gp_leaves_float32_default():
     from mjxskill.gp import optimizer  # noqa: F401
 

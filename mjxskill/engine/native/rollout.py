@@ -31,7 +31,6 @@ import mujoco
 import numpy as np
 
 from mjxskill.bt_compiled import compile_tree
-from mjxskill.ebt.interpreter import Interpreter
 from mjxskill.engine.native.batched import run_batched
 from mjxskill.engine.native.episode import NativeEpisode
 from mjxskill.sim.model import build_model
@@ -110,7 +109,7 @@ class NativeRollout(RolloutBase):
         # the tree's tables for a batch's tick over rows (batched.RowsTree); a tree the compiled
         # tick cannot run (a Parallel of more than 31 children) is refused here, as MJX refuses it
         self.compiled_tree = compile_tree(self.tree)
-        self.leaf_ids = [i for i, n in enumerate(Interpreter(self.tree).nodes) if n.is_leaf]
+        self.leaf_ids = self.compiled_tree.leaf_ids.tolist()  # pre-order, the order of the programs below
         self.leaf_position = {nid: k for k, nid in enumerate(self.leaf_ids)}
         nominal_pos, nominal_quat = nominal_poses(self.setup.bindings)
         self.programs = build_native_leaves(
