@@ -29,6 +29,9 @@ class NativeBlackboard:
     pitch), spiral_axes (two (3,) unit vectors spanning its plane); leaf_ticks: list of L ints.
     """
 
+    _goal_quat: np.ndarray | None  # None: ``_goal_quat_of()`` computes it when read
+    _goal_quat_of: Callable[[], np.ndarray] | None
+
     def __init__(self, tool_pos, tool_quat, default_stiffness, n_leaves: int):
         self.goal_pos = np.array(tool_pos, float)
         self.goal_quat = np.array(tool_quat, float)
@@ -42,9 +45,9 @@ class NativeBlackboard:
         self.spiral_params = (0.0, 0.0, 0.0)
         self.spiral_axes = plane_basis(SPIRAL_NORMAL)
         self.leaf_ticks = [0] * n_leaves
-        # leaf number -> (inputs, goal quaternion) of a ``set_goal_from_object`` leaf's last goal
-        # (a cache of a pure function: a snapshot may share it)
-        self.goal_memo: dict = {}
+        # The reference at the end of the last ``references``, with what it was computed from
+        # (motion, time, spiral state): the tick's rewards and the next tick's goals ask for it.
+        self.end_reference: tuple | None = None
 
     def copy(self) -> "NativeBlackboard":
         # Fields are rebound, never mutated in place, so a shallow copy is a snapshot (made as
@@ -54,28 +57,74 @@ class NativeBlackboard:
         new.leaf_ticks = list(self.leaf_ticks)
         return new
 
+    @property
+    def goal_quat(self) -> np.ndarray:
+        """The goal orientation (4,): set, or computed from what a goal leaf deferred
+        (``defer_goal_quat``) when first read, i.e. when a motion starts towards it."""
+        if self._goal_quat is None:
+            assert self._goal_quat_of is not None  # set together: one of the two is None
+            self._goal_quat = self._goal_quat_of()
+        return self._goal_quat
+
+    @goal_quat.setter
+    def goal_quat(self, quat: np.ndarray) -> None:
+        self._goal_quat, self._goal_quat_of = quat, None
+
+    def defer_goal_quat(self, compute: Callable[[], np.ndarray]) -> None:
+        """The goal orientation is ``compute()``, a pure function, called when it is read: a goal
+        leaf runs every tick its sequence is ticked, and a moving reference makes its value
+        new each time, but only a starting motion reads it."""
+        self._goal_quat, self._goal_quat_of = None, compute
+
     def reference(self) -> tuple[np.ndarray, np.ndarray]:
         """Controller reference position (3,) and quaternion (4,)."""
+        end = self.end_reference
+        if end is not None and self._same_reference(end[0]):
+            return end[1].copy(), end[2].copy()
         pos, quat = self.motion.at(self.mg_time)
+        return self._spiralled(pos), quat
+
+    def _spiralled(self, pos: np.ndarray) -> np.ndarray:
+        """A motion's reference position (3,) with the spiral's offset now, if it is on."""
         if self.spiral_on:
             r, th = self.spiral_radius, self.spiral_theta
             e1, e2 = self.spiral_axes
             pos = pos + r * (math.cos(th) * e1 + math.sin(th) * e2)
-        return pos, quat
+        return pos
+
+    def _reference_key(self) -> tuple:
+        """What the reference depends on besides constants: the motion (a started motion is a
+        new object), its time and the spiral's state (its angle, radius and plane)."""
+        return (self.motion, self.mg_time, self.spiral_on, self.spiral_theta, self.spiral_radius, self.spiral_axes)
+
+    def _same_reference(self, key: tuple) -> bool:
+        motion, time, spiral_on, theta, radius, axes = key
+        if motion is not self.motion or time != self.mg_time or spiral_on != self.spiral_on:
+            return False
+        return not spiral_on or (theta == self.spiral_theta and radius == self.spiral_radius and axes is self.spiral_axes)
+
+    def remember_end(self, motion_pos: np.ndarray, motion_quat: np.ndarray) -> None:
+        """The motion's reference (3,), (4,) at the time it has been advanced to (computed with
+        the tick's references), kept as ``reference()``'s value until the blackboard changes."""
+        self.end_reference = (self._reference_key(), self._spiralled(motion_pos), motion_quat)
 
     def references(self, n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """The references of the next ``n`` control periods, positions (n, 3) and quaternions
         (n, 4), and the blackboard advanced past them: what ``n`` rounds of ``reference()`` and
-        ``advance(dt)`` give, with the motion evaluated for all ``n`` times at once."""
+        ``advance(dt)`` give, with the motion evaluated for all ``n`` times and the one after
+        at once (that one is ``reference()``'s value at the end)."""
         times = np.cumsum(np.concatenate([[self.mg_time], np.full(n, dt)]))  # sequential sums, as += dt
-        pos, quat = self.motion.at_times(times[:-1])
+        pos, quat = self.motion.at_times(times)
         self.mg_time = float(times[-1])
+        end_pos, end_quat = pos[-1], quat[-1]
+        pos, quat = pos[:-1], quat[:-1]
         if self.spiral_on:
             radius_max, velocity, pitch = self.spiral_params
             e1, e2 = self.spiral_axes
             offsets, self.spiral_theta, self.spiral_radius = spiral_offsets(
                 self.spiral_theta, self.spiral_radius, radius_max, velocity, pitch, dt, e1, e2, n)
             pos = pos + offsets
+        self.remember_end(end_pos, end_quat)
         return pos, quat
 
     def advance(self, dt: float) -> None:
@@ -96,7 +145,9 @@ def references_rows(bbs: list[NativeBlackboard], n: int, dt: float) -> tuple[np.
     start = np.array([bb.mg_time for bb in bbs])
     # sequential sums down each column, as a blackboard's own cumsum and += dt
     times = np.cumsum(np.concatenate([start[None], np.full((n, len(bbs)), dt)]), axis=0)
-    pos, quat = references_at(np.stack([bb.motion.row for bb in bbs]), times[:-1])
+    pos, quat = references_at(np.stack([bb.motion.row for bb in bbs]), times)
+    end_pos, end_quat = pos[-1], quat[-1]
+    pos, quat = pos[:-1], quat[:-1]
     for r, bb in enumerate(bbs):
         bb.mg_time = float(times[-1, r])
         if bb.spiral_on:
@@ -105,6 +156,7 @@ def references_rows(bbs: list[NativeBlackboard], n: int, dt: float) -> tuple[np.
             offsets, bb.spiral_theta, bb.spiral_radius = spiral_offsets(
                 bb.spiral_theta, bb.spiral_radius, radius_max, velocity, pitch, dt, e1, e2, n)
             pos[:, r] = pos[:, r] + offsets
+        bb.remember_end(end_pos[r], end_quat[r])
     return pos, quat
 
 
@@ -237,21 +289,15 @@ def _set_goal_from_object(i: int, leaf, ctx: _Context):
     object_yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     aligned = goal_orientation(leaf) == "tool_down_aligned"
 
+    def goal_quat(current: np.ndarray, params: np.ndarray) -> np.ndarray:
+        target = (object_yaw if aligned else tool_yaw(current)) + math.radians(yaw(params))
+        tilt = (math.radians(roll(params)), math.radians(pitch(params))) if tilted else None
+        return tool_down_aligned(current, target, tilt)
+
     def set_goal(bb, fresh, params):
         bb.goal_pos = base + np.array([dx(params), dy(params), 0.0])
         current = bb.reference()[1]
-        # The goal is a function of the reference orientation and the parameters alone, and the
-        # leaf runs every tick its sequence is ticked, mostly from a finished motion's end
-        # orientation: computed again only when they change (the same values either way).
-        key = (current.tobytes(), yaw(params), roll(params) if tilted else None, pitch(params) if tilted else None)
-        memo = bb.goal_memo.get(i)
-        if memo is not None and memo[0] == key:
-            bb.goal_quat = memo[1]
-            return
-        target = (object_yaw if aligned else tool_yaw(current)) + math.radians(key[1])
-        tilt = (math.radians(key[2]), math.radians(key[3])) if tilted else None
-        bb.goal_quat = tool_down_aligned(current, target, tilt)
-        bb.goal_memo[i] = (key, bb.goal_quat)
+        bb.defer_goal_quat(lambda: goal_quat(current, params))
 
     return Always(Status.SUCCESS), set_goal
 

@@ -204,6 +204,48 @@ def test_a_ticks_references_are_those_of_the_uncompiled_uncached_code(start, goa
             np.testing.assert_array_equal(got_quat, want_quat)
 
 
+def _reference_now(bb):
+    """``reference()`` as computed without its kept value: the motion's scalar arithmetic."""
+    pos, quat = bb.motion._at(min(bb.mg_time, bb.motion.duration))
+    if bb.spiral_on:
+        e1, e2 = bb.spiral_axes
+        pos = pos + bb.spiral_radius * (math.cos(bb.spiral_theta) * e1 + math.sin(bb.spiral_theta) * e2)
+    return pos, quat
+
+
+@settings(max_examples=100, deadline=None)
+@given(rows=st.lists(st.fixed_dictionaries(BLACKBOARD), min_size=1, max_size=4), change=st.sampled_from(
+    ["nothing", "time", "motion", "spiral on/off", "spiral angle"]))
+def test_the_reference_after_a_ticks_references_is_the_one_at_its_end_until_the_blackboard_changes(rows, change):
+    # A tick's rewards and its next goals read ``reference()`` after the tick's references: the
+    # value kept from the array evaluation must be the motion's at the end time to rounding,
+    # for one blackboard's ``references`` and for many at once, and dropped once a field it
+    # depends on changes.
+    one = [blackboard(**r) for r in rows]
+    many = [blackboard(**r) for r in rows]
+    for bb in one:
+        bb.references(50, 0.002)
+    references_rows(many, 50, 0.002)
+    for a, b in zip(one, many):
+        for bb in (a, b):
+            if change == "time":
+                bb.mg_time += 0.002
+            elif change == "motion":
+                bb.motion = LinearMotion(bb.goal_pos, START_QUAT, bb.goal_pos + 0.01, START_QUAT)
+            elif change == "spiral on/off":
+                bb.spiral_on = not bb.spiral_on
+            elif change == "spiral angle":
+                bb.spiral_theta += 0.1
+            got, want = bb.reference(), _reference_now(bb)
+            np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(got[1], want[1], rtol=0, atol=1e-12)
+            if change != "nothing" and not (change == "spiral angle" and not bb.spiral_on):
+                np.testing.assert_array_equal(got[0], want[0])  # computed again, not the kept value
+                np.testing.assert_array_equal(got[1], want[1])
+        np.testing.assert_array_equal(a.reference()[0], b.reference()[0])  # both ways keep the same value
+        np.testing.assert_array_equal(a.reference()[1], b.reference()[1])
+
+
 # a zero offset or turn too: a motion that does not move or does not turn (its fraction is 1)
 motion_row = st.fixed_dictionaries({**BLACKBOARD,
                                     "goal_offset": st.one_of(st.just((0.0, 0.0, 0.0)), BLACKBOARD["goal_offset"]),
