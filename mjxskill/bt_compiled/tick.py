@@ -19,10 +19,10 @@ stops") was measured too: no faster at batch 1024 and 2-5x slower at batch 1 on 
 ``started_leaves(ct, previous_state, active)`` tells which active leaves start afresh (their
 programs must reset) rather than carry on from the last tick.
 
-``tick_rows(ct, state, leaf_status)`` is the same tick over N machines at once in numpy (state
-fields (N, n), statuses (N, L)): the walk is written over an array namespace with ``[..., k]``
-indexing, so the ops that run on one machine under ``vmap`` run on the rows of a native batch,
-in the same order, with no per-machine Python.
+``tick_rows(ct, state, leaf_status)`` is the same tick over N machines at once on numpy arrays
+(state fields (N, n), statuses (N, L)), what a native batch's rows run: this walk flattened once
+into a program of per-node instructions that a compiled loop runs on each row
+(``mjxskill.bt_compiled.rows``).
 
 Out-of-range leaf statuses: an Action's value other than RUNNING (0) or SUCCESS (1) counts as
 FAILURE. A Condition returning RUNNING is an error in the interpreter, but a jitted function
@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjxskill.bt_compiled.compile import CompiledTree
+from mjxskill.bt_compiled.rows import tick_program
 from mjxskill.ebt.nodes import Kind, Status
 
 RUNNING = int(Status.RUNNING)
@@ -112,7 +113,8 @@ def tick_rows(ct: CompiledTree, state: BTState, leaf_status: np.ndarray) -> tupl
     _check_inputs(ct, state, leaf_status, leaf_status.shape[:1])
     if state.live.dtype != bool:  # ``~live`` (started_leaves) would be a bitwise not
         raise ValueError(f"state.live must be bool, got dtype {state.live.dtype}")
-    return _tick(ct, state, leaf_status, np)
+    memory, node_status, live, root, active, _ = tick_program(ct, state.memory, state.live, leaf_status)
+    return BTState(memory, node_status, live), root, active
 
 
 def init_rows(ct: CompiledTree, n: int) -> BTState:
@@ -121,8 +123,8 @@ def init_rows(ct: CompiledTree, n: int) -> BTState:
 
 
 def _tick(ct: CompiledTree, state: BTState, leaf_status, xp) -> tuple[BTState, Any, Any]:
-    """The tick in namespace ``xp`` (jax.numpy for one machine, numpy for rows): every per-node
-    value is indexed ``[..., k]`` and stacked on the last axis, so leading axes are machines."""
+    """The tick in namespace ``xp`` (jax.numpy): every per-node value is indexed ``[..., k]`` and
+    stacked on the last axis, so leading axes would be machines."""
     walk = _Walk(ct, _sanitized(ct, leaf_status, xp), state.memory.astype(xp.int32), xp)
     root_status = walk.visit(0, xp.ones(leaf_status.shape[:-1], dtype=bool))  # every machine ticks its root
     live = _live(ct, walk.enabled, walk.status, xp)
@@ -137,12 +139,6 @@ def _tick(ct: CompiledTree, state: BTState, leaf_status, xp) -> tuple[BTState, A
 
 def _stacked(values: list, xp):
     """Per-node values (scalars and per-machine arrays mixed) stacked on a last axis."""
-    if xp is np:  # rows: each value copied into its column (numpy's broadcast and stack cost ~5x more)
-        rows = next((v.shape for v in values if np.ndim(v)), ())
-        out = np.empty(rows + (len(values),), np.result_type(*values))
-        for k, v in enumerate(values):
-            out[..., k] = v
-        return out
     return xp.stack(xp.broadcast_arrays(*values), axis=-1)
 
 

@@ -187,3 +187,24 @@ def test_rows_tick_refuses_what_it_cannot_run():
         tick_rows(ct, state._replace(live=state.live.astype(np.int32)), np.zeros((3, 1), np.int32))
     with pytest.raises(ValueError, match=r"this tree needs \(2, 2\)"):  # 3 machines' state, 2 rows of statuses
         tick_rows(ct, state, np.zeros((2, 1), np.int32))
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(tree=trees(max_nodes=12), seed=st.integers(0, 2**31 - 1))
+def test_rows_tick_reads_out_of_range_statuses_as_the_jax_tick_does(tree, seed):
+    """Leaf statuses outside RUNNING/SUCCESS/FAILURE (a Condition's RUNNING among them) count as
+    FAILURE in the rows' compiled program as in ``tick``, which the interpreter cannot be asked
+    about (it raises): the two compiled ticks give the same states, roots and active leaves."""
+    ct = compile_tree(tree)
+    rng = np.random.default_rng(seed)
+    rows, ticks = 3, 6
+    leaf_status = rng.integers(-2, 5, size=(rows, ticks, ct.num_leaves), dtype=np.int32)
+    state, vmapped = init_rows(ct, rows), jax.vmap(lambda s, l: tick(ct, s, l))
+    jax_state = jax.tree.map(np.asarray, jax.vmap(lambda _: init_state(ct))(np.arange(rows)))
+    for t in range(ticks):
+        state, root, active = tick_rows(ct, state, leaf_status[:, t])
+        jax_state, jax_root, jax_active = jax.tree.map(np.asarray, vmapped(jax_state, leaf_status[:, t]))
+        for got, want in zip(state, jax_state):
+            np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(root, jax_root)
+        np.testing.assert_array_equal(active, jax_active)

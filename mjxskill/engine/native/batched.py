@@ -26,7 +26,8 @@ import mujoco
 import numpy as np
 from mujoco.batch import Batch, SimulationError
 
-from mjxskill.bt_compiled import BTState, init_rows, started_leaves, tick_rows
+from mjxskill.bt_compiled import init_rows
+from mjxskill.bt_compiled.rows import tick_program
 from mjxskill.ebt.nodes import Status
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import FREE, MOCAP
@@ -148,7 +149,7 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
 class RowsTree:
     """The behavior tree of a batch's episodes ticked for all rows at once: every leaf's status
     from the rows' blackboards (``LeafStatus.rows``), then the compiled tree's tick over the
-    rows (``bt_compiled.tick_rows``, tested against the reference interpreter), which each
+    rows (``bt_compiled.rows``, tested against the reference interpreter), which each
     episode's own tick would give; the episodes then apply their active leaves' effects
     (``NativeEpisode.begin_tick``'s ``ticked``)."""
 
@@ -161,12 +162,11 @@ class RowsTree:
         """The tick of ``episodes[i]`` for the batch rows ``rows`` whose trees still run, given
         their tool positions (len(rows), 3): {row: (root status, active, started)}, the leaf
         flags as lists in ``engine.programs``' order."""
-        previous = BTState(*(field[rows] for field in self.state))
-        live = previous.live[:, self.ct.leaf_ids]
+        memory, live = self.state.memory[rows], self.state.live[rows]
+        leaf_live = live[:, self.ct.leaf_ids]
         bbs = [episodes[i].bb for i in rows]
-        status = np.stack([s.rows(bbs, tool_pos, live[:, k]) for k, s in enumerate(self.statuses)], axis=-1)
-        state, root, active = tick_rows(self.ct, previous, status)
-        started = started_leaves(self.ct, previous, active)
+        status = np.stack([s.rows(bbs, tool_pos, leaf_live[:, k]) for k, s in enumerate(self.statuses)], axis=-1)
+        *state, root, active, started = tick_program(self.ct, memory, live, status)
         for field, new in zip(self.state, state):
             field[rows] = new
         return {i: (Status(r), a, s) for i, r, a, s in zip(rows, root.tolist(), active.tolist(), started.tolist())}
