@@ -2,7 +2,8 @@
 
 ``compile_tree(tree)`` flattens an eBT (``mjxskill.ebt``) once on the host; ``init_state`` and
 ``tick`` are the optax-style pair that run it as a state machine under ``jit``/``vmap``/``scan``;
-``init_rows`` and ``tick_rows`` run the same tick over many machines in numpy.
+``init_rows`` and ``tick_rows`` run the same tick over many machines' numpy arrays (one compiled
+loop over them, ``rows``).
 """
 
 from mjxskill.bt_compiled.compile import CompiledTree, LeafSpec, compile_tree
