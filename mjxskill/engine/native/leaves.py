@@ -111,21 +111,9 @@ class NativeBlackboard:
     def references(self, n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """The references of the next ``n`` control periods, positions (n, 3) and quaternions
         (n, 4), and the blackboard advanced past them: what ``n`` rounds of ``reference()`` and
-        ``advance(dt)`` give, with the motion evaluated for all ``n`` times and the one after
-        at once (that one is ``reference()``'s value at the end)."""
-        times = np.cumsum(np.concatenate([[self.mg_time], np.full(n, dt)]))  # sequential sums, as += dt
-        pos, quat = self.motion.at_times(times)
-        self.mg_time = float(times[-1])
-        end_pos, end_quat = pos[-1], quat[-1]
-        pos, quat = pos[:-1], quat[:-1]
-        if self.spiral_on:
-            radius_max, velocity, pitch = self.spiral_params
-            e1, e2 = self.spiral_axes
-            offsets, self.spiral_theta, self.spiral_radius = spiral_offsets(
-                self.spiral_theta, self.spiral_radius, radius_max, velocity, pitch, dt, e1, e2, n)
-            pos = pos + offsets
-        self.remember_end(end_pos, end_quat)
-        return pos, quat
+        ``advance(dt)`` give (to rounding), as ``references_rows`` gives them for one row."""
+        pos, quat = references_rows([self], n, dt)
+        return pos[:, 0], quat[:, 0]
 
     def advance(self, dt: float) -> None:
         """One control period of the motion generator and the spiral."""
@@ -138,10 +126,11 @@ class NativeBlackboard:
 
 
 def references_rows(bbs: list[NativeBlackboard], n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """``NativeBlackboard.references`` of many blackboards at once: positions (n, N, 3) and
-    quaternions (n, N, 4), the N blackboards advanced past them; every motion evaluated in one
-    pass over (n, N) times (``motion.references_at``), bit for bit what each blackboard's own
-    call gives (the same operations, elementwise); the spirals, on few rows, row by row."""
+    """The references of the next ``n`` control periods of N blackboards: positions (n, N, 3) and
+    quaternions (n, N, 4), the blackboards advanced past them; every motion evaluated in one
+    compiled pass over (n + 1, N) times (``motion.references_at``: the last is the reference at
+    the end, which ``reference()`` then returns); the spirals, on few rows, row by row. A row's
+    values do not depend on the other rows."""
     start = np.array([bb.mg_time for bb in bbs])
     # sequential sums down each column, as a blackboard's own cumsum and += dt
     times = np.cumsum(np.concatenate([start[None], np.full((n, len(bbs)), dt)]), axis=0)

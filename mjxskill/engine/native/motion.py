@@ -16,6 +16,7 @@ import numpy as np
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.motion import AxisLimits, MotionLimits
 from mjxskill.engine.common.rotations import quat_conj, quat_mul, quat_to_rotvec, rotvec_to_quat
+from mjxskill.engine.native.kernels import motion_references
 
 
 def _shape_constant(lim: AxisLimits) -> float:
@@ -48,39 +49,19 @@ def trapezoid_position(t: float, distance: float, duration: float, speed: float,
     return distance - 0.5 * lim.dec * (duration - t) ** 2
 
 
-def trapezoid_positions(t: np.ndarray, distance: float, duration: float, speed: float, lim: AxisLimits) -> np.ndarray:
-    """``trapezoid_position`` at every time of ``t`` (n,) at once."""
-    return _trapezoid(t, distance, duration, speed, lim.acc, lim.dec)
-
-
-def _trapezoid(t, distance, duration, speed, acc, dec):
-    """The trapezoid's distance at times t; every argument a float or an array, broadcast
-    (one motion at n times, or N motions, one per last axis, at (n, N) times)."""
-    t_acc, t_dec = speed / acc, speed / dec
-    t = HOST.clip(t, 0.0, duration)
-    cruise = 0.5 * acc * t_acc**2 + speed * (t - t_acc)
-    braking = distance - 0.5 * dec * (duration - t) ** 2
-    return np.where(t < t_acc, 0.5 * acc * t**2, np.where(t < duration - t_dec, cruise, braking))
-
-
-# The columns of ``LinearMotion.row``: what the motion's reference at a time depends on.
-_START_POS, _START_QUAT, _DELTA, _ROTVEC = slice(0, 3), slice(3, 7), slice(7, 10), slice(10, 13)
-_LENGTH, _ANGLE, _DURATION, _SPEED_POS, _SPEED_ROT, _ACC_POS, _DEC_POS, _ACC_ROT, _DEC_ROT = range(13, 22)
+# ``LinearMotion.row``, what the motion's reference at a time depends on, as
+# ``kernels.motion_references`` reads it: start_pos (columns 0-2), start_quat (3-6), delta
+# (7-9), rotvec (10-12), then length, angle, duration, speed_pos, speed_rot, the translation's
+# acc and dec, the rotation's acc and dec (13-21).
 
 
 def references_at(rows: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The references of N motions (their ``LinearMotion.row``, stacked (N, 22)) at times t
-    (n, N), one column per motion: positions (n, N, 3) and quaternions (n, N, 4), the values
-    ``at_times`` gives each motion (the same operations, elementwise: bit for bit)."""
-    c = rows.T
-    length, angle = c[_LENGTH], c[_ANGLE]
-    moves, turns = length > 0, angle > 0
-    along = _trapezoid(t, length, c[_DURATION], c[_SPEED_POS], c[_ACC_POS], c[_DEC_POS])
-    frac_pos = np.where(moves, along / np.where(moves, length, 1.0), 1.0)
-    turned = _trapezoid(t, angle, c[_DURATION], c[_SPEED_ROT], c[_ACC_ROT], c[_DEC_ROT])
-    frac_rot = np.where(turns, turned / np.where(turns, angle, 1.0), 1.0)
-    pos = rows[:, _START_POS] + frac_pos[..., None] * rows[:, _DELTA]
-    quat = quat_mul(rotvec_to_quat(frac_rot[..., None] * rows[:, _ROTVEC], HOST), rows[:, _START_QUAT], HOST)
+    (n, N), one column per motion: positions (n, N, 3) and quaternions (n, N, 4), what ``at``
+    gives each motion at each time to rounding (the same formulas, compiled:
+    ``kernels.motion_references``)."""
+    pos, quat = np.empty(t.shape + (3,)), np.empty(t.shape + (4,))
+    motion_references(np.ascontiguousarray(rows, float), np.ascontiguousarray(t, float), pos, quat)
     return pos, quat
 
 
@@ -101,16 +82,13 @@ class LinearMotion:
         self.duration = max(min_duration(self.length, limits.translation), min_duration(self.angle, limits.rotation))
         self.speed_pos = cruise_speed(self.length, self.duration, limits.translation)
         self.speed_rot = cruise_speed(self.angle, self.duration, limits.rotation)
-        # what ``references_at`` reads, one row for many motions at once (columns: _START_POS ...)
+        # what ``references_at`` reads, one row for many motions at once (columns: above)
         self.row = np.concatenate([self.start_pos, self.start_quat, self.delta, self.rotvec,
                                    [self.length, self.angle, self.duration, self.speed_pos, self.speed_rot,
                                     limits.translation.acc, limits.translation.dec, limits.rotation.acc,
                                     limits.rotation.dec]])
-        # the reference at and after ``duration``, by ``at``'s scalar and ``at_times``'s array
-        # arithmetic (which may differ in the last bit), once asked for
+        # the reference at and after ``duration``, once asked for
         self._end_scalar: tuple[np.ndarray, np.ndarray] | None = None
-        self._end: tuple[np.ndarray, np.ndarray] | None = None
-        self._end_scalar = self._end = None
         # ``at``'s last time inside the motion and its reference: a tick's end (the rewards) and
         # the next tick's start (a goal set from the reference) ask for the same time
         self._last: tuple[float | None, tuple[np.ndarray, np.ndarray] | None] = (None, None)
@@ -139,34 +117,6 @@ class LinearMotion:
             frac_rot = 1.0
         pos = self.start_pos + frac_pos * self.delta
         quat = quat_mul(rotvec_to_quat(frac_rot * self.rotvec, HOST), self.start_quat, HOST)
-        return pos, quat
-
-    def at_times(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``at`` for every time of ``t`` (n,) at once: positions (n, 3), quaternions (n, 4)."""
-        if t[0] >= self.duration:
-            pos, quat = self._end_pose()
-            return np.repeat(pos, len(t), axis=0), np.repeat(quat, len(t), axis=0)
-        return self._at_times(t)
-
-    def _end_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """The reference at the motion's end, (1, 3) and (1, 4): time is clamped to the
-        duration, so every later time gives these very values (most of an episode's ticks)."""
-        if self._end is None:
-            self._end = self._at_times(np.array([self.duration]))
-        return self._end
-
-    def _at_times(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        lim = self.limits
-        if self.length > 0:
-            frac_pos = trapezoid_positions(t, self.length, self.duration, self.speed_pos, lim.translation) / self.length
-        else:
-            frac_pos = np.ones_like(t)
-        if self.angle > 0:
-            frac_rot = trapezoid_positions(t, self.angle, self.duration, self.speed_rot, lim.rotation) / self.angle
-        else:
-            frac_rot = np.ones_like(t)
-        pos = self.start_pos + frac_pos[:, None] * self.delta
-        quat = quat_mul(rotvec_to_quat(frac_rot[:, None] * self.rotvec, HOST), self.start_quat, HOST)
         return pos, quat
 
 
