@@ -184,12 +184,10 @@ def batched_impedance_control(cfg: ControllerConfig, jac, site_pos, site_quat, q
         x[:, a, :] = acc / chol[:, a, a, None]
     k_ns = cfg.nullspace_stiffness
     drive = k_ns * (nullspace_target - q) - 2.0 * math.sqrt(k_ns) * qd
+    x_drive = np.stack([_row_dot(x[:, a, :], drive) for a in range(6)], axis=1)  # (I - J^T x) drive = drive - J^T (x drive)
     tau = np.empty((n, N_ARM))
     for j in range(N_ARM):
-        nullspace = drive[:, j]
-        for c in range(N_ARM):
-            nullspace = nullspace - _row_dot(jac[:, :, j], x[:, :, c]) * drive[:, c]
-        total = bias[:, j] + nullspace
+        total = bias[:, j] + (drive[:, j] - _row_dot(jac[:, :, j], x_drive))
         for k in range(6):
             total = total + jac[:, k, j] * task_force[:, k]
         tau[:, j] = total

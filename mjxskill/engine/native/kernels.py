@@ -155,7 +155,7 @@ def impedance_rows(rows, chain, site, root, cdof, subtree_com, site_xpos, site_x
     """
     stiffness_step, wrench_step, torque_step, damping, k_ns = rates[0], rates[1], rates[2], rates[3], rates[4]
     jac, chol, x = np.empty((6, 7)), np.empty((6, 6)), np.empty((6, 7))
-    quat, pose_err, force, drive = np.empty(4), np.empty(6), np.empty(6), np.empty(7)
+    quat, pose_err, force, drive, x_drive = np.empty(4), np.empty(6), np.empty(6), np.empty(7), np.empty(6)
     damping_ns = 2.0 * math.sqrt(k_ns)
     for r in range(rows.shape[0]):
         i = rows[r]
@@ -173,14 +173,16 @@ def impedance_rows(rows, chain, site, root, cdof, subtree_com, site_xpos, site_x
         _damped_solve(jac, damping, chol, x)
         for j in range(7):
             drive[j] = k_ns * (nullspace_target[r, j] - qpos[i, j]) - damping_ns * qvel[i, j]
+        for a in range(6):  # x drive first: (I - J^T x) drive = drive - J^T (x drive), 84 products not 294
+            acc = x[a, 0] * drive[0]
+            for c in range(1, 7):
+                acc += x[a, c] * drive[c]
+            x_drive[a] = acc
         for j in range(7):  # bias + (I - J^T x) drive + J^T force, rate- and torque-limited
-            nullspace = drive[j]
-            for c in range(7):
-                proj = jac[0, j] * x[0, c]
-                for a in range(1, 6):
-                    proj += jac[a, j] * x[a, c]
-                nullspace -= proj * drive[c]
-            tau = qfrc_bias[i, j] + nullspace
+            proj = jac[0, j] * x_drive[0]
+            for a in range(1, 6):
+                proj += jac[a, j] * x_drive[a]
+            tau = qfrc_bias[i, j] + (drive[j] - proj)
             for k in range(6):
                 tau += jac[k, j] * force[k]
             tau = _rate_limit(torque[r, j], tau, torque_step)
