@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 import mjxskill  # noqa: F401
 from mjxskill.bt_compiled import compile_tree
 from mjxskill.ebt.nodes import action
-from mjxskill.engine.native.leaves import NativeBlackboard, build_native_leaves
+from mjxskill.engine.native.blackboard import NativeBlackboard
+from mjxskill.engine.native.leaves import build_native_leaves
 from mjxskill.engine.common.bindings import NOMINAL, ObjectSlot, SceneBindings
 from mjxskill.engine.mjx.leaves import LeafWorld, build_leaf_programs, init_blackboard, reference_pose
 from mjxskill.sim.inverse_kinematics import tool_down_quat

@@ -1,6 +1,8 @@
-"""Many native episodes on one ``mujoco.batch.Batch``: the BT ticked for all episodes at once
-(``RowsTree``, the compiled tree over rows), each episode's active leaves' effects in Python,
-the control steps between two ticks for all episodes at MuJoCo's speed.
+"""Many native episodes on one ``mujoco.batch.Batch``, their state as arrays with a row per
+episode (``BatchEpisodes``): each tick, every leaf's status and the BT's tick for all rows at
+once (the compiled tree's program, ``bt_compiled.rows``), the active leaves' effects over rows
+(``board.RowsBoard``), then the control steps between two ticks for all episodes at MuJoCo's
+speed, then the rewards over rows.
 
 The batch holds one simulation per episode, each world's contact friction as a per-simulation
 model field (``Batch.expand``: no model copy per episode), and binds the fields the law reads
@@ -10,7 +12,8 @@ law (``mjxskill.engine.native.kernels``) writes every row's torques, then ``Batc
 array. What ``mj_step`` leaves in a row is what it leaves in an ``MjData`` (MuJoCo's batch is
 bit-identical to a loop over one ``MjData`` each), so the law sees what the numpy lockstep
 (``mjxskill.engine.native_reference``, its reference) sees, and whole episodes equal its results
-bit for bit (tests/engine/native/test_batched.py).
+bit for bit but for the last bit of a reward total (the rewards over rows here, one episode's
+there: tests/engine/native/test_batched.py).
 
 A row MuJoCo resets after its state went bad (``mj_step`` then only counts a warning, which a
 batch does not report) is found by its clock: a reset sets ``time`` to 0, so the row falls
@@ -20,6 +23,7 @@ contained as in the plain loop.
 
 from __future__ import annotations
 
+import math
 import time
 
 import mujoco
@@ -35,31 +39,15 @@ from mjxskill.engine.common.health import free_object_z_addresses, healthy_state
 from mjxskill.engine.common.rewards import Observation
 from mjxskill.engine.common.types import EpisodeResult
 from mjxskill.engine.common.worlds import world_pair_friction
-from mjxskill.engine.native.controller import NativeControllerState
-from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode, TickEnd, slot_poses
+from mjxskill.engine.common.success import success
+from mjxskill.engine.native.board import RowsBoard
+from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode, commanded_force, slot_poses
 from mjxskill.engine.native.kernels import add_forces, impedance_rows, site_quats
-from mjxskill.engine.native.leaves import references_rows
 from mjxskill.sim.controller_config import N_ARM
 
 # Bound before the batch's first call: a field bound later is only filled from the next call on.
 BOUND = ("qpos", "qvel", "ctrl", "mocap_pos", "mocap_quat", "time", "xpos", "xquat", "site_xpos", "site_xmat",
          "cdof", "subtree_com", "qfrc_bias", "sensordata")
-
-
-class BatchRow:
-    """Simulation ``i`` of a batch, read as an ``MjData``: views into the bound (N, ...) fields."""
-
-    def __init__(self, fields: dict, i: int):
-        for name, array in fields.items():
-            setattr(self, name, array[i])
-        self.was_reset = False
-
-    def frozen(self, snapshot: dict) -> "BatchRow":
-        """A copy of this row with ``snapshot``'s fields: what a diverged episode is read from."""
-        row = object.__new__(BatchRow)
-        row.__dict__.update({name: np.array(value) for name, value in self.__dict__.items()})
-        row.__dict__.update(snapshot)
-        return row
 
 
 def kinematic_chain(model: mujoco.MjModel, body: int) -> np.ndarray:
@@ -108,109 +96,151 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
     results in order; they do not depend on ``threads`` or on which episodes share the batch.
     ``timing``, if given, gets ``physics_s``: the seconds spent in ``Batch.step`` (benchmarks)."""
     batch, fields, bad = start_batch(engine, worlds, threads)
-    # A world that starts from a non-finite state runs on its own MjData, as in the plain loop.
-    episodes = [
-        NativeEpisode(engine, params[i], _world(worlds, i), engine.mj_model.__copy__()) if bad[i]
-        else NativeEpisode(engine, params[i], _world(worlds, i), None, data=BatchRow(fields, i))
-        for i in range(len(params))
-    ]
-    stepper = _Stepper(engine, batch, fields, timed=timing is not None)
-    z_adr = free_object_z_addresses(engine.setup.bindings)
-    healthy = np.ones(len(episodes), bool)
-    tree, site = RowsTree(engine, len(episodes)), engine.setup.ctrl.site_id
+    results: list = [None] * len(params)
+    for i in np.flatnonzero(bad):  # a world that starts from a non-finite state: its own MjData
+        results[i] = plain_episode(engine, params[i], _world(worlds, int(i)))
+    rows = np.flatnonzero(~bad)
+    if len(rows):
+        episodes = BatchEpisodes(engine, params, worlds, fields)
+        stepper = _Stepper(engine, batch, fields, timed=timing is not None)
+        for t in range(engine.setup.ticks):
+            alive = rows[~episodes.diverged[rows]]
+            if not len(alive):
+                break
+            episodes.begin_tick(alive)
+            reset, force = stepper.tick(episodes, alive)
+            episodes.end_tick(t, alive, reset, force)
+        for i in rows:
+            results[i] = episodes.result(int(i))
+        if timing is not None:
+            timing["physics_s"] = timing.get("physics_s", 0.0) + stepper.physics_s
+    return results
+
+
+def plain_episode(engine, params: np.ndarray, world) -> EpisodeResult:
+    """One episode on its own ``MjData`` (a private model: the world's friction), stepped by
+    the plain loop, with the reference interpreter."""
+    episode = NativeEpisode(engine, params, world, engine.mj_model.__copy__())
     for t in range(engine.setup.ticks):
-        alive = [i for i, e in enumerate(episodes) if not e.diverged]
-        if not alive:
+        episode.begin_tick()
+        episode.plain_steps()
+        if not episode.end_tick(t):
             break
-        # The batch rows' state at the tick's start, for all rows at once (an episode that
-        # diverges during the tick is frozen at its row of it).
-        frame = {name: fields[name].copy() for name in SNAPSHOT_FIELDS}
-        ticking = [i for i in alive if not bad[i] and not episodes[i].done]
-        ticked = tree.tick(episodes, ticking, fields["site_xpos"][ticking, site]) if ticking else {}
-        for i in alive:
-            episodes[i].begin_tick(None if bad[i] else _RowSnapshot(frame, i), ticked.get(i))
-        rows: list[int] | np.ndarray = [i for i in alive if not bad[i]]
-        ends: dict[int, TickEnd] = {}
-        if rows:
-            rows = np.array(rows, dtype=np.int64)
-            reset = stepper.tick([episodes[i] for i in rows], rows)
-            # NativeEpisode.healthy for these rows at once: MuJoCo did not reset them, and the test.
-            healthy[rows] = ~reset & healthy_state(HOST, fields["qpos"][rows], fields["qvel"][rows], z_adr)
-            ends = tick_ends(engine, [episodes[i] for i in rows], rows, fields, worlds)
-        for i in alive:
-            if bad[i]:
-                episodes[i].plain_steps()
-            episodes[i].end_tick(t, None if bad[i] else bool(healthy[i]), ends.get(i))
-    if timing is not None:
-        timing["physics_s"] = timing.get("physics_s", 0.0) + stepper.physics_s
-    return [e.result() for e in episodes]
+    return episode.result()
 
 
-class RowsTree:
-    """The behavior tree of a batch's episodes ticked for all rows at once: every leaf's status
-    from the rows' blackboards (``LeafStatus.rows``), then the compiled tree's tick over the
-    rows (``bt_compiled.rows``, tested against the reference interpreter), which each
-    episode's own tick would give; the episodes then apply their active leaves' effects
-    (``NativeEpisode.begin_tick``'s ``ticked``)."""
+class BatchEpisodes:
+    """The episodes of a batch, one per row, as arrays: their blackboards (``RowsBoard``), the
+    controller's rate-limited state, the BT's state machines, and what ``NativeEpisode`` keeps
+    of an episode (its status, done tick, rewards, forces), advanced a tick at a time for the
+    alive rows at once as ``NativeEpisode.begin_tick`` and ``end_tick`` advance one episode
+    (tests/engine/native/test_batched.py: whole episodes equal the numpy lockstep's).
+    A row that diverges is frozen at its state at the tick's start, as an episode is."""
 
-    def __init__(self, engine, n: int):
+    def __init__(self, engine, params: np.ndarray, worlds, fields: dict):
+        n, spec = len(params), engine.setup
+        self.engine, self.worlds, self.fields, self.spec = engine, worlds, fields, spec
+        self.site = spec.ctrl.site_id
+        tool_pos, tool_quat = self.tool_pose(np.arange(n))
+        self.board = RowsBoard(tool_pos, tool_quat, spec.default_stiffness, len(engine.programs), params)
+        self.statuses, self.effects = [s for s, _ in engine.programs], [e for _, e in engine.programs]
         self.ct = engine.compiled_tree
-        self.state = init_rows(self.ct, n)
-        self.statuses = [status for status, _ in engine.programs]
+        self.bt = init_rows(self.ct, n)
+        # the controller's rate-limited state (NativeControllerState's fields) and its nullspace target
+        self.torque = np.array(fields["qfrc_bias"][:, :N_ARM], float)
+        self.stiffness, self.wrench = np.tile(np.asarray(spec.default_stiffness, float), (n, 1)), np.zeros((n, 6))
+        self.nullspace_target = np.array(worlds.arm_qpos, float)
+        self.done, self.diverged = np.zeros(n, bool), np.zeros(n, bool)
+        self.status, self.root = np.full(n, int(Status.RUNNING)), np.full(n, int(Status.RUNNING))
+        self.done_tick = np.full(n, -1)
+        self.totals = np.zeros((n, len(engine.terms)))
+        self.peak_commanded_force = np.zeros(n)
+        self.force_sum, self.force_peak = np.zeros(n), np.zeros(n)
+        self.z_adr = free_object_z_addresses(spec.bindings)
+        self.frame: dict = {}
+        self.frozen: dict[int, dict] = {}  # row -> its SNAPSHOT_FIELDS at the tick it diverged in
 
-    def tick(self, episodes: list[NativeEpisode], rows: list[int], tool_pos: np.ndarray) -> dict[int, tuple]:
-        """The tick of ``episodes[i]`` for the batch rows ``rows`` whose trees still run, given
-        their tool positions (len(rows), 3): {row: (root status, active, started)}, the leaf
-        flags as lists in ``engine.programs``' order."""
-        memory, live = self.state.memory[rows], self.state.live[rows]
-        leaf_live = live[:, self.ct.leaf_ids]
-        bbs = [episodes[i].bb for i in rows]
-        status = np.stack([s.rows(bbs, tool_pos, leaf_live[:, k]) for k, s in enumerate(self.statuses)], axis=-1)
-        *state, root, active, started = tick_program(self.ct, memory, live, status)
-        for field, new in zip(self.state, state):
-            field[rows] = new
-        return {i: (Status(r), a, s) for i, r, a, s in zip(rows, root.tolist(), active.tolist(), started.tolist())}
+    def tool_pose(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The tool's position (m, 3) and orientation (m, 4) in ``rows`` now."""
+        quat = np.empty((len(rows), 4))
+        site_quats(rows, self.site, self.fields["site_xmat"], quat)
+        return self.fields["site_xpos"][rows, self.site].copy(), quat
 
+    def begin_tick(self, alive: np.ndarray) -> None:
+        """The BT tick of the alive rows whose trees still run (every leaf's status over rows,
+        the compiled tree's tick, ``bt_compiled.rows``) and the tick's effects."""
+        self.frame = {name: self.fields[name].copy() for name in SNAPSHOT_FIELDS}  # for a row that diverges
+        ticking = alive[~self.done[alive]]
+        self.root[alive] = self.status[alive]  # a finished tree's root stays as it ended
+        n_leaves = len(self.effects)
+        active, started = np.zeros((len(ticking), n_leaves), bool), np.zeros((len(ticking), n_leaves), bool)
+        if len(ticking):
+            memory, live = self.bt.memory[ticking], self.bt.live[ticking]
+            leaf_live = live[:, self.ct.leaf_ids]
+            tool_pos = self.fields["site_xpos"][ticking, self.site]
+            leaf_status = np.stack([s.rows(self.board, ticking, tool_pos, leaf_live[:, k])
+                                    for k, s in enumerate(self.statuses)], axis=-1)
+            *state, root, active, started = tick_program(self.ct, memory, live, leaf_status)
+            for field, new in zip(self.bt, state):
+                field[ticking] = new
+            self.root[ticking] = root
+        self.board.apply_effects(alive, ticking, active, started, self.effects)
 
-def tick_ends(engine, episodes: list[NativeEpisode], rows: np.ndarray, fields: dict, worlds) -> dict[int, TickEnd]:
-    """The tool pose and raw rewards at a tick's end of ``episodes``, the batch rows ``rows``
-    (m,), for all at once: {row: TickEnd}. The rewards' terms run on (m, ...) observations
-    (``rewards.Observation``'s fields with a leading row axis), what each episode's
-    ``observation`` holds row by row. Their values equal the episode's own to rounding: numpy's
-    exp over rows may differ from ``math.exp`` on one value in the last bit, a quaternion's
-    inner product over rows sums where one vector's is a dot product (tests/engine/native/
-    test_batched.py finds whole episodes bit for bit equal on push and the peg)."""
-    spec = engine.setup
-    site = spec.ctrl.site_id
-    tool_pos = fields["site_xpos"][rows, site]
-    tool_quat = np.empty((len(rows), 4))
-    site_quats(rows, site, fields["site_xmat"], tool_quat)
-    slot_pos, slot_quat = slot_poses(spec.bindings, worlds.object_pos[rows], worlds.object_quat[rows],
-                                     fields["xpos"][rows], fields["xquat"][rows])
-    obs = Observation(tool_pos, tool_quat, np.stack([e.bb.reference()[0] for e in episodes]), slot_pos, slot_quat,
-                      np.stack([e.cstate.wrench for e in episodes]),
-                      np.array([e.root == Status.SUCCESS for e in episodes]),
-                      np.array([e.tick_force[0] for e in episodes]) / spec.steps_per_tick)
-    with np.errstate(all="ignore"):  # a row that diverged this tick: its values are not used
-        raw = np.stack([term.raw(obs) for term in engine.terms], axis=-1) if engine.terms else np.zeros((len(rows), 0))
-    return {int(i): TickEnd(tool_pos[r], tool_quat[r], raw[r]) for r, i in enumerate(rows)}
+    def end_tick(self, t: int, alive: np.ndarray, reset: np.ndarray, force: tuple[np.ndarray, np.ndarray]) -> None:
+        """The alive rows after the tick's control steps: ``reset`` (m,) the rows MuJoCo reset or
+        stopped, ``force`` this tick's contact force sum and peak (m,) each. A row whose state
+        is not healthy has diverged; the others' status, forces and rewards advance."""
+        f = self.fields
+        healthy = ~reset & healthy_state(HOST, f["qpos"][alive], f["qvel"][alive], self.z_adr)
+        for r in alive[~healthy]:
+            self.diverged[r] = True
+            self.frozen[int(r)] = {name: np.array(array[r]) for name, array in self.frame.items()}
+        ok, force_sum, force_peak = alive[healthy], force[0][healthy], force[1][healthy]
+        root = self.root[ok]
+        finished = ok[(root != int(Status.RUNNING)) & ~self.done[ok]]
+        self.done[finished], self.done_tick[finished] = True, t
+        self.status[ok] = root
+        self.force_sum[ok] += force_sum
+        self.force_peak[ok] = np.maximum(self.force_peak[ok], force_peak)
+        self.totals[ok] += self.rewards(ok, force_sum)
+        self.peak_commanded_force[ok] = np.maximum(self.peak_commanded_force[ok], commanded_force(self.wrench[ok]))
+
+    def rewards(self, rows: np.ndarray, force_sum: np.ndarray) -> np.ndarray:
+        """The raw rewards (m, R) of ``rows`` at the tick's end: the terms over (m, ...)
+        observations, what each episode's ``observation`` holds row by row."""
+        engine, f = self.engine, self.fields
+        tool_pos, tool_quat = self.tool_pose(rows)
+        slot_pos, slot_quat = slot_poses(self.spec.bindings, self.worlds.object_pos[rows], self.worlds.object_quat[rows],
+                                         f["xpos"][rows], f["xquat"][rows])
+        obs = Observation(tool_pos, tool_quat, self.board.end_pos[rows], slot_pos, slot_quat, self.wrench[rows],
+                          self.root[rows] == int(Status.SUCCESS), force_sum / self.spec.steps_per_tick)
+        if not engine.terms:
+            return np.zeros((len(rows), 0))
+        return np.stack([term.raw(obs) for term in engine.terms], axis=-1)
+
+    def result(self, r: int) -> EpisodeResult:
+        """Row r's episode result (``NativeEpisode.result``'s)."""
+        spec, diverged = self.spec, bool(self.diverged[r])
+        state = self.frozen[r] if diverged else {name: self.fields[name][r] for name in SNAPSHOT_FIELDS}
+        slot_pos, slot_quat = slot_poses(spec.bindings, self.worlds.object_pos[r], self.worlds.object_quat[r],
+                                         state["xpos"], state["xquat"])
+        success_, pos_err, rot_err, depth = success(spec.success, np.array(state["site_xpos"][self.site]), slot_pos,
+                                                    slot_quat, HOST)
+        totals = self.totals[r].copy()
+        if diverged:
+            totals = np.array([term.worst_raw * spec.ticks for term in self.engine.terms])
+        return EpisodeResult(
+            reward_totals=totals, success=bool(success_ and not diverged), diverged=diverged,
+            bt_status=int(Status.FAILURE if diverged else self.status[r]), bt_done_tick=int(self.done_tick[r]),
+            position_error=pos_err, orientation_error=rot_err, insertion_depth=depth,
+            peak_commanded_force=float(self.peak_commanded_force[r]),
+            peak_contact_force=math.nan if diverged else float(self.force_peak[r]),
+            mean_contact_force=math.nan if diverged else float(self.force_sum[r]) / (spec.ticks * spec.steps_per_tick),
+        )
 
 
 def _world(worlds, i: int):
     return type(worlds)(*(np.asarray(x)[i] for x in worlds))
-
-
-class _RowSnapshot:
-    """Row ``i`` of ``frame``, a copy of the batch's ``SNAPSHOT_FIELDS`` at a tick's start:
-    what ``NativeEpisode`` restores a diverged episode to (as its own snapshot of the row)."""
-
-    __slots__ = ("frame", "i")
-
-    def __init__(self, frame: dict, i: int):
-        self.frame, self.i = frame, i
-
-    def restore(self, row: BatchRow) -> BatchRow:
-        return row.frozen({name: np.array(array[self.i]) for name, array in self.frame.items()})
 
 
 class _Stepper:
@@ -229,40 +259,39 @@ class _Stepper:
         self.clock = 0.0  # the time of a row that has never been reset, summed as mj_step sums it
         self.timed, self.physics_s = timed, 0.0
 
-    def tick(self, episodes: list[NativeEpisode], rows: np.ndarray) -> np.ndarray:
-        """The control steps of one tick for ``rows`` (m,), the batch rows of ``episodes``.
-        Returns which rows (m,) MuJoCo reset or stopped: their episodes diverged."""
-        f, m, steps = self.fields, len(rows), self.steps
-        ref_pos, ref_quat = references_rows([e.bb for e in episodes], steps, self.cfg.dt)  # (steps, m, 3), (steps, m, 4)
-        cmd_wrench = np.stack([e.bb.wrench for e in episodes])
-        cmd_stiffness = np.stack([e.bb.stiffness for e in episodes])
-        nullspace_target = np.stack([e.nullspace_target for e in episodes])
-        torque = np.stack([e.cstate.torque for e in episodes])
-        stiffness = np.stack([e.cstate.stiffness for e in episodes])
-        wrench = np.stack([e.cstate.wrench for e in episodes])
+    def tick(self, episodes: BatchEpisodes, rows: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """The control steps of one tick for ``rows`` (m,) of ``episodes``. Returns which rows (m,)
+        MuJoCo reset or stopped (their episodes diverged) and the tick's contact force sum and
+        peak per row."""
+        f, m, board = self.fields, len(rows), episodes.board
+        ref_pos, ref_quat = board.references(rows, self.steps, self.cfg.dt)  # (steps, m, 3), (steps, m, 4)
+        cmd_wrench, cmd_stiffness = board.wrench[rows], board.stiffness[rows]
+        nullspace_target = episodes.nullspace_target[rows]
+        torque, stiffness, wrench = episodes.torque[rows], episodes.stiffness[rows], episodes.wrench[rows]
         force_sum, force_peak = np.zeros(m), np.zeros(m)
         failed = np.zeros(m, bool)
-        live = rows
-        for k in range(steps):
+        # the rows to step: all of the batch's as None (no ids to check), until one fails
+        stepped = None if m == self.batch.nsim else rows
+        # the law's arguments, bound once a tick: it runs ``steps`` times
+        chain, site, root, limit, rates = self.chain, self.site, self.root, self.torque_limit, self.rates
+        cdof, com, site_xpos, site_xmat = f["cdof"], f["subtree_com"], f["site_xpos"], f["site_xmat"]
+        qpos, qvel, bias, ctrl, sensordata, sensors = f["qpos"], f["qvel"], f["qfrc_bias"], f["ctrl"], f["sensordata"], self.sensors
+        step, timed = self.batch.step, self.timed
+        for k in range(self.steps):
             # The law runs for every row of the tick, stepped or not: its per-row inputs are indexed
             # by position in ``rows``; a failed row's torques are never applied.
-            impedance_rows(rows, self.chain, self.site, self.root, f["cdof"], f["subtree_com"], f["site_xpos"],
-                           f["site_xmat"], f["qpos"], f["qvel"], f["qfrc_bias"], ref_pos[k], ref_quat[k], cmd_wrench,
-                           cmd_stiffness, nullspace_target, torque, stiffness, wrench, self.torque_limit, self.rates,
-                           f["ctrl"])
-            start = time.perf_counter() if self.timed else 0.0
-            try:  # every row: no ids to check (the same steps)
-                self.batch.step(None if len(live) == self.batch.nsim else live)
+            impedance_rows(rows, chain, site, root, cdof, com, site_xpos, site_xmat, qpos, qvel, bias, ref_pos[k],
+                           ref_quat[k], cmd_wrench, cmd_stiffness, nullspace_target, torque, stiffness, wrench, limit,
+                           rates, ctrl)
+            start = time.perf_counter() if timed else 0.0
+            try:
+                step(stepped)
             except SimulationError as error:  # those rows kept their state; they end here
                 failed |= np.isin(rows, error.ids)
-                live = rows[~failed]
-            if self.timed:
+                stepped = rows[~failed]
+            if timed:
                 self.physics_s += time.perf_counter() - start
-            add_forces(rows, f["sensordata"], self.sensors, force_sum, force_peak)
+            add_forces(rows, sensordata, sensors, force_sum, force_peak)
             self.clock += self.timestep
-        reset = (f["time"][rows] != self.clock) | failed
-        for r, e in enumerate(episodes):
-            e.data.was_reset = bool(reset[r])
-            e.cstate = NativeControllerState(torque[r], stiffness[r], wrench[r])
-            e.tick_force = (float(force_sum[r]), float(force_peak[r]))
-        return reset
+        episodes.torque[rows], episodes.stiffness[rows], episodes.wrench[rows] = torque, stiffness, wrench
+        return (f["time"][rows] != self.clock) | failed, (force_sum, force_peak)

@@ -1,18 +1,19 @@
-"""One native episode as state that advances tick by tick, shared by every way of stepping it.
+"""One native episode on its own ``MjData`` as state that advances tick by tick: the plain loop's
+(``NativeRollout.run_episode`` and ``trace``, a world that starts from a non-finite state) and
+the numpy lockstep's (``mjxskill.engine.native_reference``), what the batch's rows
+(``mjxskill.engine.native.batched``) are checked against.
 
-Per BT tick (``begin_tick``): every leaf's status in Python (``mjxskill.engine.native.leaves``), one tick
-of the reference interpreter, the active leaves' effects on the blackboard. Then
+Per BT tick (``begin_tick``): every leaf's status in Python (``mjxskill.engine.native.leaves``),
+one tick of the reference interpreter, the active leaves' effects on the blackboard. Then
 ``steps_per_tick`` control steps, either ``plain_steps`` here (a user's Python loop: the numpy
 controller and ``mujoco.mj_step`` one step at a time, the baseline the benchmarks measure
-against) or many episodes at once: on a MuJoCo batch (``mjxskill.engine.native.batched``, the
-engine's) or in the numpy lockstep (``mjxskill.engine.native_reference``). Then ``end_tick``: the
-divergence check and the tick's rewards.
+against) or in the numpy lockstep. Then ``end_tick``: the divergence check and the tick's rewards.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, NamedTuple
+from typing import Any, Callable
 
 import mujoco
 import numpy as np
@@ -20,7 +21,7 @@ import numpy as np
 from mjxskill.ebt.interpreter import Interpreter
 from mjxskill.ebt.nodes import Status
 from mjxskill.engine.native.controller import NativeControllerState, native_impedance_control
-from mjxskill.engine.native.leaves import NativeBlackboard
+from mjxskill.engine.native.blackboard import NativeBlackboard
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import FREE, MOCAP
 from mjxskill.engine.common.rewards import Observation
@@ -29,15 +30,6 @@ from mjxskill.engine.common.worlds import world_pair_friction
 from mjxskill.engine.common.health import free_object_z_addresses, healthy_state
 from mjxskill.engine.common.types import EpisodeResult, TickRecord
 from mjxskill.sim.controller_config import N_ARM
-
-
-class TickEnd(NamedTuple):
-    """An episode's tool pose, position (3,) and quaternion (4,), and raw rewards (R,) at a
-    tick's end, computed by a caller for many episodes at once."""
-
-    tool_pos: np.ndarray
-    tool_quat: np.ndarray
-    raw: np.ndarray
 
 
 _RESET_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC)
@@ -61,12 +53,10 @@ def initial_data(engine, model: mujoco.MjModel, world) -> mujoco.MjData:
     return data
 
 
-def data_was_reset(data) -> bool:
+def data_was_reset(data: mujoco.MjData) -> bool:
     """Whether MuJoCo reset ``data`` to the model's initial state after its state or
-    accelerations went bad (it only counts a warning); a batch row says so itself."""
-    if isinstance(data, mujoco.MjData):
-        return any(data.warning[w].number for w in _RESET_WARNINGS)
-    return data.was_reset
+    accelerations went bad (it only counts a warning)."""
+    return any(data.warning[w].number for w in _RESET_WARNINGS)
 
 
 def slot_poses(bindings, object_pos, object_quat, xpos, xquat) -> tuple[np.ndarray, np.ndarray]:
@@ -78,6 +68,11 @@ def slot_poses(bindings, object_pos, object_quat, xpos, xquat) -> tuple[np.ndarr
         if slot.how == FREE:
             pos[..., k, :], quat[..., k, :] = xpos[..., slot.body_id, :], xquat[..., slot.body_id, :]
     return pos, quat
+
+
+def commanded_force(wrench: np.ndarray) -> np.ndarray:
+    """The commanded force's magnitude of a wrench (..., 6): one episode's or rows'."""
+    return np.sqrt(np.add.reduce(wrench[..., :3] * wrench[..., :3], axis=-1))
 
 
 # What is read of an episode's data after it has ended: its state and the kinematics ``mj_step`` left.
@@ -93,11 +88,8 @@ class _Snapshot:
     def __init__(self, data: mujoco.MjData):
         self.arrays = [getattr(data, name).copy() for name in self.FIELDS]
 
-    def restore(self, data):
-        """The data at the snapshot: ``data`` itself, restored in place, for an ``MjData``; a
-        frozen copy for a batch row, whose kinematics are the batch's read-only outputs."""
-        if not isinstance(data, mujoco.MjData):
-            return data.frozen(dict(zip(self.FIELDS, self.arrays)))
+    def restore(self, data: mujoco.MjData) -> mujoco.MjData:
+        """``data`` restored to the snapshot, in place."""
         for name, array in zip(self.FIELDS, self.arrays):
             getattr(data, name)[:] = array
         return data
@@ -108,13 +100,11 @@ class NativeEpisode:
     (unbatched numpy fields), simulated on ``model`` (the engine's, or a private copy when
     several episodes run at once: each world has its own friction)."""
 
-    def __init__(self, engine, params, world, model: mujoco.MjModel | None, record: bool = False, data=None):
+    def __init__(self, engine, params, world, model: mujoco.MjModel, record: bool = False):
         self.engine, self.world, self.model, self.record = engine, world, model, record
         spec = engine.setup
         self.params = np.asarray(params, float)
-        # data: the episode's MjData, made here, or a row of a batch (``mjxskill.engine.native.batched``)
-        # that its runner has set to the world's initial conditions
-        self.data = initial_data(engine, model, world) if data is None else data
+        self.data = initial_data(engine, model, world)
         tool_pos, tool_quat = self.tool_pose()
         self.n_leaves = len(engine.programs)
         self.bb = NativeBlackboard(tool_pos, tool_quat, spec.default_stiffness, self.n_leaves)
@@ -160,22 +150,15 @@ class NativeEpisode:
         return bool(healthy_state(HOST, data.qpos, data.qvel, free_object_z_addresses(self.engine.setup.bindings)))
 
     # -- one tick ---------------------------------------------------------------------------
-    def begin_tick(self, snapshot=None, ticked: tuple | None = None) -> None:
-        """The BT tick and the active leaves' effects (the blackboard then holds this tick's
-        commanded stiffness, wrench, motion and spiral). ``snapshot``: the data's state now, taken
-        by the caller (a batch snapshots all its rows at once), or None to take it here.
-        ``ticked``: (root status, active (L,) bool, started (L,) bool) of this tick, found by the
-        caller (a batch ticks the compiled tree for all its rows at once, ``batched.RowsTree``;
-        then this episode's reference interpreter is never ticked), or None to tick the
-        interpreter here."""
+    def begin_tick(self) -> None:
+        """The BT tick (the reference interpreter) and the active leaves' effects (the blackboard
+        then holds this tick's commanded stiffness, wrench, motion and spiral)."""
         engine, bb = self.engine, self.bb
         # the tool pose the last ``end_tick`` read (nothing has stepped since), or read now
         tool = self._tool
         self._tool = None
         if self.done:  # the tree is no longer ticked: every leaf is idle
             root, active, started = self.status, [False] * self.n_leaves, [False] * self.n_leaves
-        elif ticked is not None:
-            root, active, started = ticked
         else:
             tool_pos = self.tool_pose()[0] if tool is None else tool[0]
             # A leaf's status is read from the state before the tick, which nothing writes during
@@ -188,7 +171,7 @@ class NativeEpisode:
             started = [a and nid not in live for a, nid in zip(active, engine.leaf_ids)]
             self.live = self.interp.live  # ticked, and they and all ancestors RUNNING
         # Held effects fall back to their defaults unless an active leaf sets them again.
-        self._before = (_Snapshot(self.data) if snapshot is None else snapshot, self.cstate, bb.copy())
+        self._before = (_Snapshot(self.data), self.cstate, bb.copy())
         bb.stiffness, bb.wrench, bb.spiral_on = self.default_stiffness, np.zeros(6), False
         for k, (_, effect) in enumerate(engine.programs):
             if active[k]:
@@ -218,14 +201,10 @@ class NativeEpisode:
         self.cstate = cstate
         self.tick_force = (force_sum, force_peak)
 
-    def end_tick(self, t: int, healthy: bool | None = None, tick: TickEnd | None = None) -> bool:
+    def end_tick(self, t: int) -> bool:
         """Divergence check and the tick's rewards; False when the episode has ended (diverged:
-        frozen at the last good state, charged the worst rewards in ``result``). ``healthy``:
-        what ``healthy()`` says now, found by the caller (a batch checks all its rows at once),
-        or None to check here; ``tick``: the tool pose and raw rewards now, computed by the caller
-        for all its rows at once (``batched.tick_ends``; not while recording), or None to compute
-        them here."""
-        if not (self.healthy() if healthy is None else healthy):
+        frozen at the last good state, charged the worst rewards in ``result``)."""
+        if not self.healthy():
             # The compiled rollout keeps ticking a frozen world, which changes nothing.
             snapshot, self.cstate, self.bb = self._before  # type: ignore[misc]  # begin_tick set it
             self.data = snapshot.restore(self.data)
@@ -237,21 +216,16 @@ class NativeEpisode:
         self.status = root
         force_sum, force_peak = self.tick_force
         self.force_sum, self.force_peak = self.force_sum + force_sum, max(self.force_peak, force_peak)
-        if tick is None:
-            tool_pos, tool_quat = self.tool_pose()
-            obs = self.observation(tool_pos, tool_quat)
-            raw: list | np.ndarray = [term.raw(obs) for term in self.engine.terms]
-        else:
-            if self.record:
-                raise ValueError("end_tick: a recorded episode computes its own tick end")
-            tool_pos, tool_quat, raw = tick
+        tool_pos, tool_quat = self.tool_pose()
+        obs = self.observation(tool_pos, tool_quat)
+        raw = [term.raw(obs) for term in self.engine.terms]
         self._tool = (tool_pos, tool_quat)
         self.totals += raw
         if self.record:
             self.records.append(TickRecord(self.data.qpos.copy(), self.data.mocap_pos.copy(), self.data.mocap_quat.copy(),
                                            tool_pos, obs.ref_pos, int(root),
                                            np.array(self.active), np.array(raw)))
-        self.peak_commanded_force = max(self.peak_commanded_force, float(HOST.linalg.norm(self.cstate.wrench[:3])))
+        self.peak_commanded_force = max(self.peak_commanded_force, float(commanded_force(self.cstate.wrench)))
         return True
 
     def observation(self, tool_pos, tool_quat) -> Observation:

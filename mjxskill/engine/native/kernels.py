@@ -265,3 +265,27 @@ def motion_references(rows, t, pos, quat):
             quat[k, r, 1] = aw * bx + ax * bw + ay * bz - az * by
             quat[k, r, 2] = aw * by - ax * bz + ay * bw + az * bx
             quat[k, r, 3] = aw * bz + ax * by - ay * bx + az * bw
+
+
+@_compiled
+def spiral_rows(theta, radius, params, axes, dt, pos, end_pos):
+    """The search spirals of m rows over a tick's n control periods (``spiral_offsets`` for each
+    row): each period's offset added to pos (n, m, 3), theta and radius (m,) advanced past them
+    in place, and the offset at the end (the next reference's) added to end_pos (m, 3); params
+    (m, 3): radius cap, path velocity, pitch; axes (m, 2, 3): the spiral's plane. The same
+    operations in the same order as the blackboard's own spiral (``spiral_offsets`` and the
+    reference's offset), so the same values."""
+    for r in range(theta.shape[0]):
+        th, rad = theta[r], radius[r]
+        radius_max, velocity, pitch = params[r, 0], params[r, 1], params[r, 2]
+        for k in range(pos.shape[0]):
+            c, s = math.cos(th), math.sin(th)
+            for i in range(3):
+                pos[k, r, i] = pos[k, r, i] + rad * (c * axes[r, 0, i] + s * axes[r, 1, i])
+            dtheta = velocity / (rad + 0.001) * dt
+            th = th + dtheta
+            rad = min(rad + dtheta * pitch / (2.0 * math.pi), radius_max)
+        c, s = math.cos(th), math.sin(th)
+        for i in range(3):
+            end_pos[r, i] = end_pos[r, i] + rad * (c * axes[r, 0, i] + s * axes[r, 1, i])
+        theta[r], radius[r] = th, rad

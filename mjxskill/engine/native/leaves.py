@@ -1,12 +1,14 @@
-"""The leaf programs of ``mjxskill.engine.mjx.leaves`` in plain Python over a mutable blackboard, for
-the native-MuJoCo baseline (same two phases per BT tick: every leaf's status from the state
-before the tick, then the effects of the leaves the tick activated, in tick order).
+"""The leaf programs of ``mjxskill.engine.mjx.leaves`` in plain Python, for the native engine:
+each leaf's status (from the state before the tick) and effect (on the blackboard, in tick
+order), over one episode's blackboard (``NativeBlackboard``: the plain loop and the lockstep,
+the references) and over the rows of a batch's blackboards at once (``RowsBoard``: the same
+operations on each row, so the same values).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -16,149 +18,21 @@ from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.leaf_inputs import LeafInput, force_inputs, leaf_input, spiral_inputs, wait_ticks
 from mjxskill.engine.common.rotations import quat_mul
 from mjxskill.engine.common.tool import TOOL_DOWN, TOOL_SYMMETRY, tool_yaw
-from mjxskill.engine.native.kernels import spiral_offsets
-from mjxskill.engine.native.motion import LinearMotion, plane_basis, references_at, spiral_step
+from mjxskill.engine.native.blackboard import NativeBlackboard
+from mjxskill.engine.native.motion import LinearMotion, plane_basis
 from mjxskill.errors import quote
-
-
-class NativeBlackboard:
-    """Per-episode state the leaf programs share (fields as ``rollout.leaves.Blackboard``).
-
-    goal_pos (3,), goal_quat (4,); motion: the current LinearMotion; mg_time s; stiffness (6,),
-    wrench (6,); spiral_theta, spiral_radius, spiral_on, spiral_params (radius cap, velocity,
-    pitch), spiral_axes (two (3,) unit vectors spanning its plane); leaf_ticks: list of L ints.
-    """
-
-    _goal_quat: np.ndarray | None  # None: ``_goal_quat_of()`` computes it when read
-    _goal_quat_of: Callable[[], np.ndarray] | None
-
-    def __init__(self, tool_pos, tool_quat, default_stiffness, n_leaves: int):
-        self.goal_pos = np.array(tool_pos, float)
-        self.goal_quat = np.array(tool_quat, float)
-        self.motion = LinearMotion(tool_pos, tool_quat, tool_pos, tool_quat)
-        self.mg_time = 0.0
-        self.stiffness = np.array(default_stiffness, float)
-        self.wrench = np.zeros(6)
-        self.spiral_theta = 0.0
-        self.spiral_radius = 0.0
-        self.spiral_on = False
-        self.spiral_params = (0.0, 0.0, 0.0)
-        self.spiral_axes = plane_basis(SPIRAL_NORMAL)
-        self.leaf_ticks = [0] * n_leaves
-        # The reference at the end of the last ``references``, with what it was computed from
-        # (motion, time, spiral state): the tick's rewards and the next tick's goals ask for it.
-        self.end_reference: tuple | None = None
-
-    def copy(self) -> "NativeBlackboard":
-        # Fields are rebound, never mutated in place, so a shallow copy is a snapshot (made as
-        # ``copy.copy`` makes it, without its protocol's cost: this runs every tick and episode).
-        new = object.__new__(NativeBlackboard)
-        new.__dict__.update(self.__dict__)
-        new.leaf_ticks = list(self.leaf_ticks)
-        return new
-
-    @property
-    def goal_quat(self) -> np.ndarray:
-        """The goal orientation (4,): set, or computed from what a goal leaf deferred
-        (``defer_goal_quat``) when first read, i.e. when a motion starts towards it."""
-        if self._goal_quat is None:
-            assert self._goal_quat_of is not None  # set together: one of the two is None
-            self._goal_quat = self._goal_quat_of()
-        return self._goal_quat
-
-    @goal_quat.setter
-    def goal_quat(self, quat: np.ndarray) -> None:
-        self._goal_quat, self._goal_quat_of = quat, None
-
-    def defer_goal_quat(self, compute: Callable[[], np.ndarray]) -> None:
-        """The goal orientation is ``compute()``, a pure function, called when it is read: a goal
-        leaf runs every tick its sequence is ticked, and a moving reference makes its value
-        new each time, but only a starting motion reads it."""
-        self._goal_quat, self._goal_quat_of = None, compute
-
-    def reference(self) -> tuple[np.ndarray, np.ndarray]:
-        """Controller reference position (3,) and quaternion (4,)."""
-        end = self.end_reference
-        if end is not None and self._same_reference(end[0]):
-            return end[1].copy(), end[2].copy()
-        pos, quat = self.motion.at(self.mg_time)
-        return self._spiralled(pos), quat
-
-    def _spiralled(self, pos: np.ndarray) -> np.ndarray:
-        """A motion's reference position (3,) with the spiral's offset now, if it is on."""
-        if self.spiral_on:
-            r, th = self.spiral_radius, self.spiral_theta
-            e1, e2 = self.spiral_axes
-            pos = pos + r * (math.cos(th) * e1 + math.sin(th) * e2)
-        return pos
-
-    def _reference_key(self) -> tuple:
-        """What the reference depends on besides constants: the motion (a started motion is a
-        new object), its time and the spiral's state (its angle, radius and plane)."""
-        return (self.motion, self.mg_time, self.spiral_on, self.spiral_theta, self.spiral_radius, self.spiral_axes)
-
-    def _same_reference(self, key: tuple) -> bool:
-        motion, time, spiral_on, theta, radius, axes = key
-        if motion is not self.motion or time != self.mg_time or spiral_on != self.spiral_on:
-            return False
-        return not spiral_on or (theta == self.spiral_theta and radius == self.spiral_radius and axes is self.spiral_axes)
-
-    def remember_end(self, motion_pos: np.ndarray, motion_quat: np.ndarray) -> None:
-        """The motion's reference (3,), (4,) at the time it has been advanced to (computed with
-        the tick's references), kept as ``reference()``'s value until the blackboard changes."""
-        self.end_reference = (self._reference_key(), self._spiralled(motion_pos), motion_quat)
-
-    def references(self, n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """The references of the next ``n`` control periods, positions (n, 3) and quaternions
-        (n, 4), and the blackboard advanced past them: what ``n`` rounds of ``reference()`` and
-        ``advance(dt)`` give (to rounding), as ``references_rows`` gives them for one row."""
-        pos, quat = references_rows([self], n, dt)
-        return pos[:, 0], quat[:, 0]
-
-    def advance(self, dt: float) -> None:
-        """One control period of the motion generator and the spiral."""
-        self.mg_time += dt
-        if self.spiral_on:
-            radius_max, velocity, pitch = self.spiral_params
-            self.spiral_theta, self.spiral_radius = spiral_step(
-                self.spiral_theta, self.spiral_radius, radius_max, velocity, pitch, dt
-            )
-
-
-def references_rows(bbs: list[NativeBlackboard], n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """The references of the next ``n`` control periods of N blackboards: positions (n, N, 3) and
-    quaternions (n, N, 4), the blackboards advanced past them; every motion evaluated in one
-    compiled pass over (n + 1, N) times (``motion.references_at``: the last is the reference at
-    the end, which ``reference()`` then returns); the spirals, on few rows, row by row. A row's
-    values do not depend on the other rows."""
-    start = np.array([bb.mg_time for bb in bbs])
-    # sequential sums down each column, as a blackboard's own cumsum and += dt
-    times = np.cumsum(np.concatenate([start[None], np.full((n, len(bbs)), dt)]), axis=0)
-    pos, quat = references_at(np.stack([bb.motion.row for bb in bbs]), times)
-    end_pos, end_quat = pos[-1], quat[-1]
-    pos, quat = pos[:-1], quat[:-1]
-    for r, bb in enumerate(bbs):
-        bb.mg_time = float(times[-1, r])
-        if bb.spiral_on:
-            radius_max, velocity, pitch = bb.spiral_params
-            e1, e2 = bb.spiral_axes
-            offsets, bb.spiral_theta, bb.spiral_radius = spiral_offsets(
-                bb.spiral_theta, bb.spiral_radius, radius_max, velocity, pitch, dt, e1, e2, n)
-            pos[:, r] = pos[:, r] + offsets
-        bb.remember_end(end_pos[r], end_quat[r])
-    return pos, quat
 
 
 class LeafStatus:
     """A leaf's status from the state before the tick: called with one blackboard, the tool
-    position (3,) and whether the leaf runs on from the last tick; ``rows(bbs, tool_pos, live)``
-    for m blackboards at once, tool positions (m, 3) and live (m,) bool, as
-    (m,) int Status values (what a batch's compiled tree ticks on, ``bt_compiled.tick_rows``)."""
+    position (3,) and whether the leaf runs on from the last tick; ``rows(board, rows, tool_pos,
+    live)`` for the rows (m,) of a ``RowsBoard`` at once, their tool positions (m, 3) and live
+    (m,) bool, as (m,) int Status values (what a batch's compiled tree ticks on)."""
 
     def __call__(self, bb: NativeBlackboard, tool_pos: np.ndarray, live: bool) -> Status:
         raise NotImplementedError
 
-    def rows(self, bbs: list[NativeBlackboard], tool_pos: np.ndarray, live: np.ndarray) -> np.ndarray:
+    def rows(self, board, rows: np.ndarray, tool_pos: np.ndarray, live: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
 
@@ -171,8 +45,8 @@ class Always(LeafStatus):
     def __call__(self, bb, tool_pos, live):
         return self.status
 
-    def rows(self, bbs, tool_pos, live):
-        return np.full(len(bbs), int(self.status))
+    def rows(self, board, rows, tool_pos, live):
+        return np.full(len(rows), int(self.status))
 
 
 class Reached(LeafStatus):
@@ -186,8 +60,8 @@ class Reached(LeafStatus):
         close = HOST.linalg.norm(tool_pos - bb.motion.goal_pos) < self.threshold
         return Status.SUCCESS if live and close else Status.RUNNING
 
-    def rows(self, bbs, tool_pos, live):
-        close = HOST.linalg.norm(tool_pos - np.stack([bb.motion.goal_pos for bb in bbs]), axis=-1) < self.threshold
+    def rows(self, board, rows, tool_pos, live):
+        close = HOST.linalg.norm(tool_pos - board.motion_goal[rows], axis=-1) < self.threshold
         return np.where(live & close, int(Status.SUCCESS), int(Status.RUNNING))
 
 
@@ -200,29 +74,44 @@ class Waited(LeafStatus):
     def __call__(self, bb, tool_pos, live):
         return Status.SUCCESS if live and bb.leaf_ticks[self.leaf] >= self.ticks else Status.RUNNING
 
-    def rows(self, bbs, tool_pos, live):
-        waited = np.array([bb.leaf_ticks[self.leaf] for bb in bbs]) >= self.ticks
+    def rows(self, board, rows, tool_pos, live):
+        waited = board.leaf_ticks[rows, self.leaf] >= self.ticks
         return np.where(live & waited, int(Status.SUCCESS), int(Status.RUNNING))
 
 
-# effect(bb, fresh, params) -> None (writes bb).
-EffectFn = Callable[[NativeBlackboard, bool, np.ndarray], None]
+class Effect:
+    """What an active leaf does to the blackboard: ``effect(bb, fresh, params)`` on one episode's
+    (``fresh``: the leaf starts afresh this tick, params (P,)); ``rows(board, rows, fresh,
+    params)`` on the rows (m,) of a ``RowsBoard`` where the leaf is active, fresh (m,) bool and
+    params (m, P), each row as the call on its own blackboard would."""
+
+    def __call__(self, bb: NativeBlackboard, fresh: bool, params: np.ndarray) -> None:
+        return None
+
+    def rows(self, board, rows: np.ndarray, fresh: np.ndarray, params: np.ndarray) -> None:
+        return None
+
+
+class _Reader:
+    """A leaf input (``leaf_inputs.LeafInput``) read from one parameter vector (P,), as a
+    float, or from rows (m, P), as (m,)."""
+
+    def __init__(self, source: LeafInput):
+        self.index, self.value = source.index, source.value
+
+    def __call__(self, params: np.ndarray) -> float:
+        return float(params[self.index]) if self.index is not None else self.value
+
+    def rows(self, params: np.ndarray) -> np.ndarray:
+        return params[:, self.index] if self.index is not None else np.full(len(params), self.value)
+
+
+def _input(leaf: Node, name: str, index: dict) -> _Reader:
+    return _Reader(leaf_input(leaf, name, index))
+
+
+_keep = Effect()
 _running = Always(Status.RUNNING)
-
-
-def _input(leaf: Node, name: str, index: dict) -> Callable[[np.ndarray], float]:
-    """A leaf input as a function of the parameter vector (``leaf_inputs.leaf_input``)."""
-    return _reader(leaf_input(leaf, name, index))
-
-
-def _reader(source: LeafInput) -> Callable[[np.ndarray], float]:
-    if source.index is not None:
-        return lambda params: float(params[source.index])
-    return lambda params: source.value
-
-
-def _keep(bb, fresh, params):
-    return None
 
 
 def tool_down_aligned(current_quat, object_yaw: float, tilt=None) -> np.ndarray:
@@ -242,7 +131,7 @@ def tool_down_aligned(current_quat, object_yaw: float, tilt=None) -> np.ndarray:
 
 
 def build_native_leaves(leaves: list[Node], parameter_names, slot_of: dict, nominal_pos: np.ndarray,
-                        nominal_quat: np.ndarray, tick_seconds: float) -> list[tuple[LeafStatus, EffectFn]]:
+                        nominal_quat: np.ndarray, tick_seconds: float) -> list[tuple[LeafStatus, Effect]]:
     """(status, effect) per leaf, in pre-order. nominal_pos (K, 3), nominal_quat (K, 4): the
     world model's object poses (the skills see the YAML, not the randomized world)."""
     ctx = _Context({name: i for i, name in enumerate(parameter_names)}, slot_of, nominal_pos, nominal_quat, tick_seconds)
@@ -264,6 +153,101 @@ class _Context(NamedTuple):
 LEAF_PROGRAMS = LeafRegistry()
 
 
+class SetGoal(Effect):
+    """The goal: an object's nominal position plus offsets, the tool pointing down, turned by a
+    yaw (and tilted) from the object's or the reference's yaw. The orientation is computed when
+    a starting motion reads it (``defer_goal_quat``): the leaf runs every tick its sequence is
+    ticked, and a moving reference makes it new each time."""
+
+    def __init__(self, base, dx: _Reader, dy: _Reader, yaw: _Reader, roll: _Reader, pitch: _Reader, tilted: bool,
+                 object_yaw: float, aligned: bool):
+        self.base, self.dx, self.dy, self.yaw, self.roll, self.pitch = base, dx, dy, yaw, roll, pitch
+        self.tilted, self.object_yaw, self.aligned = tilted, object_yaw, aligned
+
+    def goal_quat(self, current: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """The goal orientation (4,) from the reference orientation ``current`` (4,), params (P,)."""
+        target = (self.object_yaw if self.aligned else tool_yaw(current)) + math.radians(self.yaw(params))
+        tilt = (math.radians(self.roll(params)), math.radians(self.pitch(params))) if self.tilted else None
+        return tool_down_aligned(current, target, tilt)
+
+    def __call__(self, bb, fresh, params):
+        bb.goal_pos = self.base + np.array([self.dx(params), self.dy(params), 0.0])
+        current = bb.reference()[1]
+        bb.defer_goal_quat(lambda: self.goal_quat(current, params))
+
+    def rows(self, board, rows, fresh, params):
+        offsets = np.zeros((len(rows), 3))
+        offsets[:, 0], offsets[:, 1] = self.dx.rows(params), self.dy.rows(params)
+        board.goal_pos[rows] = self.base + offsets
+        board.defer_goal_quat(rows, self, board.reference(rows)[1])
+
+
+class StartMotion(Effect):
+    """A straight-line motion from the reference to the goal, started when the leaf starts."""
+
+    def __call__(self, bb, fresh, params):
+        if fresh:
+            pos, quat = bb.reference()
+            bb.motion = LinearMotion(pos, quat, bb.goal_pos, bb.goal_quat)
+            bb.mg_time = 0.0
+
+    def rows(self, board, rows, fresh, params):
+        for r in rows[fresh]:  # a few a episode: one by one
+            board.start_motion(int(r))
+
+
+class SetStiffness(Effect):
+    def __init__(self, stiffness: np.ndarray):
+        self.stiffness = stiffness
+
+    def __call__(self, bb, fresh, params):
+        bb.stiffness = self.stiffness
+
+    def rows(self, board, rows, fresh, params):
+        board.stiffness[rows] = self.stiffness
+
+
+class ApplyForce(Effect):
+    """The commanded wrench: the leaf's ``wrench`` with the force axes its inputs set."""
+
+    def __init__(self, base: np.ndarray, overrides: list[tuple[int, _Reader]]):
+        self.base, self.overrides = base, overrides
+
+    def __call__(self, bb, fresh, params):
+        wrench = self.base.copy()
+        for axis, value in self.overrides:
+            wrench[axis] = value(params)
+        bb.wrench = wrench
+
+    def rows(self, board, rows, fresh, params):
+        wrench = np.tile(self.base, (len(rows), 1))
+        for axis, value in self.overrides:
+            wrench[:, axis] = value.rows(params)
+        board.wrench[rows] = wrench
+
+
+class OverlaySpiral(Effect):
+    """The search spiral on the motion's reference, restarted when the leaf starts."""
+
+    def __init__(self, radius: _Reader, velocity: _Reader, pitch: _Reader, axes: tuple[np.ndarray, np.ndarray]):
+        self.radius, self.velocity, self.pitch, self.axes = radius, velocity, pitch, axes
+
+    def __call__(self, bb, fresh, params):
+        if fresh:
+            bb.spiral_theta, bb.spiral_radius = 0.0, 0.0
+        bb.spiral_on = True
+        bb.spiral_params = (self.radius(params), self.velocity(params), self.pitch(params))
+        bb.spiral_axes = self.axes
+
+    def rows(self, board, rows, fresh, params):
+        board.spiral_theta[rows[fresh]] = 0.0
+        board.spiral_radius[rows[fresh]] = 0.0
+        board.spiral_on[rows] = True
+        board.spiral_params[rows] = np.stack([self.radius.rows(params), self.velocity.rows(params),
+                                              self.pitch.rows(params)], axis=-1)
+        board.set_spiral_axes(rows, self.axes)
+
+
 @LEAF_PROGRAMS.register
 def _set_goal_from_object(i: int, leaf, ctx: _Context):
     index, slot_of, nominal_pos, nominal_quat = ctx.index, ctx.slot_of, ctx.nominal_pos, ctx.nominal_quat
@@ -277,70 +261,29 @@ def _set_goal_from_object(i: int, leaf, ctx: _Context):
     w, x, y, z = nominal_quat[slot_of[obj]]
     object_yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     aligned = goal_orientation(leaf) == "tool_down_aligned"
-
-    def goal_quat(current: np.ndarray, params: np.ndarray) -> np.ndarray:
-        target = (object_yaw if aligned else tool_yaw(current)) + math.radians(yaw(params))
-        tilt = (math.radians(roll(params)), math.radians(pitch(params))) if tilted else None
-        return tool_down_aligned(current, target, tilt)
-
-    def set_goal(bb, fresh, params):
-        bb.goal_pos = base + np.array([dx(params), dy(params), 0.0])
-        current = bb.reference()[1]
-        bb.defer_goal_quat(lambda: goal_quat(current, params))
-
-    return Always(Status.SUCCESS), set_goal
+    return Always(Status.SUCCESS), SetGoal(base, dx, dy, yaw, roll, pitch, tilted, object_yaw, aligned)
 
 
 @LEAF_PROGRAMS.register
 def _goal_pose(i: int, leaf, ctx: _Context):
-
-    def start_motion(bb, fresh, params):
-        if fresh:
-            pos, quat = bb.reference()
-            bb.motion = LinearMotion(pos, quat, bb.goal_pos, bb.goal_quat)
-            bb.mg_time = 0.0
-
-    return _running, start_motion
+    return _running, StartMotion()
 
 
 @LEAF_PROGRAMS.register
 def _change_stiffness(i: int, leaf, ctx: _Context):
-    stiffness = np.asarray(leaf.args["stiffness"], float)
-
-    def set_stiffness(bb, fresh, params):
-        bb.stiffness = stiffness
-
-    return _running, set_stiffness
+    return _running, SetStiffness(np.asarray(leaf.args["stiffness"], float))
 
 
 @LEAF_PROGRAMS.register
 def _apply_force(i: int, leaf, ctx: _Context):
-    index = ctx.index
-    base, sources = force_inputs(leaf, index)
-    overrides = [(axis, _reader(source)) for axis, source in sources]
-
-    def apply_force(bb, fresh, params):
-        wrench = base.copy()
-        for axis, value in overrides:
-            wrench[axis] = value(params)
-        bb.wrench = wrench
-
-    return _running, apply_force
+    base, sources = force_inputs(leaf, ctx.index)
+    return _running, ApplyForce(base, [(axis, _Reader(source)) for axis, source in sources])
 
 
 @LEAF_PROGRAMS.register
 def _overlay_spiral(i: int, leaf, ctx: _Context):
-    radius, velocity, pitch = (_reader(source) for source in spiral_inputs(leaf, ctx.index))
-    axes = plane_basis(leaf.args.get("normal", SPIRAL_NORMAL))
-
-    def overlay(bb, fresh, params):
-        if fresh:
-            bb.spiral_theta, bb.spiral_radius = 0.0, 0.0
-        bb.spiral_on = True
-        bb.spiral_params = (radius(params), velocity(params), pitch(params))
-        bb.spiral_axes = axes
-
-    return _running, overlay
+    radius, velocity, pitch = (_Reader(source) for source in spiral_inputs(leaf, ctx.index))
+    return _running, OverlaySpiral(radius, velocity, pitch, plane_basis(leaf.args.get("normal", SPIRAL_NORMAL)))
 
 
 @LEAF_PROGRAMS.register

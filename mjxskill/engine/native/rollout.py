@@ -106,7 +106,7 @@ class NativeRollout(RolloutBase):
         self.mj_model = mj_model
         self.base_pair_friction = mj_model.pair_friction.copy()
         self.tree = task.tree
-        # the tree's tables for a batch's tick over rows (batched.RowsTree); a tree the compiled
+        # the tree's tables for a batch's tick over rows (batched.BatchEpisodes); a tree the compiled
         # tick cannot run (a Parallel of more than 31 children) is refused here, as MJX refuses it
         self.compiled_tree = compile_tree(self.tree)
         self.leaf_ids = self.compiled_tree.leaf_ids.tolist()  # pre-order, the order of the programs below

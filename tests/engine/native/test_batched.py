@@ -34,7 +34,9 @@ from mjxskill.engine.native import NativeRollout
 from mjxskill.engine.native.batched import kinematic_chain, run_batched, start_batch
 from mjxskill.engine.native.kernels import _mat2quat, impedance_rows
 from mjxskill.ebt.nodes import Status
-from mjxskill.engine.native.leaves import Always, NativeBlackboard, Reached, Waited, references_rows
+from mjxskill.engine.native.blackboard import NativeBlackboard, references_rows
+from mjxskill.engine.native.board import RowsBoard
+from mjxskill.engine.native.leaves import Always, Reached, Waited
 from mjxskill.engine.native.motion import LinearMotion, spiral_step
 from mjxskill.engine.native_reference import BatchedControllerState, batched_impedance_control, run_lockstep
 from mjxskill.sim.controller_config import N_ARM
@@ -67,6 +69,24 @@ def test_whole_episodes_equal_the_numpy_lockstep_bit_for_bit(engine):
     for name in EpisodeResult._fields:
         np.testing.assert_array_equal(batched[name], lockstep[name], err_msg=name)
     assert np.nanmax(batched["peak_contact_force"]) > 1.0  # episodes in contact, where rounding would show
+
+
+@pytest.mark.parametrize("task", ["push", "peg"])
+def test_whole_full_length_episodes_equal_the_numpy_lockstep(task):
+    # The scenario's own episode length (12 s push, 18 s peg: the peg's search spiral runs, motions
+    # start and end, trees finish): every result bit for bit but the reward totals, which sum
+    # each tick's terms computed over rows here and for one episode there (numpy's exp and inner
+    # products over rows may round the last bit differently).
+    scn = load_scenario(task)
+    engine = NativeRollout(scn, plan_task(scn), worlds=3)
+    params = np.repeat(params_for(engine, 2), engine.worlds, axis=0)
+    worlds = flat_worlds(engine, 2, seed=1)
+    batched, lockstep = fields_of(run_batched(engine, params, worlds)), fields_of(run_lockstep(engine, params, worlds))
+    for name in EpisodeResult._fields:
+        if name == "reward_totals":
+            np.testing.assert_allclose(batched[name], lockstep[name], rtol=1e-12, atol=0)
+        else:
+            np.testing.assert_array_equal(batched[name], lockstep[name], err_msg=name)
 
 
 def test_results_do_not_depend_on_threads_or_on_the_other_episodes(engine):
@@ -288,7 +308,56 @@ def test_every_leaf_status_over_many_blackboards_is_each_blackboards_own(rows, t
         bbs.append(bb)
         tool_pos.append(bb.motion.goal_pos + r["scale"] * np.array(r["tool_offset"]))
     tool_pos, live = np.array(tool_pos), np.array([r["live"] for r in rows])
+    board = board_of(bbs)
     for status in (Always(Status.SUCCESS), Always(Status.RUNNING), Reached(threshold), Waited(1, wait)):
-        got = status.rows(bbs, tool_pos, live)
+        got = status.rows(board, np.arange(len(bbs)), tool_pos, live)
         assert got.shape == (len(bbs),)
         assert got.tolist() == [int(status(bb, p, bool(lv))) for bb, p, lv in zip(bbs, tool_pos, live)]
+
+
+def board_of(bbs):
+    """A ``RowsBoard`` whose rows hold what the blackboards ``bbs`` hold."""
+    board = RowsBoard(np.stack([bb.goal_pos for bb in bbs]), np.stack([bb.goal_quat for bb in bbs]), np.full(6, 400.0),
+                      len(bbs[0].leaf_ticks), np.zeros((len(bbs), 1)))
+    board.motions = [bb.motion for bb in bbs]
+    board.motion_rows = np.stack([bb.motion.row for bb in bbs])
+    board.motion_goal = np.stack([bb.motion.goal_pos for bb in bbs])
+    board.mg_time = np.array([bb.mg_time for bb in bbs])
+    board.spiral_on = np.array([bb.spiral_on for bb in bbs])
+    board.spiral_theta, board.spiral_radius = np.array([bb.spiral_theta for bb in bbs]), np.array([bb.spiral_radius for bb in bbs])
+    board.spiral_params = np.array([bb.spiral_params for bb in bbs], float)
+    board.spiral_axes = np.array([np.stack(bb.spiral_axes) for bb in bbs])
+    board.leaf_ticks = np.array([bb.leaf_ticks for bb in bbs])
+    return board
+
+
+@settings(max_examples=100, deadline=None)
+@given(rows=st.lists(motion_row, min_size=1, max_size=5), ticks=st.integers(1, 3), pick=st.integers(0, 4))
+def test_the_rows_boards_references_are_each_blackboards_own(rows, ticks, pick):
+    # The batch's blackboards as arrays: a tick's references, the spirals advanced, and the
+    # reference read afterwards (kept, or computed again once a motion starts) for a subset of
+    # rows, bit for bit what each row's own blackboard gives.
+    bbs = [blackboard(**r) for r in rows]
+    board = board_of(bbs)
+    chosen = np.arange(len(bbs))[pick % len(bbs):]
+    for _ in range(ticks):
+        pos, quat = board.references(chosen, 50, 0.002)
+        for j, r in enumerate(chosen):
+            want_pos, want_quat = bbs[r].references(50, 0.002)
+            np.testing.assert_array_equal(pos[:, j], want_pos)
+            np.testing.assert_array_equal(quat[:, j], want_quat)
+            assert (board.spiral_theta[r], board.spiral_radius[r], board.mg_time[r]) == (
+                bbs[r].spiral_theta, bbs[r].spiral_radius, bbs[r].mg_time)
+        got_pos, got_quat = board.reference(chosen)
+        for j, r in enumerate(chosen):
+            np.testing.assert_array_equal(got_pos[j], bbs[r].reference()[0])
+            np.testing.assert_array_equal(got_quat[j], bbs[r].reference()[1])
+    r = int(chosen[0])  # a motion starting: the reference is the scalar one again
+    board.goal_pos[r] = bbs[r].goal_pos = bbs[r].goal_pos + 0.01
+    board.start_motion(r)
+    pos, quat = bbs[r].reference()
+    bbs[r].motion, bbs[r].mg_time = LinearMotion(pos, quat, bbs[r].goal_pos, bbs[r].goal_quat), 0.0
+    np.testing.assert_array_equal(board.motion_rows[r], bbs[r].motion.row)
+    got_pos, got_quat = board.reference(np.array([r]))
+    np.testing.assert_array_equal(got_pos[0], bbs[r].reference()[0])
+    np.testing.assert_array_equal(got_quat[0], bbs[r].reference()[1])
