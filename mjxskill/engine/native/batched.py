@@ -101,7 +101,7 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
         results[i] = plain_episode(engine, params[i], _world(worlds, int(i)))
     rows = np.flatnonzero(~bad)
     if len(rows):
-        episodes = BatchEpisodes(engine, params, worlds, fields)
+        episodes = BatchEpisodes(engine, params, worlds, fields, rows)
         stepper = _Stepper(engine, batch, fields, timed=timing is not None)
         for t in range(engine.setup.ticks):
             alive = rows[~episodes.diverged[rows]]
@@ -114,6 +114,8 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
             results[i] = episodes.result(int(i))
         if timing is not None:
             timing["physics_s"] = timing.get("physics_s", 0.0) + stepper.physics_s
+    elif timing is not None:
+        timing["physics_s"] = timing.get("physics_s", 0.0)
     return results
 
 
@@ -135,13 +137,16 @@ class BatchEpisodes:
     of an episode (its status, done tick, rewards, forces), advanced a tick at a time for the
     alive rows at once as ``NativeEpisode.begin_tick`` and ``end_tick`` advance one episode
     (tests/engine/native/test_batched.py: whole episodes equal the numpy lockstep's).
-    A row that diverges is frozen at its state at the tick's start, as an episode is."""
+    A row that diverges ends there: its simulation state at the tick's start (``SNAPSHOT_FIELDS``)
+    is kept for its result, as an episode restores it, and nothing of it is advanced again."""
 
-    def __init__(self, engine, params: np.ndarray, worlds, fields: dict):
+    def __init__(self, engine, params: np.ndarray, worlds, fields: dict, rows: np.ndarray):
         n, spec = len(params), engine.setup
         self.engine, self.worlds, self.fields, self.spec = engine, worlds, fields, spec
         self.site = spec.ctrl.site_id
-        tool_pos, tool_quat = self.tool_pose(np.arange(n))
+        # ``rows``: the batch rows it runs (the others, never stepped, hold placeholders)
+        tool_pos, tool_quat = np.zeros((n, 3)), np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+        tool_pos[rows], tool_quat[rows] = self.tool_pose(rows)
         self.board = RowsBoard(tool_pos, tool_quat, spec.default_stiffness, len(engine.programs), params)
         self.statuses, self.effects = [s for s, _ in engine.programs], [e for _, e in engine.programs]
         self.ct = engine.compiled_tree
@@ -164,7 +169,7 @@ class BatchEpisodes:
         """The tool's position (m, 3) and orientation (m, 4) in ``rows`` now."""
         quat = np.empty((len(rows), 4))
         site_quats(rows, self.site, self.fields["site_xmat"], quat)
-        return self.fields["site_xpos"][rows, self.site].copy(), quat
+        return self.fields["site_xpos"][rows, self.site], quat
 
     def begin_tick(self, alive: np.ndarray) -> None:
         """The BT tick of the alive rows whose trees still run (every leaf's status over rows,
@@ -212,10 +217,10 @@ class BatchEpisodes:
         tool_pos, tool_quat = self.tool_pose(rows)
         slot_pos, slot_quat = slot_poses(self.spec.bindings, self.worlds.object_pos[rows], self.worlds.object_quat[rows],
                                          f["xpos"][rows], f["xquat"][rows])
-        obs = Observation(tool_pos, tool_quat, self.board.end_pos[rows], slot_pos, slot_quat, self.wrench[rows],
-                          self.root[rows] == int(Status.SUCCESS), force_sum / self.spec.steps_per_tick)
         if not engine.terms:
             return np.zeros((len(rows), 0))
+        obs = Observation(tool_pos, tool_quat, self.board.end_pos[rows], slot_pos, slot_quat, self.wrench[rows],
+                          self.root[rows] == int(Status.SUCCESS), force_sum / self.spec.steps_per_tick)
         return np.stack([term.raw(obs) for term in engine.terms], axis=-1)
 
     def result(self, r: int) -> EpisodeResult:

@@ -1,5 +1,6 @@
 """The blackboard a native episode's leaf programs share, one episode's (fields as
-``mjxskill.engine.mjx.leaves.Blackboard``), and the references of a tick for many at once."""
+``mjxskill.engine.mjx.leaves.Blackboard``): the plain loop's and the numpy lockstep's. A
+batch's rows hold the same fields as arrays (``mjxskill.engine.native.board.RowsBoard``)."""
 
 from __future__ import annotations
 

@@ -4,9 +4,10 @@ programs' ``rows`` forms (``mjxskill.engine.native.leaves``) and by the tick's r
 
 Each row's values are what its own ``NativeBlackboard`` would hold after the same ticks (the
 same operations, row by row; tests/engine/native/test_batched.py compares whole episodes with
-the numpy lockstep, which steps ``NativeBlackboard`` s, bit for bit). What happens a few times an
-episode (a motion starting, a goal orientation read, a reference asked for after the
-blackboard changed) is done row by row with the blackboard's own scalar code.
+the numpy lockstep, which steps ``NativeBlackboard`` s). What happens a few times an episode (a
+motion starting, a goal orientation read, a reference asked for after the blackboard changed)
+is done row by row with the same scalar arithmetic as the blackboard's (its rule for when the
+kept reference still holds, ``NativeBlackboard.reference``, is written here over rows).
 """
 
 from __future__ import annotations
@@ -63,8 +64,7 @@ class RowsBoard:
             on = active[:, k]
             if on.any():
                 effect.rows(self, rows[on], started[on, k], self.params[rows[on]])
-        ticks = np.zeros((len(rows), self.leaf_ticks.shape[1]), np.int64)
-        ticks[:] = np.where(active, np.where(started, 1, self.leaf_ticks[rows] + 1), 0)
+        ticks = np.where(active, np.where(started, 1, self.leaf_ticks[rows] + 1), 0)
         self.leaf_ticks[alive] = 0
         self.leaf_ticks[rows] = ticks
 
@@ -110,7 +110,7 @@ class RowsBoard:
                 & (self.end_time[rows] == self.mg_time[rows]) & (self.end_spiral_on[rows] == spiral))
         kept &= ~spiral | ((self.end_theta[rows] == self.spiral_theta[rows])
                            & (self.end_radius[rows] == self.spiral_radius[rows]) & (self.end_axes[rows] == self.axes_id[rows]))
-        pos, quat = self.end_pos[rows], self.end_quat[rows]
+        pos, quat = self.end_pos[rows].copy(), self.end_quat[rows].copy()
         for j in np.flatnonzero(~kept):
             r = int(rows[j])
             p, quat[j] = self.motions[r].at(float(self.mg_time[r]))

@@ -57,12 +57,20 @@ class Reached(LeafStatus):
         self.threshold = threshold
 
     def __call__(self, bb, tool_pos, live):
-        close = HOST.linalg.norm(tool_pos - bb.motion.goal_pos) < self.threshold
+        close = _distance(tool_pos, bb.motion.goal_pos) < self.threshold
         return Status.SUCCESS if live and close else Status.RUNNING
 
     def rows(self, board, rows, tool_pos, live):
-        close = HOST.linalg.norm(tool_pos - board.motion_goal[rows], axis=-1) < self.threshold
+        close = _distance(tool_pos, board.motion_goal[rows]) < self.threshold
         return np.where(live & close, int(Status.SUCCESS), int(Status.RUNNING))
+
+
+def _distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """|a - b| over the last axis, one formula for one position and for rows (a norm of one
+    vector, a BLAS dot product, may round otherwise than one over rows: a tool on the
+    threshold would be reached in one and not the other)."""
+    d = a - b
+    return np.sqrt(np.add.reduce(d * d, axis=-1))
 
 
 class Waited(LeafStatus):
