@@ -38,7 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from mjxskill.bt_compiled.compile import CompiledTree
-from mjxskill.bt_compiled.rows import tick_program
+from mjxskill.bt_compiled.rows import row_tables, tick_program
 from mjxskill.ebt.nodes import Kind, Status
 
 RUNNING = int(Status.RUNNING)
@@ -113,7 +113,7 @@ def tick_rows(ct: CompiledTree, state: BTState, leaf_status: np.ndarray) -> tupl
     _check_inputs(ct, state, leaf_status, leaf_status.shape[:1])
     if state.live.dtype != bool:  # ``~live`` (started_leaves) would be a bitwise not
         raise ValueError(f"state.live must be bool, got dtype {state.live.dtype}")
-    memory, node_status, live, root, active, _ = tick_program(ct, state.memory, state.live, leaf_status)
+    memory, node_status, live, root, active, _ = tick_program(row_tables(ct), state.memory, state.live, leaf_status)
     return BTState(memory, node_status, live), root, active
 
 

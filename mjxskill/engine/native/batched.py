@@ -31,7 +31,7 @@ import numpy as np
 from mujoco.batch import Batch, SimulationError
 
 from mjxskill.bt_compiled import init_rows
-from mjxskill.bt_compiled.rows import tick_program
+from mjxskill.bt_compiled.rows import row_tables, tick_program
 from mjxskill.ebt.nodes import Status
 from mjxskill.engine.common.arrays import HOST
 from mjxskill.engine.common.bindings import FREE, MOCAP
@@ -150,6 +150,7 @@ class BatchEpisodes:
         self.board = RowsBoard(tool_pos, tool_quat, spec.default_stiffness, len(engine.programs), params)
         self.statuses, self.effects = [s for s, _ in engine.programs], [e for _, e in engine.programs]
         self.ct = engine.compiled_tree
+        self.tables = row_tables(self.ct)
         self.bt = init_rows(self.ct, n)
         # the controller's rate-limited state (NativeControllerState's fields) and its nullspace target
         self.torque = np.array(fields["qfrc_bias"][:, :N_ARM], float)
@@ -185,7 +186,7 @@ class BatchEpisodes:
             tool_pos = self.fields["site_xpos"][ticking, self.site]
             leaf_status = np.stack([s.rows(self.board, ticking, tool_pos, leaf_live[:, k])
                                     for k, s in enumerate(self.statuses)], axis=-1)
-            *state, root, active, started = tick_program(self.ct, memory, live, leaf_status)
+            *state, root, active, started = tick_program(self.tables, memory, live, leaf_status)
             for field, new in zip(self.bt, state):
                 field[ticking] = new
             self.root[ticking] = root
