@@ -23,7 +23,6 @@ contained as in the plain loop.
 
 from __future__ import annotations
 
-import math
 import time
 
 import mujoco
@@ -39,9 +38,8 @@ from mjxskill.engine.common.health import free_object_z_addresses, healthy_state
 from mjxskill.engine.common.rewards import Observation
 from mjxskill.engine.common.types import EpisodeResult
 from mjxskill.engine.common.worlds import world_pair_friction
-from mjxskill.engine.common.success import success
 from mjxskill.engine.native.board import RowsBoard
-from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode, commanded_force, slot_poses
+from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode, commanded_force, episode_result, slot_poses
 from mjxskill.engine.native.kernels import add_forces, impedance_rows, site_quats
 from mjxskill.sim.controller_config import N_ARM
 
@@ -123,11 +121,7 @@ def plain_episode(engine, params: np.ndarray, world) -> EpisodeResult:
     """One episode on its own ``MjData`` (a private model: the world's friction), stepped by
     the plain loop, with the reference interpreter."""
     episode = NativeEpisode(engine, params, world, engine.mj_model.__copy__())
-    for t in range(engine.setup.ticks):
-        episode.begin_tick()
-        episode.plain_steps()
-        if not episode.end_tick(t):
-            break
+    episode.run()
     return episode.result()
 
 
@@ -226,23 +220,13 @@ class BatchEpisodes:
 
     def result(self, r: int) -> EpisodeResult:
         """Row r's episode result (``NativeEpisode.result``'s)."""
-        spec, diverged = self.spec, bool(self.diverged[r])
+        diverged = bool(self.diverged[r])
         state = self.frozen[r] if diverged else {name: self.fields[name][r] for name in SNAPSHOT_FIELDS}
-        slot_pos, slot_quat = slot_poses(spec.bindings, self.worlds.object_pos[r], self.worlds.object_quat[r],
+        slot_pos, slot_quat = slot_poses(self.spec.bindings, self.worlds.object_pos[r], self.worlds.object_quat[r],
                                          state["xpos"], state["xquat"])
-        success_, pos_err, rot_err, depth = success(spec.success, np.array(state["site_xpos"][self.site]), slot_pos,
-                                                    slot_quat, HOST)
-        totals = self.totals[r].copy()
-        if diverged:
-            totals = np.array([term.worst_raw * spec.ticks for term in self.engine.terms])
-        return EpisodeResult(
-            reward_totals=totals, success=bool(success_ and not diverged), diverged=diverged,
-            bt_status=int(Status.FAILURE if diverged else self.status[r]), bt_done_tick=int(self.done_tick[r]),
-            position_error=pos_err, orientation_error=rot_err, insertion_depth=depth,
-            peak_commanded_force=float(self.peak_commanded_force[r]),
-            peak_contact_force=math.nan if diverged else float(self.force_peak[r]),
-            mean_contact_force=math.nan if diverged else float(self.force_sum[r]) / (spec.ticks * spec.steps_per_tick),
-        )
+        return episode_result(self.engine, self.totals[r].copy(), diverged, int(self.status[r]), int(self.done_tick[r]),
+                              np.array(state["site_xpos"][self.site]), slot_pos, slot_quat,
+                              float(self.peak_commanded_force[r]), float(self.force_peak[r]), float(self.force_sum[r]))
 
 
 def _world(worlds, i: int):

@@ -75,6 +75,31 @@ def commanded_force(wrench: np.ndarray) -> np.ndarray:
     return np.sqrt(np.add.reduce(wrench[..., :3] * wrench[..., :3], axis=-1))
 
 
+def episode_result(engine, totals, diverged: bool, status: int, done_tick: int, tool_pos, slot_pos, slot_quat,
+                   peak_commanded_force: float, force_peak: float, force_sum: float) -> EpisodeResult:
+    """An episode's result from what it kept (its reward totals (R,), whether it diverged, its
+    root status and done tick, its forces) and its final tool position (3,) and object poses
+    (K, 3), (K, 4): one ``NativeEpisode``'s or a batch row's."""
+    spec = engine.setup
+    if diverged:
+        totals = np.array([term.worst_raw * spec.ticks for term in engine.terms])
+    succeeded, pos_err, rot_err, depth = success(spec.success, tool_pos, slot_pos, slot_quat, HOST)
+    return EpisodeResult(
+        reward_totals=totals,
+        success=bool(succeeded and not diverged),
+        diverged=diverged,
+        bt_status=int(Status.FAILURE if diverged else status),
+        bt_done_tick=done_tick,
+        position_error=pos_err,
+        orientation_error=rot_err,
+        insertion_depth=depth,
+        peak_commanded_force=peak_commanded_force,
+        # a diverged world's forces are not known: NaN, which meets no force limit
+        peak_contact_force=math.nan if diverged else force_peak,
+        mean_contact_force=math.nan if diverged else force_sum / (spec.ticks * spec.steps_per_tick),
+    )
+
+
 # What is read of an episode's data after it has ended: its state and the kinematics ``mj_step`` left.
 SNAPSHOT_FIELDS = ("qpos", "qvel", "xpos", "xquat", "site_xpos", "site_xmat")
 
@@ -235,32 +260,19 @@ class NativeEpisode:
                            self.root == Status.SUCCESS, self.tick_force[0] / self.engine.setup.steps_per_tick)
 
     # -- the end ----------------------------------------------------------------------------
+    def run(self, on_step: Callable[[mujoco.MjData, np.ndarray], None] | None = None) -> None:
+        """The episode to its end in the plain loop: every tick, or until it diverges."""
+        for t in range(self.engine.setup.ticks):
+            self.begin_tick()
+            self.plain_steps(on_step)
+            if not self.end_tick(t):
+                break
+
     def result(self) -> EpisodeResult:
-        engine, spec = self.engine, self.engine.setup
-        totals = self.totals
-        if self.diverged:
-            totals = np.array([term.worst_raw * spec.ticks for term in engine.terms])
-        success, pos_err, rot_err, depth = self._success()
-        return EpisodeResult(
-            reward_totals=totals,
-            success=bool(success and not self.diverged),
-            diverged=self.diverged,
-            bt_status=int(Status.FAILURE if self.diverged else self.status),
-            bt_done_tick=self.done_tick,
-            position_error=pos_err,
-            orientation_error=rot_err,
-            insertion_depth=depth,
-            peak_commanded_force=self.peak_commanded_force,
-            # a diverged world's forces are not known: NaN, which meets no force limit
-            peak_contact_force=math.nan if self.diverged else self.force_peak,
-            mean_contact_force=math.nan if self.diverged else self.force_sum / (spec.ticks * spec.steps_per_tick),
-        )
+        return episode_result(self.engine, self.totals, self.diverged, int(self.status), self.done_tick,
+                              self.data.site_xpos[self.engine.setup.ctrl.site_id].copy(), *self.slot_poses(),
+                              self.peak_commanded_force, self.force_peak, self.force_sum)
 
     def trace(self) -> TickRecord | None:
         """The per-tick record (leading (T,) axis; T: ticks run), when recording."""
         return TickRecord(*(np.array(f) for f in zip(*self.records))) if self.records else None
-
-    def _success(self):
-        slot_pos, slot_quat = self.slot_poses()
-        spec = self.engine.setup
-        return success(spec.success, self.data.site_xpos[spec.ctrl.site_id].copy(), slot_pos, slot_quat, HOST)

@@ -137,11 +137,7 @@ class NativeRollout(RolloutBase):
         fewer if the world diverged). ``on_step(data, tau)``: called after every control step
         (``NativeEpisode.plain_steps``)."""
         episode = NativeEpisode(self, params, world, self.mj_model, record=record)
-        for t in range(self.setup.ticks):
-            episode.begin_tick()
-            episode.plain_steps(on_step)
-            if not episode.end_tick(t):
-                break
+        episode.run(on_step)
         return (episode.result(), episode.trace()) if record else episode.result()
 
     def trace(self, params, world: Worlds):
