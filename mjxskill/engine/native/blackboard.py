@@ -10,7 +10,7 @@ from typing import Callable
 import numpy as np
 
 from mjxskill.ebt.primitives import SPIRAL_NORMAL
-from mjxskill.engine.native.kernels import spiral_offsets
+from mjxskill.engine.native.kernels import spiral_rows
 from mjxskill.engine.native.motion import LinearMotion, plane_basis, references_at, spiral_step
 
 
@@ -80,9 +80,7 @@ class NativeBlackboard:
     def _spiralled(self, pos: np.ndarray) -> np.ndarray:
         """A motion's reference position (3,) with the spiral's offset now, if it is on."""
         if self.spiral_on:
-            r, th = self.spiral_radius, self.spiral_theta
-            e1, e2 = self.spiral_axes
-            pos = pos + r * (math.cos(th) * e1 + math.sin(th) * e2)
+            pos = spiralled(pos, self.spiral_radius, self.spiral_theta, *self.spiral_axes)
         return pos
 
     def _reference_key(self) -> tuple:
@@ -96,10 +94,10 @@ class NativeBlackboard:
             return False
         return not spiral_on or (theta == self.spiral_theta and radius == self.spiral_radius and axes is self.spiral_axes)
 
-    def remember_end(self, motion_pos: np.ndarray, motion_quat: np.ndarray) -> None:
-        """The motion's reference (3,), (4,) at the time it has been advanced to (computed with
-        the tick's references), kept as ``reference()``'s value until the blackboard changes."""
-        self.end_reference = (self._reference_key(), self._spiralled(motion_pos), motion_quat)
+    def remember_end(self, pos: np.ndarray, quat: np.ndarray) -> None:
+        """The reference (3,), (4,) at the time the blackboard has been advanced to (computed
+        with the tick's references), kept as ``reference()``'s value until the blackboard changes."""
+        self.end_reference = (self._reference_key(), pos, quat)
 
     def references(self, n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """The references of the next ``n`` control periods, positions (n, 3) and quaternions
@@ -118,25 +116,36 @@ class NativeBlackboard:
             )
 
 
+def spiralled(pos: np.ndarray, radius: float, theta: float, e1: np.ndarray, e2: np.ndarray) -> np.ndarray:
+    """A reference position (3,) with the search spiral's offset at ``radius`` and ``theta`` in
+    the plane of the unit vectors ``e1``, ``e2`` (3,) (``kernels.spiral_rows`` computes the same
+    operations for a tick's rows)."""
+    return pos + radius * (math.cos(theta) * e1 + math.sin(theta) * e2)
+
+
 def references_rows(bbs: list[NativeBlackboard], n: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """The references of the next ``n`` control periods of N blackboards: positions (n, N, 3) and
     quaternions (n, N, 4), the blackboards advanced past them; every motion evaluated in one
     compiled pass over (n + 1, N) times (``motion.references_at``: the last is the reference at
-    the end, which ``reference()`` then returns); the spirals, on few rows, row by row. A row's
-    values do not depend on the other rows."""
+    the end, which ``reference()`` then returns), the spirals in another (``kernels.spiral_rows``).
+    A row's values do not depend on the other rows."""
     start = np.array([bb.mg_time for bb in bbs])
     # sequential sums down each column, as a blackboard's own cumsum and += dt
     times = np.cumsum(np.concatenate([start[None], np.full((n, len(bbs)), dt)]), axis=0)
     pos, quat = references_at(np.stack([bb.motion.row for bb in bbs]), times)
-    end_pos, end_quat = pos[-1], quat[-1]
+    end_pos, end_quat = pos[-1].copy(), quat[-1]
     pos, quat = pos[:-1], quat[:-1]
+    on = np.array([bb.spiral_on for bb in bbs])
+    if on.any():
+        spirals = [bb for bb in bbs if bb.spiral_on]
+        theta, radius = np.array([bb.spiral_theta for bb in spirals]), np.array([bb.spiral_radius for bb in spirals])
+        spiral_pos, spiral_end = np.ascontiguousarray(pos[:, on]), end_pos[on]
+        spiral_rows(theta, radius, np.array([bb.spiral_params for bb in spirals], float),
+                    np.array([np.stack(bb.spiral_axes) for bb in spirals]), dt, spiral_pos, spiral_end)
+        pos[:, on], end_pos[on] = spiral_pos, spiral_end
+        for bb, th, rad in zip(spirals, theta.tolist(), radius.tolist()):
+            bb.spiral_theta, bb.spiral_radius = th, rad
     for r, bb in enumerate(bbs):
         bb.mg_time = float(times[-1, r])
-        if bb.spiral_on:
-            radius_max, velocity, pitch = bb.spiral_params
-            e1, e2 = bb.spiral_axes
-            offsets, bb.spiral_theta, bb.spiral_radius = spiral_offsets(
-                bb.spiral_theta, bb.spiral_radius, radius_max, velocity, pitch, dt, e1, e2, n)
-            pos[:, r] = pos[:, r] + offsets
         bb.remember_end(end_pos[r], end_quat[r])
     return pos, quat

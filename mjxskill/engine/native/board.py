@@ -12,11 +12,10 @@ kept reference still holds, ``NativeBlackboard.reference``, is written here over
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from mjxskill.ebt.primitives import SPIRAL_NORMAL
+from mjxskill.engine.native.blackboard import spiralled
 from mjxskill.engine.native.kernels import spiral_rows
 from mjxskill.engine.native.motion import LinearMotion, plane_basis, references_at
 
@@ -71,9 +70,7 @@ class RowsBoard:
     def defer_goal_quat(self, rows: np.ndarray, effect, current: np.ndarray) -> None:
         """The goal orientation of ``rows`` is ``effect.goal_quat(current, params)``, ``current``
         (m, 4) their reference orientations now, computed when a starting motion reads it."""
-        if not any(e is effect for e in self.goal_effects):
-            self.goal_effects.append(effect)
-        self.goal_from[rows] = next(k for k, e in enumerate(self.goal_effects) if e is effect)
+        self.goal_from[rows] = _number(self.goal_effects, effect)
         self.goal_current[rows] = current
 
     def goal_quat_of(self, r: int) -> np.ndarray:
@@ -95,9 +92,7 @@ class RowsBoard:
 
     def set_spiral_axes(self, rows: np.ndarray, axes: tuple[np.ndarray, np.ndarray]) -> None:
         """The spiral plane of ``rows``: ``axes``, two (3,) unit vectors (one leaf's, the same object)."""
-        if not any(a is axes for a in self.axes_objects):
-            self.axes_objects.append(axes)
-        self.axes_id[rows] = next(k for k, a in enumerate(self.axes_objects) if a is axes)
+        self.axes_id[rows] = _number(self.axes_objects, axes)
         self.spiral_axes[rows] = np.stack(axes)
 
     # -- the references ---------------------------------------------------------------------
@@ -115,8 +110,7 @@ class RowsBoard:
             r = int(rows[j])
             p, quat[j] = self.motions[r].at(float(self.mg_time[r]))
             if self.spiral_on[r]:
-                th, e1, e2 = float(self.spiral_theta[r]), self.spiral_axes[r, 0], self.spiral_axes[r, 1]
-                p = p + float(self.spiral_radius[r]) * (math.cos(th) * e1 + math.sin(th) * e2)
+                p = spiralled(p, float(self.spiral_radius[r]), float(self.spiral_theta[r]), *self.spiral_axes[r])
             pos[j] = p
         return pos, quat
 
@@ -143,3 +137,13 @@ class RowsBoard:
         self.end_spiral_on[rows], self.end_theta[rows] = on, self.spiral_theta[rows]
         self.end_radius[rows], self.end_axes[rows] = self.spiral_radius[rows], self.axes_id[rows]
         return pos, quat
+
+
+def _number(objects: list, obj) -> int:
+    """``obj``'s position in ``objects``, compared by identity (appended if it is not there): a
+    row holds a number for a leaf's own object."""
+    for k, known in enumerate(objects):
+        if known is obj:
+            return k
+    objects.append(obj)
+    return len(objects) - 1

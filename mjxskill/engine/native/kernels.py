@@ -213,22 +213,6 @@ def add_forces(rows, sensordata, sensors, force_sum, force_peak):
 
 
 @_compiled
-def spiral_offsets(theta, radius, radius_max, velocity, pitch, dt, e1, e2, n):
-    """``n`` control periods of the search spiral (``motion.spiral_step``), its offset from the
-    motion's reference at each: offsets (n, 3) and the final (theta, radius). The same scalar
-    operations in the same order as the Python loop, so bit for bit the same values."""
-    offsets = np.empty((n, 3))
-    for k in range(n):
-        c, s = math.cos(theta), math.sin(theta)
-        for i in range(3):
-            offsets[k, i] = radius * (c * e1[i] + s * e2[i])
-        dtheta = velocity / (radius + 0.001) * dt
-        theta = theta + dtheta
-        radius = min(radius + dtheta * pitch / (2.0 * math.pi), radius_max)
-    return offsets, theta, radius
-
-
-@_compiled
 def _trapezoid(t, distance, duration, speed, acc, dec):
     """``motion.trapezoid_position``: the distance travelled at time t, clamped to [0, duration]."""
     t_acc, t_dec = speed / acc, speed / dec
@@ -269,12 +253,12 @@ def motion_references(rows, t, pos, quat):
 
 @_compiled
 def spiral_rows(theta, radius, params, axes, dt, pos, end_pos):
-    """The search spirals of m rows over a tick's n control periods (``spiral_offsets`` for each
-    row): each period's offset added to pos (n, m, 3), theta and radius (m,) advanced past them
-    in place, and the offset at the end (the next reference's) added to end_pos (m, 3); params
-    (m, 3): radius cap, path velocity, pitch; axes (m, 2, 3): the spiral's plane. The same
-    operations in the same order as the blackboard's own spiral (``spiral_offsets`` and the
-    reference's offset), so the same values."""
+    """The search spirals of m rows over a tick's n control periods: each period's offset added
+    to pos (n, m, 3), theta and radius (m,) advanced past them in place (``motion.spiral_step``
+    each period), and the offset at the end (the next reference's) added to end_pos (m, 3);
+    params (m, 3): radius cap, path velocity, pitch; axes (m, 2, 3): the spiral's plane. The
+    same scalar operations in the same order as the plain loop's ``spiral_step`` and
+    ``blackboard.spiralled``, so the same values."""
     for r in range(theta.shape[0]):
         th, rad = theta[r], radius[r]
         radius_max, velocity, pitch = params[r, 0], params[r, 1], params[r, 2]
