@@ -21,7 +21,8 @@ What the YAML sets (``build_model``), per object of the world model:
 
 Plus the scenario's gravity and control period (one physics step per control step), and a touch
 sensor around every body the tool consists of (``mjxskill.sim.tool_force``): the measured
-contact force of both engines.
+contact force of both engines; and ``CONTROL_USERDATA`` numbers of ``userdata`` for the native
+engine's control callback.
 """
 
 from __future__ import annotations
@@ -40,6 +41,11 @@ from mjxskill.sim.tool_force import add_tool_force_sensors
 
 
 # scenario -> its model, built on the first request (load_scenario's); dropped with the scenario
+# numbers of ``userdata`` the model ends with for the native engine's control callback: a row
+# finds its batch's context and its index there (mjxskill.engine.native.callback); they change
+# no physics, and MJX carries them unread
+CONTROL_USERDATA = 2
+
 _BUILT: "weakref.WeakKeyDictionary[object, mujoco.MjModel]" = weakref.WeakKeyDictionary()
 
 
@@ -82,6 +88,7 @@ def scenario_spec(scn) -> mujoco.MjSpec:
     if not scn.gravity:
         spec.option.gravity = [0.0, 0.0, 0.0]
     add_tool_force_sensors(spec, _compile(spec, scn), scn.robot.tool_site)
+    spec.nuserdata += CONTROL_USERDATA
     return spec
 
 

@@ -2,7 +2,8 @@
 reference BT interpreter, without MJX (the CPU's engine).
 
 ``NativeRollout`` (``rollout``) runs a call's episodes in one process on one
-``mujoco.batch.Batch`` (``batched``) with the impedance law compiled with numba (``kernels``);
+``mujoco.batch.Batch`` (``batched``) with the impedance law compiled with numba (``kernels``)
+run by MuJoCo as its control callback (``callback``);
 ``episode`` is one episode as state advanced tick by tick, and ``leaves``, ``controller`` and
 ``motion`` are the leaf programs, impedance law and motion generator in numpy. Parallelism
 wraps it, satisfying the same ``Rollout``: ``ProcessPoolRollout`` (``pool``, with ``worker``:

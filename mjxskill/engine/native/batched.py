@@ -5,12 +5,13 @@ once (the compiled tree's program, ``bt_compiled.rows``), the active leaves' eff
 speed, then the rewards over rows.
 
 The batch holds one simulation per episode, each world's contact friction as a per-simulation
-model field (``Batch.expand``: no model copy per episode), and binds the fields the law reads
-as (N, ...) arrays. Each control step is two calls for all episodes: the compiled impedance
-law (``mjxskill.engine.native.kernels``) writes every row's torques, then ``Batch.step`` runs
-``mj_step`` per row in C with the GIL released; the contact-force sensors are read as one
-array. What ``mj_step`` leaves in a row is what it leaves in an ``MjData`` (MuJoCo's batch is
-bit-identical to a loop over one ``MjData`` each), so the law sees what the numpy lockstep
+model field (``Batch.expand``: no model copy per episode), and binds the fields a tick reads as
+(N, ...) arrays. A tick's control steps are one ``Batch.step(rows, nstep=steps)``: MuJoCo runs
+each row's steps in turn in C with the GIL released, and the compiled impedance law runs inside
+each ``mj_step`` as the control callback (``mjxskill.engine.native.callback``), on what
+``mj_step`` left of the step before, as a loop of single steps would give it. What ``mj_step``
+leaves in a row is what it leaves in an ``MjData`` (MuJoCo's batch is bit-identical to a loop
+over one ``MjData`` each), so the law sees what the numpy lockstep
 (``mjxskill.engine.native_reference``, its reference) sees, and whole episodes equal its results
 bit for bit but for the last bit of a reward total (the rewards over rows here, one episode's
 there: tests/engine/native/test_batched.py).
@@ -40,12 +41,13 @@ from mjxskill.engine.common.types import EpisodeResult
 from mjxskill.engine.common.worlds import world_pair_friction
 from mjxskill.engine.native.board import RowsBoard
 from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode, commanded_force, episode_result, slot_poses
-from mjxskill.engine.native.kernels import add_forces, impedance_rows, site_quats
+from mjxskill.engine.native.callback import ControlContext, control_callback, installed
+from mjxskill.engine.native.kernels import site_quats
 from mjxskill.sim.controller_config import N_ARM
 
 # Bound before the batch's first call: a field bound later is only filled from the next call on.
 BOUND = ("qpos", "qvel", "ctrl", "mocap_pos", "mocap_quat", "time", "xpos", "xquat", "site_xpos", "site_xmat",
-         "cdof", "subtree_com", "qfrc_bias", "sensordata")
+         "cdof", "subtree_com", "qfrc_bias", "sensordata", "userdata")
 
 
 def kinematic_chain(model: mujoco.MjModel, body: int) -> np.ndarray:
@@ -100,14 +102,15 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
     rows = np.flatnonzero(~bad)
     if len(rows):
         episodes = BatchEpisodes(engine, params, worlds, fields, rows)
-        stepper = _Stepper(engine, batch, fields, timed=timing is not None)
-        for t in range(engine.setup.ticks):
-            alive = rows[~episodes.diverged[rows]]
-            if not len(alive):
-                break
-            episodes.begin_tick(alive)
-            reset, force = stepper.tick(episodes, alive)
-            episodes.end_tick(t, alive, reset, force)
+        stepper = _Stepper(engine, batch, fields, episodes, timed=timing is not None)
+        with installed(control_callback(engine.mj_model, engine.data_offsets)):
+            for t in range(engine.setup.ticks):
+                alive = rows[~episodes.diverged[rows]]
+                if not len(alive):
+                    break
+                episodes.begin_tick(alive)
+                reset, force = stepper.tick(episodes, alive)
+                episodes.end_tick(t, alive, reset, force)
         for i in rows:
             results[i] = episodes.result(int(i))
         if timing is not None:
@@ -234,17 +237,17 @@ def _world(worlds, i: int):
 
 
 class _Stepper:
-    """The control steps of one tick for the live rows of a batch."""
+    """The control steps of one tick for the live rows of a batch: one ``Batch.step`` of the
+    tick's steps, the law run inside each ``mj_step`` by the control callback
+    (``mjxskill.engine.native.callback``) on the episodes' rate-limited state."""
 
-    def __init__(self, engine, batch: Batch, fields: dict, timed: bool = False):
+    def __init__(self, engine, batch: Batch, fields: dict, episodes: BatchEpisodes, timed: bool = False):
         cfg, model = engine.setup.ctrl, engine.mj_model
         self.batch, self.fields, self.cfg, self.steps = batch, fields, cfg, engine.setup.steps_per_tick
-        self.site, self.root = cfg.site_id, int(model.body_rootid[cfg.site_body_id])
-        self.chain = kinematic_chain(model, cfg.site_body_id)
-        self.rates = np.array([cfg.stiffness_rate * cfg.dt, cfg.wrench_rate * cfg.dt, cfg.torque_step,
-                               cfg.pinv_damping, cfg.nullspace_stiffness])
-        self.torque_limit = np.asarray(cfg.torque_limit, float)
-        self.sensors = np.asarray(engine.setup.bindings.force_sensors, dtype=np.int64)
+        self.context = ControlContext(engine.data_offsets, self.steps, cfg, kinematic_chain(model, cfg.site_body_id),
+                                      int(model.body_rootid[cfg.site_body_id]), engine.setup.bindings.force_sensors,
+                                      episodes.torque, episodes.stiffness, episodes.wrench, episodes.nullspace_target)
+        self.context.bind(fields["userdata"], fields)
         self.timestep = float(model.opt.timestep)
         self.clock = 0.0  # the time of a row that has never been reset, summed as mj_step sums it
         self.timed, self.physics_s = timed, 0.0
@@ -253,35 +256,18 @@ class _Stepper:
         """The control steps of one tick for ``rows`` (m,) of ``episodes``. Returns which rows (m,)
         MuJoCo reset or stopped (their episodes diverged) and the tick's contact force sum and
         peak per row."""
-        f, m, board = self.fields, len(rows), episodes.board
+        board = episodes.board
         ref_pos, ref_quat = board.references(rows, self.steps, self.cfg.dt)  # (steps, m, 3), (steps, m, 4)
-        cmd_wrench, cmd_stiffness = board.wrench[rows], board.stiffness[rows]
-        nullspace_target = episodes.nullspace_target[rows]
-        torque, stiffness, wrench = episodes.torque[rows], episodes.stiffness[rows], episodes.wrench[rows]
-        force_sum, force_peak = np.zeros(m), np.zeros(m)
-        failed = np.zeros(m, bool)
-        # the rows to step: all of the batch's as None (no ids to check), until one fails
-        stepped = None if m == self.batch.nsim else rows
-        # the law's arguments, bound once a tick: it runs ``steps`` times
-        chain, site, root, limit, rates = self.chain, self.site, self.root, self.torque_limit, self.rates
-        cdof, com, site_xpos, site_xmat = f["cdof"], f["subtree_com"], f["site_xpos"], f["site_xmat"]
-        qpos, qvel, bias, ctrl, sensordata, sensors = f["qpos"], f["qvel"], f["qfrc_bias"], f["ctrl"], f["sensordata"], self.sensors
-        step, timed = self.batch.step, self.timed
-        for k in range(self.steps):
-            # The law runs for every row of the tick, stepped or not: its per-row inputs are indexed
-            # by position in ``rows``; a failed row's torques are never applied.
-            impedance_rows(rows, chain, site, root, cdof, com, site_xpos, site_xmat, qpos, qvel, bias, ref_pos[k],
-                           ref_quat[k], cmd_wrench, cmd_stiffness, nullspace_target, torque, stiffness, wrench, limit,
-                           rates, ctrl)
-            start = time.perf_counter() if timed else 0.0
-            try:
-                step(stepped)
-            except SimulationError as error:  # those rows kept their state; they end here
-                failed |= np.isin(rows, error.ids)
-                stepped = rows[~failed]
-            if timed:
-                self.physics_s += time.perf_counter() - start
-            add_forces(rows, sensordata, sensors, force_sum, force_peak)
+        self.context.begin_tick(rows, ref_pos, ref_quat, board.wrench[rows], board.stiffness[rows])
+        failed = np.zeros(len(rows), bool)
+        start = time.perf_counter() if self.timed else 0.0
+        try:  # all of the batch's rows as None (no ids to check)
+            self.batch.step(None if len(rows) == self.batch.nsim else rows, nstep=self.steps)
+        except SimulationError as error:  # those rows stopped at the step that failed; they end here
+            failed = np.isin(rows, error.ids)
+        if self.timed:
+            self.physics_s += time.perf_counter() - start
+        for _ in range(self.steps):
             self.clock += self.timestep
-        episodes.torque[rows], episodes.stiffness[rows], episodes.wrench[rows] = torque, stiffness, wrench
-        return (f["time"][rows] != self.clock) | failed, (force_sum, force_peak)
+        force = self.context.end_tick(rows, self.fields["sensordata"])
+        return (self.fields["time"][rows] != self.clock) | failed, force

@@ -1,5 +1,6 @@
-"""The impedance law of ``mjxskill.engine.native_reference.batched_impedance_control`` as one
-compiled loop over the rows of a ``mujoco.batch.Batch``, with numba.
+"""The impedance law of ``mjxskill.engine.native_reference.batched_impedance_control`` compiled
+with numba: for one arm (``impedance_law``, what the control callback runs inside ``mj_step``)
+and as one loop over the rows of a ``mujoco.batch.Batch`` (``impedance_rows``).
 
 Why numba: the law is ~40 small operations on 6x7 matrices per arm; as numpy over 42 rows it
 costs ~350 us per control step (one call per quantity, each ~5 us of dispatch), six times the
@@ -72,18 +73,17 @@ def _rate_limit(previous, target, max_delta):
 
 
 @_compiled
-def _site_jacobian(i, chain, site, root, cdof, subtree_com, site_xpos, jac):
-    """Row i's site Jacobian (6, 7) as ``mj_jac``: translation rows cross(axis, offset) plus the
-    dof's linear part, the offset taken from the site's tree's centre of mass."""
-    ox = site_xpos[i, site, 0] - subtree_com[i, root, 0]
-    oy = site_xpos[i, site, 1] - subtree_com[i, root, 1]
-    oz = site_xpos[i, site, 2] - subtree_com[i, root, 2]
+def _site_jacobian(chain, cdof, com, site_pos, jac):
+    """The site Jacobian (6, 7) as ``mj_jac``: translation rows cross(axis, offset) plus the
+    dof's linear part, the offset taken from the site's tree's centre of mass ``com`` (3,);
+    cdof (>= 7, 6): the arm's dofs' motion axes."""
+    ox, oy, oz = site_pos[0] - com[0], site_pos[1] - com[1], site_pos[2] - com[2]
     for j in range(7):
         if chain[j]:
-            a0, a1, a2 = cdof[i, j, 0], cdof[i, j, 1], cdof[i, j, 2]
-            jac[0, j] = (a1 * oz - a2 * oy) + cdof[i, j, 3]
-            jac[1, j] = (a2 * ox - a0 * oz) + cdof[i, j, 4]
-            jac[2, j] = (a0 * oy - a1 * ox) + cdof[i, j, 5]
+            a0, a1, a2 = cdof[j, 0], cdof[j, 1], cdof[j, 2]
+            jac[0, j] = (a1 * oz - a2 * oy) + cdof[j, 3]
+            jac[1, j] = (a2 * ox - a0 * oz) + cdof[j, 4]
+            jac[2, j] = (a0 * oy - a1 * ox) + cdof[j, 5]
             jac[3, j], jac[4, j], jac[5, j] = a0, a1, a2
         else:
             for k in range(6):
@@ -139,56 +139,72 @@ def _damped_solve(jac, damping, chol, x):
 
 
 @_compiled
+def impedance_law(chain, site_pos, site_mat, com, cdof, qpos, qvel, qfrc_bias, ref_pos, ref_quat, cmd_wrench,
+                  cmd_stiffness, nullspace_target, torque, stiffness, wrench, torque_limit, rates, ctrl, scratch):
+    """The impedance law of one arm at one control step. What ``mj_step`` left of the step
+    before: site_pos (3,) and site_mat (9,) of the site, com (3,) its tree's centre of mass, cdof
+    (>= 7, 6), qfrc_bias (>= 7,); the state now: qpos, qvel (>= 7,). ref_pos (3,), ref_quat
+    (4,), cmd_wrench and cmd_stiffness (6,), nullspace_target (7,): the command. torque (7,),
+    stiffness and wrench (6,): the rate-limited state, updated in place. torque_limit (7,);
+    rates: (stiffness step, wrench step, torque step, pinv damping, nullspace stiffness).
+    Writes the torques into ctrl[:7]; scratch (>= SCRATCH,): working memory."""
+    stiffness_step, wrench_step, torque_step, damping, k_ns = rates[0], rates[1], rates[2], rates[3], rates[4]
+    jac, chol, x = scratch[0:42].reshape((6, 7)), scratch[42:78].reshape((6, 6)), scratch[78:120].reshape((6, 7))
+    quat, pose_err, force, drive, x_drive = scratch[120:124], scratch[124:130], scratch[130:136], scratch[136:143], \
+        scratch[143:149]
+    damping_ns = 2.0 * math.sqrt(k_ns)
+    for k in range(6):
+        stiffness[k] = _rate_limit(stiffness[k], cmd_stiffness[k], stiffness_step)
+        wrench[k] = _rate_limit(wrench[k], cmd_wrench[k], wrench_step)
+    _site_jacobian(chain, cdof, com, site_pos, jac)
+    _pose_error(site_pos, site_mat, ref_pos, ref_quat, quat, pose_err)
+    for k in range(6):  # task-space force: spring, critical damping on the twist, the wrench
+        twist = jac[k, 0] * qvel[0]
+        for j in range(1, 7):
+            twist += jac[k, j] * qvel[j]
+        s = stiffness[k]
+        force[k] = -s * pose_err[k] - 2.0 * math.sqrt(max(s, 0.0)) * twist + wrench[k]
+    _damped_solve(jac, damping, chol, x)
+    for j in range(7):
+        drive[j] = k_ns * (nullspace_target[j] - qpos[j]) - damping_ns * qvel[j]
+    for a in range(6):  # x drive first: (I - J^T x) drive = drive - J^T (x drive), 84 products not 294
+        acc = x[a, 0] * drive[0]
+        for c in range(1, 7):
+            acc += x[a, c] * drive[c]
+        x_drive[a] = acc
+    for j in range(7):  # bias + (I - J^T x) drive + J^T force, rate- and torque-limited
+        proj = jac[0, j] * x_drive[0]
+        for a in range(1, 6):
+            proj += jac[a, j] * x_drive[a]
+        tau = qfrc_bias[j] + (drive[j] - proj)
+        for k in range(6):
+            tau += jac[k, j] * force[k]
+        tau = _rate_limit(torque[j], tau, torque_step)
+        tau = min(max(tau, -torque_limit[j]), torque_limit[j])
+        torque[j] = tau
+        ctrl[j] = tau
+
+
+SCRATCH = 149  # doubles of working memory ``impedance_law`` needs
+
+
+@_compiled
 def impedance_rows(rows, chain, site, root, cdof, subtree_com, site_xpos, site_xmat, qpos, qvel, qfrc_bias,
                    ref_pos, ref_quat, cmd_wrench, cmd_stiffness, nullspace_target, torque, stiffness, wrench,
                    torque_limit, rates, ctrl):
-    """The impedance law for the batch rows ``rows`` (m,) at one control step.
-
-    chain (7,) bool: which of the arm's dofs are ancestors of the site's body (``mj_jac``'s
-    chain); site, root: the site id and its body's tree root; cdof (n, nv, 6), subtree_com
-    (n, nbody, 3), site_xpos (n, nsite, 3), site_xmat (n, nsite, 9), qpos (n, nq), qvel and
-    qfrc_bias (n, nv): the batch's bound fields. ref_pos (m, 3), ref_quat (m, 4), cmd_wrench and
-    cmd_stiffness (m, 6), nullspace_target (m, 7): per row of ``rows``. torque (m, 7),
-    stiffness and wrench (m, 6): the rate-limited state, updated in place. torque_limit (7,);
-    rates: (stiffness step, wrench step, torque step, pinv damping, nullspace stiffness).
-    Writes each row's torques into ctrl (n, nu)[:, :7].
-    """
-    stiffness_step, wrench_step, torque_step, damping, k_ns = rates[0], rates[1], rates[2], rates[3], rates[4]
-    jac, chol, x = np.empty((6, 7)), np.empty((6, 6)), np.empty((6, 7))
-    quat, pose_err, force, drive, x_drive = np.empty(4), np.empty(6), np.empty(6), np.empty(7), np.empty(6)
-    damping_ns = 2.0 * math.sqrt(k_ns)
+    """``impedance_law`` for the batch rows ``rows`` (m,) at one control step, from the batch's
+    bound fields after ``mj_step``: cdof (n, nv, 6), subtree_com (n, nbody, 3), site_xpos
+    (n, nsite, 3), site_xmat (n, nsite, 9), qpos (n, nq), qvel and qfrc_bias (n, nv); chain (7,)
+    bool: which of the arm's dofs are ancestors of the site's body (``mj_jac``'s chain); site,
+    root: the site id and its body's tree root. ref_pos (m, 3), ref_quat (m, 4), cmd_wrench and
+    cmd_stiffness (m, 6), nullspace_target (m, 7), torque (m, 7), stiffness and wrench (m, 6):
+    per row of ``rows``, as ``impedance_law``'s. Writes each row's torques into ctrl (n, nu)."""
+    scratch = np.empty(SCRATCH)
     for r in range(rows.shape[0]):
         i = rows[r]
-        for k in range(6):
-            stiffness[r, k] = _rate_limit(stiffness[r, k], cmd_stiffness[r, k], stiffness_step)
-            wrench[r, k] = _rate_limit(wrench[r, k], cmd_wrench[r, k], wrench_step)
-        _site_jacobian(i, chain, site, root, cdof, subtree_com, site_xpos, jac)
-        _pose_error(site_xpos[i, site], site_xmat[i, site], ref_pos[r], ref_quat[r], quat, pose_err)
-        for k in range(6):  # task-space force: spring, critical damping on the twist, the wrench
-            twist = jac[k, 0] * qvel[i, 0]
-            for j in range(1, 7):
-                twist += jac[k, j] * qvel[i, j]
-            s = stiffness[r, k]
-            force[k] = -s * pose_err[k] - 2.0 * math.sqrt(max(s, 0.0)) * twist + wrench[r, k]
-        _damped_solve(jac, damping, chol, x)
-        for j in range(7):
-            drive[j] = k_ns * (nullspace_target[r, j] - qpos[i, j]) - damping_ns * qvel[i, j]
-        for a in range(6):  # x drive first: (I - J^T x) drive = drive - J^T (x drive), 84 products not 294
-            acc = x[a, 0] * drive[0]
-            for c in range(1, 7):
-                acc += x[a, c] * drive[c]
-            x_drive[a] = acc
-        for j in range(7):  # bias + (I - J^T x) drive + J^T force, rate- and torque-limited
-            proj = jac[0, j] * x_drive[0]
-            for a in range(1, 6):
-                proj += jac[a, j] * x_drive[a]
-            tau = qfrc_bias[i, j] + (drive[j] - proj)
-            for k in range(6):
-                tau += jac[k, j] * force[k]
-            tau = _rate_limit(torque[r, j], tau, torque_step)
-            tau = min(max(tau, -torque_limit[j]), torque_limit[j])
-            torque[r, j] = tau
-            ctrl[i, j] = tau
+        impedance_law(chain, site_xpos[i, site], site_xmat[i, site], subtree_com[i, root], cdof[i], qpos[i], qvel[i],
+                      qfrc_bias[i], ref_pos[r], ref_quat[r], cmd_wrench[r], cmd_stiffness[r], nullspace_target[r],
+                      torque[r], stiffness[r], wrench[r], torque_limit, rates, ctrl[i], scratch)
 
 
 @_compiled

@@ -1,8 +1,8 @@
 """The native MuJoCo engine in one process: the episodes of a planned task on native MuJoCo,
 numpy and the reference BT interpreter, without MJX.
 
-``NativeRollout`` runs all episodes of a call on one MuJoCo batch with the compiled law
-(``mjxskill.engine.native.batched``), in this process. Parallelism is a wrapper around it that
+``NativeRollout`` runs all episodes of a call on one MuJoCo batch with the compiled law as its
+control callback (``mjxskill.engine.native.batched``), in this process. Parallelism is a wrapper around it that
 satisfies the same ``Rollout``: ``ProcessPoolRollout`` (``mjxskill.engine.native.pool``: worker
 processes on this machine) and ``RayRollout`` (``mjxskill.engine.native.ray_pool``: the actors of a
 Ray cluster); both rebuild this engine from a recipe (``engine_from_recipe``) where the episodes
@@ -32,6 +32,7 @@ import numpy as np
 
 from mjxskill.bt_compiled import compile_tree
 from mjxskill.engine.native.batched import run_batched
+from mjxskill.engine.native.callback import data_offsets
 from mjxskill.engine.native.episode import NativeEpisode
 from mjxskill.sim.model import build_model
 from mjxskill.scenario import load_scenario
@@ -104,6 +105,7 @@ class NativeRollout(RolloutBase):
         # The compiled rollout's sampling program, written the same way: the same worlds, bit for bit.
         self._sample = jax.jit(lambda key, batch: sample_worlds(sampler, key, (batch, n_worlds)), static_argnums=1)
         self.mj_model = mj_model
+        self.data_offsets = data_offsets(mj_model)  # where the control callback reads an mjData's fields
         self.base_pair_friction = mj_model.pair_friction.copy()
         self.tree = task.tree
         # the tree's tables for a batch's tick over rows (batched.BatchEpisodes); a tree the compiled
