@@ -8,21 +8,25 @@ on this machine (issue 48).
 How: the plain loop (``NativeRollout.run_episode``, the reference) runs every episode of the batch
 once and records, per episode, its model (the world's contact friction set) and initial full
 physics state, and the user inputs (``mjSTATE_USER``: the controller's torques and whatever else
-the episode sets) of every control step. ``mujoco.rollout`` then replays the recorded inputs open
-loop, in C: each thread steps whole episodes, with no Python between steps. Because the episode
-is deterministic, the replay visits the recorded states; ``replay_max_state_error`` (the largest
-difference of any final full physics state from the recording's) shows it. The replay is timed
-(the best of two runs, its output buffers touched before) on one thread and on one thread per
-core (``default_workers``, the cores this process may run on), all stepping at once, so cores
-that share a physical core, or memory bandwidth, show in the ratio; the episodes are repeated
-to a multiple of the threads so that none waits for a last odd episode. An episode that
-diverged is left out of the replay (its last steps' inputs may be a reset's); with none left,
-the figures are None.
+the episode sets) of every control step. The recorded inputs are then replayed open loop, in C,
+each thread stepping whole episodes with no Python between steps, two ways: by ``mujoco.rollout``
+(``replay``), which writes every step's full state and sensors to its outputs, and by
+``mujoco.batch.Batch.rollout`` (``replay_unrecorded``), which writes only the sensors; the
+recording costs 4-42 % of the replay here (benchmarks/NOTES.md section 46), and is not the
+episodes' physics, so the faster replay is the limit. Because the episode is deterministic, a
+replay visits the recorded states; ``replay_max_state_error`` (the largest difference of any
+final full physics state from the recording's, over both) shows it. Each replay is timed (the
+best of two runs, its output buffers touched before) on one thread and on one thread per core
+(``default_workers``, the cores this process may run on), all stepping at once, so cores that
+share a physical core, or memory bandwidth, show in the ratio; the episodes are repeated to a
+multiple of the threads so that none waits for a last odd episode. An episode that diverged is
+left out of the replay (its last steps' inputs may be a reset's); with none left, the figures are
+None.
 
-The figures: ``one_core_steps_per_s``, ``all_cores_steps_per_s`` (the limit an engine is measured
-against: ``episode_physics_limit_steps_per_s`` in ``throughput.py``'s JSON) and
-``all_cores_over_one_core``; control steps (one ``mj_step`` each) per second of wall time, the
-load average before and after.
+The figures: ``one_core_steps_per_s``, ``all_cores_steps_per_s`` (the faster replay's: the limit an
+engine is measured against, ``episode_physics_limit_steps_per_s`` in ``throughput.py``'s JSON),
+each replay's as ``recorded_*`` and ``unrecorded_*``, and ``all_cores_over_one_core``; control
+steps (one ``mj_step`` each) per second of wall time, the load average before and after.
 """
 
 from __future__ import annotations
@@ -135,6 +139,40 @@ def replay(recording: dict, threads: int, runs: int = 2) -> tuple[float, int, fl
     return min(seconds), len(order), error
 
 
+def replay_unrecorded(recording: dict, threads: int, runs: int = 2) -> tuple[float, int, float]:
+    """As ``replay``, by ``mujoco.batch.Batch.rollout`` recording nothing but each step's
+    ``sensordata`` (the smallest output it takes; ``mujoco.rollout`` records every step's full
+    state too): MuJoCo's step alone. Each simulation on its episode's model (``set_models``)."""
+    import mujoco
+    import numpy as np
+    from mujoco.batch import Batch
+
+    n, nstep = recording["inputs"].shape[:2]
+    order = np.arange(-(-n // threads) * threads) % n
+    models = [recording["models"][i] for i in order]
+    full, user = mujoco.mjtState.mjSTATE_FULLPHYSICS, getattr(mujoco.mjtState, USER_INPUTS)
+    integration = mujoco.mjtState.mjSTATE_INTEGRATION
+    batch = Batch(models[0], len(order), nthread=threads)
+    batch.set_models(models)
+    starts = np.empty((len(order), batch.nstate))
+    for row, i in enumerate(order):  # the recorded start and the world's first inputs (its mocap poses)
+        data = mujoco.MjData(models[row])
+        mujoco.mj_setState(models[row], data, recording["starts"][i], full)
+        mujoco.mj_setState(models[row], data, recording["inputs"][i, 0], user)
+        mujoco.mj_getState(models[row], data, starts[row], integration)
+    inputs = np.ascontiguousarray(recording["inputs"][order])
+    out = {"sensordata": np.zeros((len(order), nstep, models[0].nsensordata))}
+    seconds = []
+    for _ in range(runs):
+        batch.state[:] = starts
+        t0 = time.perf_counter()
+        batch.rollout(nstep, control=inputs, control_spec=user.value, record=("sensordata",), out=out)
+        seconds.append(time.perf_counter() - t0)
+    error = max(float(np.max(np.abs(full_state(models[row], batch.get_data(row)) - recording["finals"][i])))
+                for row, i in enumerate(order))
+    return min(seconds), len(order), error
+
+
 def measure(engine, params, worlds, cores: int) -> dict:
     """The figures of the module docstring for this batch."""
     load_before = os.getloadavg()[0]
@@ -143,11 +181,16 @@ def measure(engine, params, worlds, cores: int) -> dict:
                   one_core_steps_per_s=None, all_cores_steps_per_s=None, all_cores_over_one_core=None,
                   replay_max_state_error=None, load_avg_before=load_before)
     if recording["models"]:
-        nstep = recording["inputs"].shape[1]
-        one_s, one_n, one_error = replay(recording, 1)
-        all_s, all_n, all_error = replay(recording, cores)
-        result.update(one_core_steps_per_s=one_n * nstep / one_s, all_cores_steps_per_s=all_n * nstep / all_s,
-                      replay_max_state_error=max(one_error, all_error))
+        nstep, errors = recording["inputs"].shape[1], []
+        for name, replayer in (("recorded", replay), ("unrecorded", replay_unrecorded)):
+            for where, threads in (("one_core", 1), ("all_cores", cores)):
+                seconds, episodes, error = replayer(recording, threads)
+                result[f"{name}_{where}_steps_per_s"] = episodes * nstep / seconds
+                errors.append(error)
+        for where in ("one_core", "all_cores"):  # the faster replay: MuJoCo's step with the least around it
+            result[f"{where}_steps_per_s"] = max(result[f"recorded_{where}_steps_per_s"],
+                                                 result[f"unrecorded_{where}_steps_per_s"])
+        result["replay_max_state_error"] = max(errors)
         result["all_cores_over_one_core"] = result["all_cores_steps_per_s"] / result["one_core_steps_per_s"]
     result["load_avg_after"] = os.getloadavg()[0]
     return result
@@ -157,7 +200,9 @@ def report(r: dict) -> str:
     if r["all_cores_steps_per_s"] is None:
         return f"the episodes' own physics: not measured, every one of the {r['episodes']} episodes diverged"
     return (f"the episodes' own physics ({r['episodes_replayed']} of {r['episodes']} episodes replayed by "
-            f"mujoco.rollout, final state within {r['replay_max_state_error']:.1e} of the recording): "
+            f"mujoco.rollout and by Batch.rollout, the faster counting ({r['unrecorded_all_cores_steps_per_s']:.0f} "
+            f"and {r['recorded_all_cores_steps_per_s']:.0f} unrecorded and recorded on all cores), final state "
+            f"within {r['replay_max_state_error']:.1e} of the recording): "
             f"{r['one_core_steps_per_s']:.0f} control steps/s on one core, {r['all_cores_steps_per_s']:.0f} on "
             f"{r['cores']} at once ({r['all_cores_over_one_core']:.2f} x one core); load {r['load_avg_before']:.2f} "
             f"before, {r['load_avg_after']:.2f} after")

@@ -32,8 +32,8 @@ The default is the real workload: the scenario's full episode length at the trai
 ``physics_limit_steps_per_s``, ``best_share_of_limit``, ``episode_physics_steps_per_s`` (MuJoCo's
 step on the episodes' own states: the one-process, one-thread call's rate over its physics share)
 with ``episode_physics_share_of_limit`` (cores x that over the limit: the engine's ceiling were
-its Python free), ``episode_physics_limit_steps_per_s`` (the episodes' own steps replayed by
-``mujoco.rollout`` on every core at once, ``benchmarks/episode_physics.py``: the limit issue 48
+its Python free), ``episode_physics_limit_steps_per_s`` (the episodes' own steps replayed in C with no Python on
+every core at once, the faster of two replays, ``benchmarks/episode_physics.py``: the limit issue 48
 measures an engine against), ``best_share_of_episode_physics_limit``, ``episode_physics`` (that
 replay's figures) and the rows.
 """

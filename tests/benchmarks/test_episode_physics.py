@@ -1,4 +1,4 @@
-"""benchmarks/episode_physics.py replays the episodes' own steps: ``mujoco.rollout`` driven by the
+"""benchmarks/episode_physics.py replays the episodes' own steps: ``mujoco.rollout`` (and ``Batch.rollout``) driven by the
 recorded inputs ends every episode in the state the plain loop (the reference interpreter over
 native MuJoCo) ended it in, and the figures count the replayed steps."""
 
@@ -19,6 +19,8 @@ def test_the_replay_ends_where_the_plain_loop_ended(tmp_path):
     assert result["episodes"] == 4 and result["episodes_replayed"] == 4
     assert result["replay_max_state_error"] == 0.0  # deterministic physics: the very states
     assert result["one_core_steps_per_s"] > 0 and result["all_cores_steps_per_s"] > 0
+    for replay in ("recorded", "unrecorded"):  # the limit is the faster of the two replays
+        assert result["all_cores_steps_per_s"] >= result[f"{replay}_all_cores_steps_per_s"] > 0
 
 
 def test_a_recording_holds_the_inputs_of_every_step():
@@ -36,3 +38,15 @@ def test_a_recording_holds_the_inputs_of_every_step():
     no_torque = dict(recording, inputs=recording["inputs"].copy())
     no_torque["inputs"][..., :7] = 0.0
     assert ep.replay(no_torque, threads=1, runs=1)[2] > 1e-6
+
+
+def test_the_unrecorded_replay_ends_where_the_plain_loop_ended():
+    from throughput import workload
+
+    _, _, params, worlds, engine = workload("peg", 0.3, 2, 1)
+    recording = ep.record(engine, params, worlds)
+    _, replayed, error = ep.replay_unrecorded(recording, threads=2, runs=1)
+    assert replayed == 2 and error == 0.0
+    no_torque = dict(recording, inputs=recording["inputs"].copy())
+    no_torque["inputs"][..., :7] = 0.0
+    assert ep.replay_unrecorded(no_torque, threads=1, runs=1)[2] > 1e-6
