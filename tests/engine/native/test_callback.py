@@ -68,49 +68,67 @@ def test_data_without_a_context_steps_as_with_no_callback(peg):
     assert np.array_equal(plain.qpos, called.qpos) and np.array_equal(called.ctrl, plain.ctrl)
 
 
-def test_a_tick_in_one_call_equals_the_law_between_single_steps(peg):
-    """Four rows from different arm postures, one tick of 50 steps: the callback's ``Batch.step``
-    of 50 against 50 single steps with ``impedance_rows`` between them (the per-step loop): the
-    same states, torques, law state and touch force sums, bit for bit."""
+def one_tick(peg, how: str, bad_row: int | None = None) -> list[np.ndarray]:
+    """One tick of 50 steps for four rows from different arm postures, ``how``: "single steps"
+    (``impedance_rows`` between single ``Batch.step`` calls, the per-step loop) or "callback"
+    (one ``Batch.step`` of 50, the law inside); ``bad_row``'s velocities NaN at the start (MuJoCo
+    resets that row at its first step). Returns the rows' qpos, qvel, ctrl, time, law state and
+    touch force sums."""
     model, cfg, steps, n = peg.mj_model, peg.setup.ctrl, 50, 4
-    chain, root = kinematic_chain(model, cfg.site_body_id), int(model.body_rootid[cfg.site_body_id])
+    chain, root, site = kinematic_chain(model, cfg.site_body_id), int(model.body_rootid[cfg.site_body_id]), cfg.site_id
     rng = np.random.default_rng(0)
     start = np.tile(model.qpos0, (n, 1))
     start[:, :7] += rng.normal(0.0, 0.2, (n, 7))
-    site = peg.setup.ctrl.site_id
     ref_pos = rng.normal(0.0, 0.01, (steps, n, 3))
     ref_quat = np.tile([0.0, 1.0, 0.0, 0.0], (steps, n, 1))
     cmd_wrench, cmd_stiffness = rng.normal(0.0, 5.0, (n, 6)), np.tile([800.0] * 3 + [80.0] * 3, (n, 1))
     limits = np.array([cfg.stiffness_rate * cfg.dt, cfg.wrench_rate * cfg.dt, cfg.torque_step, cfg.pinv_damping,
                        cfg.nullspace_stiffness])
     sensors = np.asarray(peg.setup.bindings.force_sensors, np.int64)
-    out = {}
-    for how in ("single steps", "callback"):
-        batch = Batch(model, n, nthread=1)
-        f = {name: batch.bind(name) for name in BOUND}
-        batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
-        f["qpos"][:] = start
-        batch.forward()
-        refs = f["site_xpos"][:, site] + ref_pos
-        torque, stiffness = np.array(f["qfrc_bias"][:, :7]), np.array(cmd_stiffness)
-        wrench, target = np.zeros((n, 6)), np.array(start[:, :7])
-        rows = np.arange(n)
-        if how == "single steps":
-            force_sum, force_peak = np.zeros(n), np.zeros(n)
-            for k in range(steps):
-                impedance_rows(rows, chain, site, root, f["cdof"], f["subtree_com"], f["site_xpos"], f["site_xmat"],
-                               f["qpos"], f["qvel"], f["qfrc_bias"], refs[k], ref_quat[k], cmd_wrench, cmd_stiffness,
-                               target, torque, stiffness, wrench, np.asarray(cfg.torque_limit, float), limits, f["ctrl"])
-                batch.step()
-                add_forces(rows, f["sensordata"], sensors, force_sum, force_peak)
-        else:
-            context = ControlContext(peg.data_offsets, steps, cfg, chain, root, sensors, torque, stiffness, wrench, target)
-            context.bind(f["userdata"], f)
-            context.begin_tick(rows, refs, ref_quat, cmd_wrench, cmd_stiffness)
-            with installed(control_callback(model, peg.data_offsets)):
-                batch.step(nstep=steps)
-            force_sum, force_peak = context.end_tick(rows, f["sensordata"])
-        out[how] = [np.array(x) for x in (f["qpos"], f["qvel"], f["ctrl"], torque, stiffness, wrench, force_sum, force_peak)]
-    for a, b in zip(out["single steps"], out["callback"]):
+    batch = Batch(model, n, nthread=1)
+    f = {name: batch.bind(name) for name in BOUND}
+    batch.reset(stage=mujoco.mjtStage.mjSTAGE_NONE)
+    f["qpos"][:], f["time"][:] = start, 1.0  # a clock MuJoCo's reset (to 0) shows in
+    batch.forward()
+    refs = f["site_xpos"][:, site] + ref_pos
+    torque, stiffness = np.array(f["qfrc_bias"][:, :7]), np.array(cmd_stiffness)
+    wrench, target, rows = np.zeros((n, 6)), np.array(start[:, :7]), np.arange(n)
+    if how == "single steps":
+        force_sum, force_peak = np.zeros(n), np.zeros(n)
+        for k in range(steps):
+            impedance_rows(rows, chain, site, root, f["cdof"], f["subtree_com"], f["site_xpos"], f["site_xmat"],
+                           f["qpos"], f["qvel"], f["qfrc_bias"], refs[k], ref_quat[k], cmd_wrench, cmd_stiffness,
+                           target, torque, stiffness, wrench, np.asarray(cfg.torque_limit, float), limits, f["ctrl"])
+            batch.step()
+            add_forces(rows, f["sensordata"], sensors, force_sum, force_peak)
+    else:
+        context = ControlContext(peg.data_offsets, steps, cfg, chain, root, sensors, torque, stiffness, wrench, target)
+        context.bind(f["userdata"], f)
+        context.begin_tick(rows, refs, ref_quat, cmd_wrench, cmd_stiffness)
+        if bad_row is not None:
+            f["qvel"][bad_row] = np.nan
+        with installed(control_callback(model, peg.data_offsets)):
+            batch.step(nstep=steps)
+        force_sum, force_peak = context.end_tick(rows, f["sensordata"])
+    return [np.array(x) for x in (f["qpos"], f["qvel"], f["ctrl"], f["time"], torque, stiffness, wrench, force_sum,
+                                  force_peak)]
+
+
+def test_a_tick_in_one_call_equals_the_law_between_single_steps(peg):
+    """The callback's one ``Batch.step`` of 50 against 50 single steps with the law between them:
+    the same states, torques, law state and touch force sums, bit for bit."""
+    single, called = one_tick(peg, "single steps"), one_tick(peg, "callback")
+    for a, b in zip(single, called):
         np.testing.assert_array_equal(a, b)
-    assert np.ptp(out["callback"][0][:, :7], axis=0).max() > 0.1  # the rows moved apart: each read its own row
+    assert np.ptp(called[0][:, :7], axis=0).max() > 0.1  # the rows moved apart: each read its own row
+
+
+def test_a_row_mujoco_resets_in_a_tick_leaves_the_others_alone(peg):
+    """A row whose state goes bad is reset by MuJoCo (its clock restarts, its ``userdata`` is
+    zero again, so the callback leaves it); the other rows end the tick as without it."""
+    clean, broken = one_tick(peg, "callback"), one_tick(peg, "callback", bad_row=2)
+    others = [0, 1, 3]
+    for a, b in zip(clean, broken):
+        np.testing.assert_array_equal(a[others], b[others])
+    time = broken[3]
+    assert time[2] < time[0] == time[1] == time[3]  # the engine's clock test marks it diverged
