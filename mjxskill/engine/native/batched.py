@@ -17,9 +17,9 @@ bit for bit but for the last bit of a reward total (the rewards over rows here, 
 there: tests/engine/native/test_batched.py).
 
 A row MuJoCo resets after its state went bad (``mj_step`` then only counts a warning, which a
-batch does not report) is found by its clock: a reset sets ``time`` to 0, so the row falls
-behind the others. A row MuJoCo raises an error in stops there. Either is a diverged episode,
-contained as in the plain loop.
+batch does not report) is found by its ``userdata``, which the reset zeroes, and by its clock: a
+reset sets ``time`` to 0, so the row falls behind the others. A row MuJoCo raises an error in is
+back in its state before the call. Either is a diverged episode, contained as in the plain loop.
 """
 
 from __future__ import annotations
@@ -44,6 +44,7 @@ from mjxskill.engine.native.episode import SNAPSHOT_FIELDS, NativeEpisode, comma
 from mjxskill.engine.native.callback import ControlContext, control_callback, installed
 from mjxskill.engine.native.kernels import site_quats
 from mjxskill.sim.controller_config import N_ARM
+from mjxskill.sim.model import CONTROL_USERDATA
 
 # Bound before the batch's first call: a field bound later is only filled from the next call on.
 BOUND = ("qpos", "qvel", "ctrl", "mocap_pos", "mocap_quat", "time", "xpos", "xquat", "site_xpos", "site_xmat",
@@ -103,14 +104,17 @@ def run_batched(engine, params: np.ndarray, worlds, threads: int = 1, timing: di
     if len(rows):
         episodes = BatchEpisodes(engine, params, worlds, fields, rows)
         stepper = _Stepper(engine, batch, fields, episodes, timed=timing is not None)
-        with installed(control_callback(engine.mj_model, engine.data_offsets)):
-            for t in range(engine.setup.ticks):
-                alive = rows[~episodes.diverged[rows]]
-                if not len(alive):
-                    break
-                episodes.begin_tick(alive)
-                reset, force = stepper.tick(episodes, alive)
-                episodes.end_tick(t, alive, reset, force)
+        try:
+            with installed(control_callback(engine.mj_model, engine.data_offsets)):
+                for t in range(engine.setup.ticks):
+                    alive = rows[~episodes.diverged[rows]]
+                    if not len(alive):
+                        break
+                    episodes.begin_tick(alive)
+                    reset, force = stepper.tick(episodes, alive)
+                    episodes.end_tick(t, alive, reset, force)
+        finally:
+            stepper.context.release()
         for i in rows:
             results[i] = episodes.result(int(i))
         if timing is not None:
@@ -263,11 +267,13 @@ class _Stepper:
         start = time.perf_counter() if self.timed else 0.0
         try:  # all of the batch's rows as None (no ids to check)
             self.batch.step(None if len(rows) == self.batch.nsim else rows, nstep=self.steps)
-        except SimulationError as error:  # those rows stopped at the step that failed; they end here
+        except SimulationError as error:  # those rows are back in their state before the call; they end here
             failed = np.isin(rows, error.ids)
         if self.timed:
             self.physics_s += time.perf_counter() - start
         for _ in range(self.steps):
             self.clock += self.timestep
         force = self.context.end_tick(rows, self.fields["sensordata"])
-        return (self.fields["time"][rows] != self.clock) | failed, force
+        # MuJoCo's reset zeroes a row's userdata (the callback then leaves it) and restarts its clock
+        reset = (self.fields["userdata"][rows, -CONTROL_USERDATA] == 0) | (self.fields["time"][rows] != self.clock)
+        return reset | failed, force

@@ -7,8 +7,10 @@ The callback is a numba ``cfunc``. A row's ``userdata`` (the model's last ``CONT
 numbers, ``mjxskill.sim.model``) holds the address of the batch's ``ControlContext`` and the row's
 index; the context holds, per row, the tick's references and command, the law's rate-limited
 state, what the law reads of the step before, and the tick's touch force sums. The ``mjData``
-being stepped is read through its pointer fields, whose places in the struct are found once per
-engine by their values (``data_offsets``) and checked on a second ``mjData``.
+being stepped is read through its pointer members, whose places in the struct come from
+mjData's declaration order (``mujoco.introspect``), checked once per engine against the arrays'
+addresses in two ``mjData`` (``data_offsets``). The compiled law (``kernels.control_step``) sits
+in ``kernels`` beside the law it calls, so that numba's cache of it goes stale with that file.
 
 What the law reads is what it reads between two ``mj_step`` calls: the state (``qpos``, ``qvel``)
 now, and the site pose, ``cdof``, ``subtree_com`` and ``qfrc_bias`` of the forward pass before
@@ -19,8 +21,11 @@ for bit. A step's touch force (an acceleration-stage sensor, computed after the 
 read by the next step's callback, the tick's last one from the bound ``sensordata`` after the
 call (``ControlContext.end_tick``): the same values summed in the same order.
 
-The callback is installed only while a batch steps (``installed``) and does nothing for data
-whose ``userdata`` holds no context (a row MuJoCo reset: its ``userdata`` is zero again).
+The callback is installed only while a batch steps (``installed``: one batch of a process at a
+time) and acts only for data whose ``userdata`` names a context of a batch stepping now (the
+process's table of live contexts, ``ControlContext.bind`` and ``release``): a row MuJoCo reset
+(its ``userdata`` zero again), or data of another model stepped meanwhile, is left alone. A
+model integrated with RK4 (four forward passes a step) is refused by the engine.
 """
 
 from __future__ import annotations
@@ -28,138 +33,96 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import functools
+import threading
 
 import mujoco
 import numba
 import numpy as np
+from mujoco.introspect import ast_nodes, structs
 from numba import types
-from numba.extending import intrinsic
 
-from mjxskill._numba import compiled
-from mjxskill.engine.native.kernels import SCRATCH, add_forces, impedance_law
+from mjxskill.engine.native.kernels import (ARRAYS, FIELDS, HEADER, MAGIC, SCRATCH, STASH, _ARRAYS, _CHAIN, _MAGIC, _NSENSOR,
+                                            _OFFSETS, _ROOT, _ROWS, _SITE, _STEPS, _f64, _i64, add_forces, control_step)
 from mjxskill.sim.controller_config import N_ARM
 from mjxskill.sim.model import CONTROL_USERDATA
 
-# the mjData pointer fields the callback reads, in the order of ``data_offsets``
-FIELDS = ("qpos", "qvel", "ctrl", "site_xpos", "site_xmat", "cdof", "subtree_com", "qfrc_bias", "sensordata", "userdata")
-_SCAN_WORDS = 1 << 20  # the mjData struct is ~160 kB in MuJoCo 4; the fields are found well before this
-
-# the context's header (int64): constants, the fields' offsets, the chain, the arrays' addresses
-MAGIC = 0x6D6A78736B696C6C  # "mjxskill": a header the callback trusts
-_MAGIC, _ROWS, _STEPS, _SITE, _ROOT, _NSENSOR, _OFFSETS = 0, 1, 2, 3, 4, 5, 6
-_CHAIN = _OFFSETS + len(FIELDS)
-_ARRAYS = _CHAIN + N_ARM
-ARRAYS = ("refs", "cmd_wrench", "cmd_stiffness", "nullspace_target", "torque", "stiffness", "wrench", "stash", "scratch",
-          "counter", "force_sum", "force_peak", "limits", "sensors")
-HEADER = _ARRAYS + len(ARRAYS)
-# where in the header: each field's offset, each array's address
-(_QPOS, _QVEL, _CTRL, _SITE_XPOS, _SITE_XMAT, _CDOF, _SUBTREE_COM, _QFRC_BIAS, _SENSORDATA,
- _USERDATA) = range(_OFFSETS, _OFFSETS + len(FIELDS))
-(_REFS, _CMD_WRENCH, _CMD_STIFFNESS, _NULLSPACE_TARGET, _TORQUE, _STIFFNESS_STATE, _WRENCH, _STASH, _SCRATCH, _COUNTER,
- _FORCE_SUM, _FORCE_PEAK, _LIMITS, _SENSORS) = range(_ARRAYS, HEADER)
-STASH = 3 + 9 + 3 + 6 * N_ARM + N_ARM  # site_xpos, site_xmat, subtree_com of the root, the arm's cdof, qfrc_bias
+_SCAN_WORDS = 1 << 20  # a bound on the search for the anchor field, which sits in the struct (~160 kB in MuJoCo 4)
 
 
-@intrinsic
-def _f64(typingctx, address):
-    """The float64 pointer at an address (an int64)."""
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
-    return types.CPointer(types.float64)(types.int64), codegen
-
-
-@intrinsic
-def _i64(typingctx, address):
-    """The int64 pointer at an address (an int64)."""
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
-    return types.CPointer(types.int64)(types.int64), codegen
+def _pointer_run() -> list[str]:
+    """mjData's pointer members from ``buffer`` on, in declaration order (``mujoco.introspect``):
+    consecutive 8-byte words of the struct, so a member's word is the run's first plus its index."""
+    fields = structs.STRUCTS["mjData"].fields
+    start = [f.name for f in fields].index("buffer")
+    run = []
+    for f in fields[start:]:
+        if not isinstance(f.type, ast_nodes.PointerType):
+            break
+        run.append(f.name)
+    return run
 
 
 def data_offsets(model: mujoco.MjModel) -> tuple[int, ...]:
-    """The places (in 8-byte words from the struct's start) of the ``FIELDS`` pointers in an
-    ``mjData`` of ``model``, found by their values in one and checked in a second. RuntimeError
-    if a field is not found or not where the second holds it (a MuJoCo whose mjData differs)."""
-    first, second = mujoco.MjData(model), mujoco.MjData(model)
-    by_address: dict[int, list[str]] = {}
-    for name in FIELDS:  # an empty field may share its address with the next one
-        by_address.setdefault(getattr(first, name).ctypes.data, []).append(name)
-    found: dict[str, int] = {}
-    word = 0
-    while by_address and word < _SCAN_WORDS:
-        for name in by_address.pop(ctypes.c_int64.from_address(first._address + 8 * word).value, []):
-            found[name] = word
+    """The words (8 bytes each, from the struct's start) of the ``FIELDS`` pointers in an ``mjData``
+    of ``model``: each member's own word, from mjData's declaration order (an empty array shares
+    its address with the next one, so a value alone cannot tell them apart), the run's place found
+    from one array's address and checked against every other non-empty array's of the data's
+    buffer, in two mjData. RuntimeError
+    if they disagree (a MuJoCo whose mjData differs from its ``introspect``)."""
+    run = _pointer_run()
+    datas = mujoco.MjData(model), mujoco.MjData(model)
+    exposed = [(j, name, getattr(datas[0], name)) for j, name in enumerate(run)
+               if isinstance(getattr(datas[0], name, None), np.ndarray)]
+    addresses = [a.ctypes.data for _, _, a in exposed]
+    start = datas[0].qpos.ctypes.data  # the buffer's first array; arrays in the arena move from step to step
+    unique = [(j, name) for (j, name, a), address in zip(exposed, addresses)
+              if a.size and addresses.count(address) == 1 and start <= address < start + datas[0].nbuffer]
+    anchor_index, anchor = unique[0]
+
+    def misplaced(first: int) -> list[str]:
+        return [name for data in datas for j, name in unique
+                if ctypes.c_int64.from_address(data._address + 8 * (first + j)).value != getattr(data, name).ctypes.data]
+
+    # the anchor's value may sit in an earlier member too (``buffer`` starts where ``qpos`` does):
+    # the first word with it where every array is then in its place; the anchor's own word, in
+    # the struct, ends the search at the latest
+    word, base, address, wrong = 0, datas[0]._address, getattr(datas[0], anchor).ctypes.data, list(FIELDS)
+    while wrong and word < _SCAN_WORDS:
+        if ctypes.c_int64.from_address(base + 8 * word).value == address:
+            wrong = misplaced(word - anchor_index)
         word += 1
-    missing = [name for name in FIELDS if name not in found]
-    moved = [name for name in FIELDS if name not in missing
-             and ctypes.c_int64.from_address(second._address + 8 * found[name]).value != getattr(second, name).ctypes.data]
-    if missing or moved:
+    if wrong or any(name not in run for name in FIELDS):
         raise RuntimeError(f"the native engine cannot read MuJoCo {mujoco.__version__}'s mjData: "
-                           f"{', '.join(missing + moved)} not found where expected")
-    return tuple(found[name] for name in FIELDS)
+                           f"{', '.join(sorted(set(wrong)) or [n for n in FIELDS if n not in run])} not where expected")
+    first = word - 1 - anchor_index
+    return tuple(first + run.index(name) for name in FIELDS)
 
 
-@compiled
-def _row(address, row, width):
-    """Row ``row`` (width,) of a C-contiguous (n, width) float64 array at ``address``."""
-    return numba.carray(_f64(address + 8 * row * width), width)
-
-
-@compiled
-def control_step(d, header, row):
-    """The law for one row at one control step, called by the callback inside ``mj_step`` with
-    the ``mjData``'s address ``d``, the context's header address and the row's index."""
-    h = numba.carray(_i64(header), HEADER)
-    if h[_MAGIC] != MAGIC:
-        return
-    words, rows = _i64(d), h[_ROWS]
-    steps, site, root, nsensor = h[_STEPS], h[_SITE], h[_ROOT], h[_NSENSOR]
-    counter = numba.carray(_f64(h[_COUNTER]), rows)
-    k = min(int(counter[row]), steps - 1)
-    if counter[row] > 0 and nsensor > 0:  # the step before's touch force, computed after its callback
-        sensordata, sensors = _f64(words[h[_SENSORDATA]]), numba.carray(_i64(h[_SENSORS]), nsensor)
-        total = 0.0
-        for s in sensors:
-            total += sensordata[s]
-        force_sum, force_peak = numba.carray(_f64(h[_FORCE_SUM]), rows), numba.carray(_f64(h[_FORCE_PEAK]), rows)
-        force_sum[row] += total
-        if total > force_peak[row]:
-            force_peak[row] = total
-    stash = _row(h[_STASH], row, STASH)
-    refs = numba.carray(_f64(h[_REFS] + 8 * (row * steps + k) * 7), 7)
-    limits = numba.carray(_f64(h[_LIMITS]), 12)
-    qpos, qvel = numba.carray(_f64(words[h[_QPOS]]), 7), numba.carray(_f64(words[h[_QVEL]]), 7)
-    impedance_law(h[_CHAIN:_CHAIN + 7], stash[0:3], stash[3:12], stash[12:15], stash[15:57].reshape((7, 6)), qpos, qvel,
-                  stash[57:64], refs[0:3], refs[3:7], _row(h[_CMD_WRENCH], row, 6), _row(h[_CMD_STIFFNESS], row, 6),
-                  _row(h[_NULLSPACE_TARGET], row, 7), _row(h[_TORQUE], row, 7), _row(h[_STIFFNESS_STATE], row, 6),
-                  _row(h[_WRENCH], row, 6), limits[0:7], limits[7:12], numba.carray(_f64(words[h[_CTRL]]), 7),
-                  _row(h[_SCRATCH], row, SCRATCH))
-    # what the next step's law reads: this forward pass's, as mj_step will have left it
-    site_xpos, site_xmat = _f64(words[h[_SITE_XPOS]]), _f64(words[h[_SITE_XMAT]])
-    com, cdof, bias = _f64(words[h[_SUBTREE_COM]]), _f64(words[h[_CDOF]]), _f64(words[h[_QFRC_BIAS]])
-    for j in range(3):
-        stash[j], stash[12 + j] = site_xpos[3 * site + j], com[3 * root + j]
-    for j in range(9):
-        stash[3 + j] = site_xmat[9 * site + j]
-    for j in range(6 * 7):
-        stash[15 + j] = cdof[j]
-    for j in range(7):
-        stash[57 + j] = bias[j]
-    counter[row] += 1.0
+# the contexts of the batches stepping in this process: the callback acts only for data whose
+# userdata names one of them (another model stepped meanwhile is left alone)
+_LIVE = np.zeros(64, np.int64)
+_INSTALL = threading.Lock()
 
 
 @functools.lru_cache(maxsize=None)
 def callback(userdata_word: int, slot: int):
     """The ``cfunc`` (m, d) for data whose ``userdata`` pointer is at ``userdata_word`` of the
     struct and whose context sits at ``userdata[slot]`` (its row at ``slot + 1``). Compiled once
-    per process and layout (~0.03 s: ``control_step`` comes from numba's cache); the two
-    numbers are constants of it, not arguments, so no cached machine code outlives a layout."""
+    per process and layout (~0.03 s: ``kernels.control_step`` comes from numba's cache); the two
+    numbers and the live contexts' table are constants of it, so no machine code outlives them."""
+    live, n_live = _LIVE.ctypes.data, len(_LIVE)
+
     @numba.cfunc(types.void(types.int64, types.int64))
     def control(m, d):
         userdata = _f64(_i64(d)[userdata_word])
         header = np.int64(userdata[slot])
-        if header != 0:
-            control_step(d, header, np.int64(userdata[slot + 1]))
+        if header == 0:  # a row MuJoCo reset, or data of another model
+            return
+        table = numba.carray(_i64(live), n_live)
+        for k in range(n_live):
+            if table[k] == header:
+                control_step(d, header, np.int64(userdata[slot + 1]))
+                return
     return control
 
 
@@ -193,14 +156,27 @@ class ControlContext:
         self.header[_ARRAYS:] = [getattr(self, name).ctypes.data for name in ARRAYS]
 
     def bind(self, userdata: np.ndarray, fields: dict) -> None:
-        """Points every row's ``userdata`` (the batch's bound (n, nuserdata) field) at this context
-        and fills the stash from the bound fields after the batch's first forward pass."""
+        """Points every row's ``userdata`` (the batch's bound (n, nuserdata) field) at this context,
+        makes it one the callback acts for (until ``release``), and fills the stash from the bound
+        fields after the batch's first forward pass."""
+        if len(userdata) != int(self.header[_ROWS]):
+            raise ValueError(f"{len(userdata)} rows of userdata for a context of {int(self.header[_ROWS])}")
+        with _INSTALL:
+            free = np.flatnonzero(_LIVE == 0)
+            if not len(free):
+                raise RuntimeError(f"more than {len(_LIVE)} native batches stepping in one process")
+            _LIVE[free[0]] = self.header.ctypes.data
         site, root = int(self.header[_SITE]), int(self.header[_ROOT])
         userdata[:, -CONTROL_USERDATA] = float(self.header.ctypes.data)  # below 2**53: exact in a double
         userdata[:, 1 - CONTROL_USERDATA] = np.arange(len(userdata))
         self.stash[:, 0:3], self.stash[:, 3:12] = fields["site_xpos"][:, site], fields["site_xmat"][:, site]
         self.stash[:, 12:15], self.stash[:, 57:64] = fields["subtree_com"][:, root], fields["qfrc_bias"][:, :N_ARM]
         self.stash[:, 15:57] = fields["cdof"][:, :N_ARM].reshape(len(userdata), -1)
+
+    def release(self) -> None:
+        """The callback no longer acts for this context (its arrays may go)."""
+        with _INSTALL:
+            _LIVE[_LIVE == self.header.ctypes.data] = 0
 
     def begin_tick(self, rows: np.ndarray, ref_pos: np.ndarray, ref_quat: np.ndarray, cmd_wrench: np.ndarray,
                    cmd_stiffness: np.ndarray) -> None:
@@ -225,10 +201,12 @@ def control_callback(model: mujoco.MjModel, offsets: tuple[int, ...]):
 @contextlib.contextmanager
 def installed(control):
     """``control`` (a ``callback``) as MuJoCo's ``mjcb_control`` inside the block, the previous
-    one restored after it."""
-    previous = mujoco.get_mjcb_control()
-    mujoco.set_mjcb_control(control.ctypes)
-    try:
-        yield
-    finally:
-        mujoco.set_mjcb_control(previous)
+    one restored after it. The callback is one global of the process: a second batch stepping
+    in another thread of it waits for the block to end."""
+    with _INSTALL:  # one batch at a time steps under the process's one mjcb_control
+        previous = mujoco.get_mjcb_control()
+        try:
+            mujoco.set_mjcb_control(control.ctypes)
+            yield
+        finally:
+            mujoco.set_mjcb_control(previous)

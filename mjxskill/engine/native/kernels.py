@@ -9,8 +9,9 @@ arithmetic in a few microseconds; JAX's CPU dispatch (~20 us per call, and a cop
 array into its buffers) would cost more than the arithmetic. Cython would need a compiler at
 install time; numba ships wheels.
 
-The kernel reads what ``mj_step`` leaves in the batch's bound fields, exactly what the numpy law
-reads from each ``MjData``: the Jacobian is assembled from ``cdof`` and ``subtree_com`` as
+The law reads what ``mj_step`` leaves of a step (in the batch's bound fields, or, inside
+``mj_step``, the control callback's stash of the step before), exactly what the numpy law reads
+from each ``MjData``: the Jacobian is assembled from ``cdof`` and ``subtree_com`` as
 ``mj_jac`` does (the site's point offset from its tree's centre of mass crossed with each
 ancestor dof's motion axis), the site orientation converted as ``mju_mat2Quat`` does, the
 rotation error as ``mju_quat2Vel``. The order of operations differs from numpy's BLAS and LAPACK
@@ -24,9 +25,13 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
+from numba import types
+from numba.extending import intrinsic
 
 from mjxskill._numba import compiled as _compiled
+from mjxskill.sim.controller_config import N_ARM
 
 
 @_compiled
@@ -289,3 +294,90 @@ def spiral_rows(theta, radius, params, axes, dt, pos, end_pos):
         for i in range(3):
             end_pos[r, i] = end_pos[r, i] + rad * (c * axes[r, 0, i] + s * axes[r, 1, i])
         theta[r], radius[r] = th, rad
+
+
+# -- the law inside mj_step: what ``mjxskill.engine.native.callback`` runs for a row ----------------
+# Here, beside the law, so that numba's cache of ``control_step`` is invalidated with this file.
+
+# the mjData pointer fields the callback reads, in the order of ``data_offsets``
+FIELDS = ("qpos", "qvel", "ctrl", "site_xpos", "site_xmat", "cdof", "subtree_com", "qfrc_bias", "sensordata", "userdata")
+
+# the context's header (int64): constants, the fields' offsets, the chain, the arrays' addresses
+MAGIC = 0x6D6A78736B696C6C  # "mjxskill": a header the callback trusts
+_MAGIC, _ROWS, _STEPS, _SITE, _ROOT, _NSENSOR, _OFFSETS = 0, 1, 2, 3, 4, 5, 6
+_CHAIN = _OFFSETS + len(FIELDS)
+_ARRAYS = _CHAIN + N_ARM
+ARRAYS = ("refs", "cmd_wrench", "cmd_stiffness", "nullspace_target", "torque", "stiffness", "wrench", "stash", "scratch",
+          "counter", "force_sum", "force_peak", "limits", "sensors")
+HEADER = _ARRAYS + len(ARRAYS)
+# where in the header: each field's offset, each array's address
+(_QPOS, _QVEL, _CTRL, _SITE_XPOS, _SITE_XMAT, _CDOF, _SUBTREE_COM, _QFRC_BIAS, _SENSORDATA,
+ _USERDATA) = range(_OFFSETS, _OFFSETS + len(FIELDS))
+(_REFS, _CMD_WRENCH, _CMD_STIFFNESS, _NULLSPACE_TARGET, _TORQUE, _STIFFNESS_STATE, _WRENCH, _STASH, _SCRATCH, _COUNTER,
+ _FORCE_SUM, _FORCE_PEAK, _LIMITS, _SENSORS) = range(_ARRAYS, HEADER)
+STASH = 3 + 9 + 3 + 6 * N_ARM + N_ARM  # site_xpos, site_xmat, subtree_com of the root, the arm's cdof, qfrc_bias
+
+
+@intrinsic
+def _f64(typingctx, address):
+    """The float64 pointer at an address (an int64)."""
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
+    return types.CPointer(types.float64)(types.int64), codegen
+
+
+@intrinsic
+def _i64(typingctx, address):
+    """The int64 pointer at an address (an int64)."""
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
+    return types.CPointer(types.int64)(types.int64), codegen
+
+
+@_compiled
+def _row(address, row, width):
+    """Row ``row`` (width,) of a C-contiguous (n, width) float64 array at ``address``."""
+    return numba.carray(_f64(address + 8 * row * width), width)
+
+
+@_compiled
+def control_step(d, header, row):
+    """The law for one row at one control step, called by the callback inside ``mj_step`` with
+    the ``mjData``'s address ``d``, the context's header address and the row's index."""
+    h = numba.carray(_i64(header), HEADER)
+    words, rows = _i64(d), h[_ROWS]
+    if h[_MAGIC] != MAGIC or row < 0 or row >= rows:
+        return
+    steps, site, root, nsensor = h[_STEPS], h[_SITE], h[_ROOT], h[_NSENSOR]
+    counter = numba.carray(_f64(h[_COUNTER]), rows)
+    k = min(int(counter[row]), steps - 1)
+    if counter[row] > 0 and nsensor > 0:  # the step before's touch force, computed after its callback
+        sensordata, sensors = _f64(words[h[_SENSORDATA]]), numba.carray(_i64(h[_SENSORS]), nsensor)
+        total = 0.0
+        for s in sensors:
+            total += sensordata[s]
+        force_sum, force_peak = numba.carray(_f64(h[_FORCE_SUM]), rows), numba.carray(_f64(h[_FORCE_PEAK]), rows)
+        force_sum[row] += total
+        if total > force_peak[row]:
+            force_peak[row] = total
+    stash = _row(h[_STASH], row, STASH)
+    refs = numba.carray(_f64(h[_REFS] + 8 * (row * steps + k) * 7), 7)
+    limits = numba.carray(_f64(h[_LIMITS]), 12)
+    qpos, qvel = numba.carray(_f64(words[h[_QPOS]]), 7), numba.carray(_f64(words[h[_QVEL]]), 7)
+    impedance_law(h[_CHAIN:_CHAIN + 7], stash[0:3], stash[3:12], stash[12:15], stash[15:57].reshape((7, 6)), qpos, qvel,
+                  stash[57:64], refs[0:3], refs[3:7], _row(h[_CMD_WRENCH], row, 6), _row(h[_CMD_STIFFNESS], row, 6),
+                  _row(h[_NULLSPACE_TARGET], row, 7), _row(h[_TORQUE], row, 7), _row(h[_STIFFNESS_STATE], row, 6),
+                  _row(h[_WRENCH], row, 6), limits[0:7], limits[7:12], numba.carray(_f64(words[h[_CTRL]]), 7),
+                  _row(h[_SCRATCH], row, SCRATCH))
+    # what the next step's law reads: this forward pass's, as mj_step will have left it
+    site_xpos, site_xmat = _f64(words[h[_SITE_XPOS]]), _f64(words[h[_SITE_XMAT]])
+    com, cdof, bias = _f64(words[h[_SUBTREE_COM]]), _f64(words[h[_CDOF]]), _f64(words[h[_QFRC_BIAS]])
+    for j in range(3):
+        stash[j], stash[12 + j] = site_xpos[3 * site + j], com[3 * root + j]
+    for j in range(9):
+        stash[3 + j] = site_xmat[9 * site + j]
+    for j in range(6 * 7):
+        stash[15 + j] = cdof[j]
+    for j in range(7):
+        stash[57 + j] = bias[j]
+    counter[row] += 1.0

@@ -36,6 +36,7 @@ from mjxskill.engine.native.callback import data_offsets
 from mjxskill.engine.native.episode import NativeEpisode
 from mjxskill.sim.model import build_model
 from mjxskill.scenario import load_scenario
+from mjxskill.errors import ScenarioError
 from mjxskill.scenario.schema import Scenario
 from mjxskill.task import PlannedTask, plan_task
 from mjxskill.engine.native.leaves import build_native_leaves
@@ -104,6 +105,10 @@ class NativeRollout(RolloutBase):
         sampler, n_worlds = self.sampler, self.worlds
         # The compiled rollout's sampling program, written the same way: the same worlds, bit for bit.
         self._sample = jax.jit(lambda key, batch: sample_worlds(sampler, key, (batch, n_worlds)), static_argnums=1)
+        if mj_model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
+            raise ScenarioError(f"{scn.scene}: option integrator RK4: the native engine runs its impedance law as "
+                                "MuJoCo's control callback, once a step, and RK4 calls it four times a step; use "
+                                "Euler, implicit or implicitfast, or the MJX engine (--engine mjx)")
         self.mj_model = mj_model
         self.data_offsets = data_offsets(mj_model)  # where the control callback reads an mjData's fields
         self.base_pair_friction = mj_model.pair_friction.copy()

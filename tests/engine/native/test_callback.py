@@ -16,6 +16,7 @@ from mjxskill.engine.native import NativeRollout
 from mjxskill.engine.native.batched import BOUND, kinematic_chain
 from mjxskill.engine.native.callback import FIELDS, ControlContext, control_callback, data_offsets, installed
 from mjxskill.engine.native.kernels import add_forces, impedance_rows
+from mjxskill.errors import ScenarioError
 from mjxskill.sim.model import CONTROL_USERDATA, build_model
 
 
@@ -111,14 +112,14 @@ def one_tick(peg, how: str, bad_row: int | None = None) -> list[np.ndarray]:
             batch.step(nstep=steps)
         force_sum, force_peak = context.end_tick(rows, f["sensordata"])
     return [np.array(x) for x in (f["qpos"], f["qvel"], f["ctrl"], f["time"], torque, stiffness, wrench, force_sum,
-                                  force_peak)]
+                                  force_peak, f["userdata"][:, -CONTROL_USERDATA])]
 
 
 def test_a_tick_in_one_call_equals_the_law_between_single_steps(peg):
     """The callback's one ``Batch.step`` of 50 against 50 single steps with the law between them:
     the same states, torques, law state and touch force sums, bit for bit."""
     single, called = one_tick(peg, "single steps"), one_tick(peg, "callback")
-    for a, b in zip(single, called):
+    for a, b in zip(single[:-1], called[:-1]):  # all but the userdata, which only the callback's batch binds
         np.testing.assert_array_equal(a, b)
     assert np.ptp(called[0][:, :7], axis=0).max() > 0.1  # the rows moved apart: each read its own row
 
@@ -130,5 +131,33 @@ def test_a_row_mujoco_resets_in_a_tick_leaves_the_others_alone(peg):
     others = [0, 1, 3]
     for a, b in zip(clean, broken):
         np.testing.assert_array_equal(a[others], b[others])
-    time = broken[3]
+    time, context = broken[3], broken[-1]
     assert time[2] < time[0] == time[1] == time[3]  # the engine's clock test marks it diverged
+    assert context[2] == 0 and (context[others] != 0).all()  # and so does its userdata, even at an episode's start
+
+
+@pytest.mark.parametrize("userdata", [0, 2])
+def test_another_models_data_stepped_meanwhile_is_left_alone(peg, userdata):
+    """While a batch's callback is installed, data of another model (activations, so its arrays
+    sit elsewhere; no userdata, or userdata holding numbers that name no live context) steps as
+    with no callback."""
+    xml = f"""<mujoco><size nuserdata="{userdata}"/><worldbody><body><joint name="j"/><geom size=".1" mass="1"/>
+              </body></worldbody><actuator><general joint="j" dyntype="filter" dynprm="0.05"/></actuator></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    plain, called = mujoco.MjData(model), mujoco.MjData(model)
+    for data in (plain, called):
+        data.ctrl[:], data.userdata[:] = 0.7, 12345.0
+    for _ in range(50):
+        mujoco.mj_step(model, plain)
+    with installed(control_callback(peg.mj_model, peg.data_offsets)):
+        for _ in range(50):
+            mujoco.mj_step(model, called)
+    assert np.array_equal(plain.qpos, called.qpos) and np.array_equal(plain.act, called.act)
+
+
+def test_a_model_integrated_with_rk4_is_refused_by_name():
+    scn = load_scenario("push")
+    model = build_model(scn)
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    with pytest.raises(ScenarioError, match="integrator RK4"):
+        NativeRollout(scn, mj_model=model)

@@ -3,7 +3,7 @@ the control callback, call by call in one process on one slice of the training b
 rate moves by up to 20 % between calls, so only adjacent calls compare). Results checked equal.
     PYTHONPATH=. python benchmarks/results/2026-12-07/batch_step/ab_inprocess.py push 10
 """
-import contextlib, os, sys, time
+import contextlib, os, sys, time, types
 import numpy as np, jax
 sys.path.insert(0, "benchmarks")
 from throughput import workload
@@ -27,6 +27,7 @@ class PerStepStepper:
         self.timestep = float(model.opt.timestep)
         self.clock = 0.0
         self.timed, self.physics_s = timed, 0.0
+        self.context = types.SimpleNamespace(release=lambda: None)  # run_batched releases a context
 
     def tick(self, episodes, rows):
         f, m, board = self.fields, len(rows), episodes.board
