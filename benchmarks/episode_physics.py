@@ -109,6 +109,14 @@ class Recorder:
         self.data = data
 
 
+def threads_order(n: int, threads: int):
+    """The n recorded episodes repeated to a multiple of ``threads`` (each thread steps whole
+    episodes, and none waits for a last odd one): their indices in replay order."""
+    import numpy as np
+
+    return np.arange(-(-n // threads) * threads) % n
+
+
 def replay(recording: dict, threads: int, runs: int = 2) -> tuple[float, int, float]:
     """(wall seconds, the best of ``runs``; episodes replayed; the largest difference of a final
     full physics state from the recording's) of ``mujoco.rollout`` replaying the recorded
@@ -118,7 +126,7 @@ def replay(recording: dict, threads: int, runs: int = 2) -> tuple[float, int, fl
     from mujoco import rollout
 
     n, nstep = recording["inputs"].shape[:2]
-    order = np.arange(-(-n // threads) * threads) % n
+    order = threads_order(n, threads)
     models = [recording["models"][i] for i in order]
     starts, inputs = recording["starts"][order], recording["inputs"][order]
     datas = [mujoco.MjData(models[0]) for _ in range(threads)]
@@ -148,7 +156,7 @@ def replay_unrecorded(recording: dict, threads: int, runs: int = 2) -> tuple[flo
     from mujoco.batch import Batch
 
     n, nstep = recording["inputs"].shape[:2]
-    order = np.arange(-(-n // threads) * threads) % n
+    order = threads_order(n, threads)
     models = [recording["models"][i] for i in order]
     full, user = mujoco.mjtState.mjSTATE_FULLPHYSICS, getattr(mujoco.mjtState, USER_INPUTS)
     integration = mujoco.mjtState.mjSTATE_INTEGRATION

@@ -40,12 +40,12 @@ from mjxskill.sim.shapes import SHAPE_MODELS, Drawn, HeldItem, ShapeError, mesh_
 from mjxskill.sim.tool_force import add_tool_force_sensors
 
 
-# scenario -> its model, built on the first request (load_scenario's); dropped with the scenario
 # numbers of ``userdata`` the model ends with for the native engine's control callback: a row
 # finds its batch's context and its index there (mjxskill.engine.native.callback); they change
 # no physics, and MJX carries them unread
 CONTROL_USERDATA = 2
 
+# scenario -> its model, built on the first request (load_scenario's); dropped with the scenario
 _BUILT: "weakref.WeakKeyDictionary[object, mujoco.MjModel]" = weakref.WeakKeyDictionary()
 
 

@@ -42,7 +42,8 @@ from mujoco.introspect import ast_nodes, structs
 from numba import types
 
 from mjxskill.engine.native.kernels import (ARRAYS, FIELDS, HEADER, MAGIC, SCRATCH, STASH, _ARRAYS, _CHAIN, _MAGIC, _NSENSOR,
-                                            _OFFSETS, _ROOT, _ROWS, _SITE, _STEPS, _f64, _i64, add_forces, control_step)
+                                            _OFFSETS, _ROOT, _ROWS, _SITE, _STEPS, _f64, _i64, add_forces, control_step,
+                                            keep_kinematics)
 from mjxskill.sim.controller_config import N_ARM
 from mjxskill.sim.model import CONTROL_USERDATA
 
@@ -67,8 +68,8 @@ def data_offsets(model: mujoco.MjModel) -> tuple[int, ...]:
     of ``model``: each member's own word, from mjData's declaration order (an empty array shares
     its address with the next one, so a value alone cannot tell them apart), the run's place found
     from one array's address and checked against every other non-empty array's of the data's
-    buffer, in two mjData. RuntimeError
-    if they disagree (a MuJoCo whose mjData differs from its ``introspect``)."""
+    buffer, in two mjData. RuntimeError if they disagree (a MuJoCo whose mjData differs from its
+    ``introspect``)."""
     run = _pointer_run()
     datas = mujoco.MjData(model), mujoco.MjData(model)
     exposed = [(j, name, getattr(datas[0], name)) for j, name in enumerate(run)
@@ -141,7 +142,6 @@ class ControlContext:
                                    ("nullspace_target", nullspace_target, N_ARM)):
             if array.shape != (n, width) or array.dtype != np.float64 or not array.flags.c_contiguous:
                 raise ValueError(f"{name} must be a C-contiguous float64 ({n}, {width}) array, got {array.dtype} {array.shape}")
-        self.steps = steps
         self.refs, self.stash, self.scratch = np.zeros((n, steps, 7)), np.zeros((n, STASH)), np.zeros((n, SCRATCH))
         self.cmd_wrench, self.cmd_stiffness = np.zeros((n, 6)), np.zeros((n, 6))
         self.nullspace_target, self.torque, self.stiffness, self.wrench = nullspace_target, torque, stiffness, wrench
@@ -169,9 +169,9 @@ class ControlContext:
         site, root = int(self.header[_SITE]), int(self.header[_ROOT])
         userdata[:, -CONTROL_USERDATA] = float(self.header.ctypes.data)  # below 2**53: exact in a double
         userdata[:, 1 - CONTROL_USERDATA] = np.arange(len(userdata))
-        self.stash[:, 0:3], self.stash[:, 3:12] = fields["site_xpos"][:, site], fields["site_xmat"][:, site]
-        self.stash[:, 12:15], self.stash[:, 57:64] = fields["subtree_com"][:, root], fields["qfrc_bias"][:, :N_ARM]
-        self.stash[:, 15:57] = fields["cdof"][:, :N_ARM].reshape(len(userdata), -1)
+        for i in range(len(userdata)):
+            keep_kinematics(self.stash[i], fields["site_xpos"][i, site], fields["site_xmat"][i, site],
+                            fields["subtree_com"][i, root], fields["cdof"][i].reshape(-1), fields["qfrc_bias"][i])
 
     def release(self) -> None:
         """The callback no longer acts for this context (its arrays may go)."""

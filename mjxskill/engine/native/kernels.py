@@ -318,6 +318,21 @@ HEADER = _ARRAYS + len(ARRAYS)
 STASH = 3 + 9 + 3 + 6 * N_ARM + N_ARM  # site_xpos, site_xmat, subtree_com of the root, the arm's cdof, qfrc_bias
 
 
+@_compiled
+def keep_kinematics(stash, site_pos, site_mat, com, cdof, bias):
+    """What the next step's law reads, kept in a row's stash (STASH,): the site's position (3,)
+    and orientation matrix (9,), its tree's centre of mass (3,), the arm's cdof (>= 42, flat)
+    and bias forces (>= 7,); ``control_step`` reads them back in this layout."""
+    for j in range(3):
+        stash[j], stash[12 + j] = site_pos[j], com[j]
+    for j in range(9):
+        stash[3 + j] = site_mat[j]
+    for j in range(6 * N_ARM):
+        stash[15 + j] = cdof[j]
+    for j in range(N_ARM):
+        stash[57 + j] = bias[j]
+
+
 @intrinsic
 def _f64(typingctx, address):
     """The float64 pointer at an address (an int64)."""
@@ -370,14 +385,8 @@ def control_step(d, header, row):
                   _row(h[_WRENCH], row, 6), limits[0:7], limits[7:12], numba.carray(_f64(words[h[_CTRL]]), 7),
                   _row(h[_SCRATCH], row, SCRATCH))
     # what the next step's law reads: this forward pass's, as mj_step will have left it
-    site_xpos, site_xmat = _f64(words[h[_SITE_XPOS]]), _f64(words[h[_SITE_XMAT]])
-    com, cdof, bias = _f64(words[h[_SUBTREE_COM]]), _f64(words[h[_CDOF]]), _f64(words[h[_QFRC_BIAS]])
-    for j in range(3):
-        stash[j], stash[12 + j] = site_xpos[3 * site + j], com[3 * root + j]
-    for j in range(9):
-        stash[3 + j] = site_xmat[9 * site + j]
-    for j in range(6 * 7):
-        stash[15 + j] = cdof[j]
-    for j in range(7):
-        stash[57 + j] = bias[j]
+    keep_kinematics(stash, numba.carray(_f64(words[h[_SITE_XPOS]] + 8 * 3 * site), 3),
+                    numba.carray(_f64(words[h[_SITE_XMAT]] + 8 * 9 * site), 9),
+                    numba.carray(_f64(words[h[_SUBTREE_COM]] + 8 * 3 * root), 3),
+                    numba.carray(_f64(words[h[_CDOF]]), 6 * N_ARM), numba.carray(_f64(words[h[_QFRC_BIAS]]), N_ARM))
     counter[row] += 1.0
