@@ -181,8 +181,30 @@ def replay_unrecorded(recording: dict, threads: int, runs: int = 2) -> tuple[flo
     return min(seconds), len(order), error
 
 
-def measure(engine, params, worlds, cores: int) -> dict:
-    """The figures of the module docstring for this batch."""
+def paired_shares(recording: dict, threads: int, call, steps: int, rounds: int) -> list[float]:
+    """Per round, an engine's rate (``call()`` runs the batch, ``steps`` control steps) over the
+    all-cores replay's (``replay_unrecorded``, one run), the two timed in turn in the same
+    minutes, the order alternating (this machine's rate moves by up to 30 % between calls
+    minutes apart, so a share of figures measured minutes apart moves with it)."""
+    nstep = recording["inputs"].shape[1]
+    shares = []
+    for r in range(rounds):
+        seconds = {}
+        for what in ("replay", "engine") if r % 2 == 0 else ("engine", "replay"):
+            if what == "replay":
+                replay_s, replayed, _ = replay_unrecorded(recording, threads, runs=1)
+                seconds[what] = replay_s / (replayed * nstep)
+            else:
+                t0 = time.perf_counter()
+                call()
+                seconds[what] = (time.perf_counter() - t0) / steps
+        shares.append(seconds["replay"] / seconds["engine"])
+    return shares
+
+
+def measure(engine, params, worlds, cores: int, call=None, steps: int = 0, rounds: int = 0) -> dict:
+    """The figures of the module docstring for this batch; with ``call`` (an engine's call on it,
+    ``steps`` control steps), also ``paired_shares`` over ``rounds`` (``paired_shares``)."""
     load_before = os.getloadavg()[0]
     recording = record(engine, params, worlds)
     result = dict(episodes=recording["episodes"], episodes_replayed=len(recording["models"]), cores=cores,
@@ -200,6 +222,8 @@ def measure(engine, params, worlds, cores: int) -> dict:
                                                  result[f"unrecorded_{where}_steps_per_s"])
         result["replay_max_state_error"] = max(errors)
         result["all_cores_over_one_core"] = result["all_cores_steps_per_s"] / result["one_core_steps_per_s"]
+        if call is not None and rounds:
+            result["paired_shares"] = paired_shares(recording, cores, call, steps, rounds)
     result["load_avg_after"] = os.getloadavg()[0]
     return result
 

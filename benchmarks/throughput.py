@@ -35,7 +35,9 @@ with ``episode_physics_share_of_limit`` (cores x that over the limit: the engine
 its Python free), ``episode_physics_limit_steps_per_s`` (the episodes' own steps replayed in C with no Python on
 every core at once, the faster of two replays, ``benchmarks/episode_physics.py``: the limit issue 48
 measures an engine against), ``best_share_of_episode_physics_limit``, ``episode_physics`` (that
-replay's figures) and the rows.
+replay's figures, with ``paired_shares``), ``paired_share_of_episode_physics`` (the median of
+``--paired-rounds`` rounds, each one call of the default engine, a worker per core, and one
+all-cores replay timed in turn: both figures from the same minutes) and the rows.
 """
 
 from __future__ import annotations
@@ -153,6 +155,22 @@ def loop(engine, params, worlds) -> dict:
                 steps_per_s=b * w * engine.control_steps_per_episode / run_s, load_avg=os.getloadavg()[0])
 
 
+def native_engine(scn, task, params, worlds, workers: int, seconds, threads: int = 1):
+    """(the one-process engine, the engine: it, or a pool of ``workers`` processes around it),
+    started, its processes' first call made."""
+    from mjxskill.engine.native import NativeRollout, ProcessPoolRollout
+
+    inner = NativeRollout(scn, task, worlds=worlds.config_index.shape[1], episode_seconds=seconds)
+    inner.threads = threads
+    engine = ProcessPoolRollout(inner, workers) if workers > 1 else inner
+    if isinstance(engine, ProcessPoolRollout):
+        engine.start()
+    # One parameter set first: each process loads the compiled law from numba's cache on its
+    # first call (~0.5 s), which a training run pays once, not per batch.
+    engine.run_worlds(params[:1], type(worlds)(*(x[:1] for x in worlds)))
+    return inner, engine
+
+
 def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1, calls: int = 1) -> dict:
     """The native engine with ``workers`` processes (their start-up timed apart), or with one
     process whose batch steps on ``threads`` threads; ``calls`` timed calls, the median counts
@@ -161,19 +179,10 @@ def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1, c
     (``physics_share``, over all the calls)."""
     import numpy as np
 
-    from mjxskill.engine.native import NativeRollout, ProcessPoolRollout
-
-    inner = NativeRollout(scn, task, worlds=worlds.config_index.shape[1], episode_seconds=seconds)
-    inner.threads = threads
-    engine = ProcessPoolRollout(inner, workers) if workers > 1 else inner
-    b, w = worlds.config_index.shape
     t0 = time.perf_counter()
-    if isinstance(engine, ProcessPoolRollout):
-        engine.start()
-    # One parameter set first: each process loads the compiled law from numba's cache on its
-    # first call (~0.5 s), which a training run pays once, not per batch.
-    engine.run_worlds(params[:1], type(worlds)(*(x[:1] for x in worlds)))
+    inner, engine = native_engine(scn, task, params, worlds, workers, seconds, threads)
     start_s = time.perf_counter() - t0
+    b, w = worlds.config_index.shape
     timing = {}
     if workers == 1 and threads == 1:  # time MuJoCo's step inside the call
         inner.timing = timing
@@ -244,14 +253,17 @@ def main(argv=None) -> dict | None:
     parser.add_argument("--reps", type=int, default=1, help="timed MJX calls per configuration (the fastest counts)")
     parser.add_argument("--native-calls", type=int, default=3, help="timed native engine calls per configuration "
                         "(the median counts; default 3)")
+    parser.add_argument("--paired-rounds", type=int, default=5, help="rounds of the default engine (a worker per "
+                        "core) timed in turn with the episodes' own physics (default 5; 0: none)")
     parser.add_argument("--quick", action="store_true", help="2 s episodes (a smoke test; not the workload)")
     parser.add_argument("--cache-check", action="store_true", help="only MJX's compile-cache check")
     parser.add_argument("--json", type=Path, help="write the results here")
     parser.add_argument("--mjx-worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--out", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    if args.native_calls < 1 or args.reps < 1:
-        parser.error(f"--native-calls and --reps must be at least 1, got {args.native_calls} and {args.reps}")
+    if args.native_calls < 1 or args.reps < 1 or args.paired_rounds < 0:
+        parser.error(f"--native-calls and --reps must be at least 1 and --paired-rounds at least 0, got "
+                     f"{args.native_calls}, {args.reps} and {args.paired_rounds}")
     if args.quick and args.seconds is None:
         args.seconds = 2.0
     if args.mjx_worker:
@@ -265,6 +277,7 @@ def main(argv=None) -> dict | None:
     import mjxskill  # noqa: F401
     import jax
     import mujoco
+    import numpy as np
 
     from mjxskill.engine.native.pool import default_workers
 
@@ -287,7 +300,13 @@ def main(argv=None) -> dict | None:
     rows.append(bare(engine, worlds, 50000))
     from episode_physics import measure, report  # benchmarks/: the replay of these episodes' own steps
 
-    own = measure(engine, params, worlds, cores)
+    paired = native_engine(scn, task, params, worlds, cores, args.seconds)[1] if args.paired_rounds else None
+    try:  # the default engine (a worker per core) and the replay timed in turn, round by round
+        own = measure(engine, params, worlds, cores, call=paired and (lambda: paired.run_worlds(params, worlds)),
+                      steps=b * w * engine.control_steps_per_episode, rounds=args.paired_rounds)
+    finally:
+        if paired is not None:
+            paired.close()
     loops = [r for r in rows if r["engine"] == "loop"]
     loop_rate = sum(r["steps_per_s"] for r in loops) / len(loops)
 
@@ -323,6 +342,10 @@ def main(argv=None) -> dict | None:
     limit_own = own["all_cores_steps_per_s"]
     if limit_own:
         print(f"the best engine at {best['steps_per_s'] / limit_own:.2f} of the episodes' own physics on all cores")
+    paired_share = float(np.median(own["paired_shares"])) if own.get("paired_shares") else None
+    if paired_share is not None:
+        print(f"a worker per core, timed in turn with the replay over {args.paired_rounds} rounds: {paired_share:.2f} of "
+              f"the episodes' own physics (rounds {min(own['paired_shares']):.2f}-{max(own['paired_shares']):.2f})")
     best_of = {e: max((r for r in fast if r["engine"] == e), key=lambda r: r["steps_per_s"], default=None)
                for e in ("mjx", "native")}
     result = dict(
@@ -337,6 +360,7 @@ def main(argv=None) -> dict | None:
         episode_physics_share_of_limit=cores * episode_physics / limit if episode_physics else None,
         episode_physics_limit_steps_per_s=limit_own,
         best_share_of_episode_physics_limit=best["steps_per_s"] / limit_own if limit_own else None,
+        paired_share_of_episode_physics=paired_share,
         episode_physics=own,
         load_avg=[r["load_avg"] for r in rows],
         rows=rows,

@@ -10,8 +10,8 @@
   and each control step's impedance law once for all N episodes in numpy
   (``batched_impedance_control``, one numpy operation per scalar operation of the compiled
   kernel ``mjxskill.engine.native.kernels.impedance_rows``, in its order: sums left to right, the
-  damped pseudo-inverse through a Cholesky factorization of the symmetric positive definite
-  J J^T + lambda I). Each episode keeps its own ``MjModel`` copy (its world's friction) and
+  damped pseudo-inverse applied to one vector through a Cholesky factorization of the symmetric
+  positive definite J J^T + lambda I). Each episode keeps its own ``MjModel`` copy (its world's friction) and
   ``MjData``, rows never mix, and the compiled engine's episodes equal its results bit for bit
   (tests/engine/native/test_batched.py); the plain loop's law, with BLAS and LAPACK, agrees with both
   to rounding.
@@ -153,8 +153,8 @@ def batched_impedance_control(cfg: ControllerConfig, jac, site_pos, site_quat, q
 
     The law's reference for the compiled one (``mjxskill.engine.native.kernels.impedance_rows``),
     written with one numpy operation per scalar operation of it, in its order (sums left to
-    right, the damped pseudo-inverse through a Cholesky factorization of the symmetric positive
-    definite J J^T + lambda I), so that the two agree bit for bit; the plain loop's law, with
+    right, the damped pseudo-inverse applied to one vector through a Cholesky factorization of
+    the symmetric positive definite J J^T + lambda I), so that the two agree bit for bit; the plain loop's law, with
     BLAS and LAPACK, agrees with both to rounding. Rows never mix."""
     n = len(jac)
     stiffness = rate_limit(state.stiffness, cmd_stiffness, cfg.stiffness_rate * cfg.dt, np)
@@ -171,20 +171,21 @@ def batched_impedance_control(cfg: ControllerConfig, jac, site_pos, site_quat, q
             for c in range(b):
                 acc = acc - chol[:, a, c] * chol[:, b, c]
             chol[:, a, b] = np.sqrt(acc) if a == b else acc / chol[:, b, b]
-    x = np.zeros((n, 6, N_ARM))  # (J J^T + lambda I)^-1 J: forward, then back substitution
-    for a in range(6):
-        acc = jac[:, a, :]
-        for c in range(a):
-            acc = acc - chol[:, a, c, None] * x[:, c, :]
-        x[:, a, :] = acc / chol[:, a, a, None]
-    for a in range(5, -1, -1):
-        acc = x[:, a, :]
-        for c in range(a + 1, 6):
-            acc = acc - chol[:, c, a, None] * x[:, c, :]
-        x[:, a, :] = acc / chol[:, a, a, None]
     k_ns = cfg.nullspace_stiffness
     drive = k_ns * (nullspace_target - q) - 2.0 * math.sqrt(k_ns) * qd
-    x_drive = np.stack([_row_dot(x[:, a, :], drive) for a in range(6)], axis=1)  # (I - J^T x) drive = drive - J^T (x drive)
+    # (I - J^T x) drive = drive - J^T (x drive), x = (J J^T + lambda I)^-1 J: x drive is one
+    # solve of J drive, forward then back substitution
+    x_drive = np.stack([_row_dot(jac[:, a, :], drive) for a in range(6)], axis=1)
+    for a in range(6):
+        acc = x_drive[:, a]
+        for c in range(a):
+            acc = acc - chol[:, a, c] * x_drive[:, c]
+        x_drive[:, a] = acc / chol[:, a, a]
+    for a in range(5, -1, -1):
+        acc = x_drive[:, a]
+        for c in range(a + 1, 6):
+            acc = acc - chol[:, c, a] * x_drive[:, c]
+        x_drive[:, a] = acc / chol[:, a, a]
     tau = np.empty((n, N_ARM))
     for j in range(N_ARM):
         total = bias[:, j] + (drive[:, j] - _row_dot(jac[:, :, j], x_drive))

@@ -15,8 +15,9 @@ from each ``MjData``: the Jacobian is assembled from ``cdof`` and ``subtree_com`
 ``mj_jac`` does (the site's point offset from its tree's centre of mass crossed with each
 ancestor dof's motion axis), the site orientation converted as ``mju_mat2Quat`` does, the
 rotation error as ``mju_quat2Vel``. The order of operations differs from numpy's BLAS and LAPACK
-calls (the 6x6 solve is a Cholesky factorization here: J J^T + lambda I is symmetric positive
-definite), so results agree to rounding, not bit for bit; the tests bound the difference on
+calls (the damped pseudo-inverse is never formed: J J^T + lambda I is symmetric positive
+definite, and its Cholesky factor solves for the one vector the nullspace term needs), so
+results agree to rounding, not bit for bit; the tests bound the difference on
 whole episodes (1e-9 on reward totals, equal discrete outcomes). No fastmath: rows never mix
 and the result of a row does not depend on the others or on the thread it runs on.
 """
@@ -118,29 +119,30 @@ def _pose_error(position, mat, ref_pos, ref_quat, quat, pose_err):
 
 
 @_compiled
-def _damped_solve(jac, damping, chol, x):
-    """x = (J J^T + lambda I)^-1 J (6, 7), through the Cholesky factor of the symmetric positive
-    definite J J^T + lambda I, built row by row in ``chol``'s lower triangle."""
+def _damped_solve(jac, damping, chol, b):
+    """b <- (J J^T + lambda I)^-1 b, b (6,), J (6, 7): through the Cholesky factor of the
+    symmetric positive definite J J^T + lambda I, built row by row in ``chol``'s lower triangle,
+    then one forward and one back substitution (the law needs the damped pseudo-inverse only
+    applied to one vector, never the (6, 7) matrix itself)."""
     for a in range(6):
-        for b in range(a + 1):
-            acc = jac[a, 0] * jac[b, 0]
+        for c in range(a + 1):
+            acc = jac[a, 0] * jac[c, 0]
             for j in range(1, 7):
-                acc += jac[a, j] * jac[b, j]
-            acc = acc + (damping if a == b else 0.0)
-            for c in range(b):
-                acc -= chol[a, c] * chol[b, c]
-            chol[a, b] = math.sqrt(acc) if a == b else acc / chol[b, b]
-    for j in range(7):
-        for a in range(6):
-            acc = jac[a, j]
-            for c in range(a):
-                acc -= chol[a, c] * x[c, j]
-            x[a, j] = acc / chol[a, a]
-        for a in range(5, -1, -1):
-            acc = x[a, j]
-            for c in range(a + 1, 6):
-                acc -= chol[c, a] * x[c, j]
-            x[a, j] = acc / chol[a, a]
+                acc += jac[a, j] * jac[c, j]
+            acc = acc + (damping if a == c else 0.0)
+            for e in range(c):
+                acc -= chol[a, e] * chol[c, e]
+            chol[a, c] = math.sqrt(acc) if a == c else acc / chol[c, c]
+    for a in range(6):
+        acc = b[a]
+        for c in range(a):
+            acc -= chol[a, c] * b[c]
+        b[a] = acc / chol[a, a]
+    for a in range(5, -1, -1):
+        acc = b[a]
+        for c in range(a + 1, 6):
+            acc -= chol[c, a] * b[c]
+        b[a] = acc / chol[a, a]
 
 
 @_compiled
@@ -154,9 +156,9 @@ def impedance_law(chain, site_pos, site_mat, com, cdof, qpos, qvel, qfrc_bias, r
     rates: (stiffness step, wrench step, torque step, pinv damping, nullspace stiffness).
     Writes the torques into ctrl[:7]; scratch (>= SCRATCH,): working memory."""
     stiffness_step, wrench_step, torque_step, damping, k_ns = rates[0], rates[1], rates[2], rates[3], rates[4]
-    jac, chol, x = scratch[0:42].reshape((6, 7)), scratch[42:78].reshape((6, 6)), scratch[78:120].reshape((6, 7))
-    quat, pose_err, force, drive, x_drive = scratch[120:124], scratch[124:130], scratch[130:136], scratch[136:143], \
-        scratch[143:149]
+    jac, chol = scratch[0:42].reshape((6, 7)), scratch[42:78].reshape((6, 6))
+    quat, pose_err, force, drive, x_drive = scratch[78:82], scratch[82:88], scratch[88:94], scratch[94:101], \
+        scratch[101:107]
     damping_ns = 2.0 * math.sqrt(k_ns)
     for k in range(6):
         stiffness[k] = _rate_limit(stiffness[k], cmd_stiffness[k], stiffness_step)
@@ -169,14 +171,16 @@ def impedance_law(chain, site_pos, site_mat, com, cdof, qpos, qvel, qfrc_bias, r
             twist += jac[k, j] * qvel[j]
         s = stiffness[k]
         force[k] = -s * pose_err[k] - 2.0 * math.sqrt(max(s, 0.0)) * twist + wrench[k]
-    _damped_solve(jac, damping, chol, x)
     for j in range(7):
         drive[j] = k_ns * (nullspace_target[j] - qpos[j]) - damping_ns * qvel[j]
-    for a in range(6):  # x drive first: (I - J^T x) drive = drive - J^T (x drive), 84 products not 294
-        acc = x[a, 0] * drive[0]
+    # (I - J^T x) drive = drive - J^T (x drive), x = (J J^T + lambda I)^-1 J: x drive is one
+    # damped solve of J drive
+    for a in range(6):
+        acc = jac[a, 0] * drive[0]
         for c in range(1, 7):
-            acc += x[a, c] * drive[c]
+            acc += jac[a, c] * drive[c]
         x_drive[a] = acc
+    _damped_solve(jac, damping, chol, x_drive)
     for j in range(7):  # bias + (I - J^T x) drive + J^T force, rate- and torque-limited
         proj = jac[0, j] * x_drive[0]
         for a in range(1, 6):
@@ -190,7 +194,7 @@ def impedance_law(chain, site_pos, site_mat, com, cdof, qpos, qvel, qfrc_bias, r
         ctrl[j] = tau
 
 
-SCRATCH = 149  # doubles of working memory ``impedance_law`` needs
+SCRATCH = 107  # doubles of working memory ``impedance_law`` needs
 
 
 @_compiled
