@@ -147,53 +147,72 @@ def replay(recording: dict, threads: int, runs: int = 2) -> tuple[float, int, fl
     return min(seconds), len(order), error
 
 
-def replay_unrecorded(recording: dict, threads: int, runs: int = 2) -> tuple[float, int, float]:
-    """As ``replay``, by ``mujoco.batch.Batch.rollout`` recording nothing but each step's
-    ``sensordata`` (the smallest output it takes; ``mujoco.rollout`` records every step's full
-    state too): MuJoCo's step alone. Each simulation on its episode's model (``set_models``)."""
-    import mujoco
-    import numpy as np
-    from mujoco.batch import Batch
+class UnrecordedReplay:
+    """The recorded episodes on one ``mujoco.batch.Batch`` of ``threads`` threads, each simulation
+    on its episode's model (``set_models``), replayed by ``Batch.rollout`` recording nothing but
+    each step's ``sensordata`` (the smallest output it takes; ``mujoco.rollout`` records every
+    step's full state too): MuJoCo's step alone. ``run()`` replays them all from their starts and
+    returns its wall seconds; ``error()`` the largest difference of a final full physics state
+    from the recording's. ``episodes``: how many it replays (``threads_order``)."""
 
-    n, nstep = recording["inputs"].shape[:2]
-    order = threads_order(n, threads)
-    models = [recording["models"][i] for i in order]
-    full, user = mujoco.mjtState.mjSTATE_FULLPHYSICS, getattr(mujoco.mjtState, USER_INPUTS)
-    integration = mujoco.mjtState.mjSTATE_INTEGRATION
-    batch = Batch(models[0], len(order), nthread=threads)
-    batch.set_models(models)
-    starts = np.empty((len(order), batch.nstate))
-    for row, i in enumerate(order):  # the recorded start and the world's first inputs (its mocap poses)
-        data = mujoco.MjData(models[row])
-        mujoco.mj_setState(models[row], data, recording["starts"][i], full)
-        mujoco.mj_setState(models[row], data, recording["inputs"][i, 0], user)
-        mujoco.mj_getState(models[row], data, starts[row], integration)
-    inputs = np.ascontiguousarray(recording["inputs"][order])
-    out = {"sensordata": np.zeros((len(order), nstep, models[0].nsensordata))}
-    seconds = []
-    for _ in range(runs):
-        batch.state[:] = starts
+    def __init__(self, recording: dict, threads: int):
+        import mujoco
+        import numpy as np
+        from mujoco.batch import Batch
+
+        n, self.nstep = recording["inputs"].shape[:2]
+        self.recording, self.order = recording, threads_order(n, threads)
+        self.episodes = len(self.order)
+        self.models = [recording["models"][i] for i in self.order]
+        full, self.user = mujoco.mjtState.mjSTATE_FULLPHYSICS, getattr(mujoco.mjtState, USER_INPUTS)
+        integration = mujoco.mjtState.mjSTATE_INTEGRATION
+        self.batch = Batch(self.models[0], self.episodes, nthread=threads)
+        self.batch.set_models(self.models)
+        self.starts = np.empty((self.episodes, self.batch.nstate))
+        for row, i in enumerate(self.order):  # the recorded start and the world's first inputs (its mocap poses)
+            data = mujoco.MjData(self.models[row])
+            mujoco.mj_setState(self.models[row], data, recording["starts"][i], full)
+            mujoco.mj_setState(self.models[row], data, recording["inputs"][i, 0], self.user)
+            mujoco.mj_getState(self.models[row], data, self.starts[row], integration)
+        self.inputs = np.ascontiguousarray(recording["inputs"][self.order])
+        self.out = {"sensordata": np.zeros((self.episodes, self.nstep, self.models[0].nsensordata))}
+
+    def run(self) -> float:
+        self.batch.state[:] = self.starts
         t0 = time.perf_counter()
-        batch.rollout(nstep, control=inputs, control_spec=user.value, record=("sensordata",), out=out)
-        seconds.append(time.perf_counter() - t0)
-    error = max(float(np.max(np.abs(full_state(models[row], batch.get_data(row)) - recording["finals"][i])))
-                for row, i in enumerate(order))
-    return min(seconds), len(order), error
+        self.batch.rollout(self.nstep, control=self.inputs, control_spec=self.user.value, record=("sensordata",),
+                           out=self.out)
+        return time.perf_counter() - t0
+
+    def error(self) -> float:
+        import numpy as np
+
+        finals = self.recording["finals"]
+        return max(float(np.max(np.abs(full_state(self.models[row], self.batch.get_data(row)) - finals[i])))
+                   for row, i in enumerate(self.order))
+
+
+def replay_unrecorded(recording: dict, threads: int, runs: int = 2) -> tuple[float, int, float]:
+    """As ``replay``, by ``UnrecordedReplay``."""
+    replayer = UnrecordedReplay(recording, threads)
+    seconds = min(replayer.run() for _ in range(runs))
+    return seconds, replayer.episodes, replayer.error()
 
 
 def paired_shares(recording: dict, threads: int, call, steps: int, rounds: int) -> list[float]:
     """Per round, an engine's rate (``call()`` runs the batch, ``steps`` control steps) over the
-    all-cores replay's (``replay_unrecorded``, one run), the two timed in turn in the same
-    minutes, the order alternating (this machine's rate moves by up to 30 % between calls
+    all-cores replay's (one ``UnrecordedReplay.run``, on a batch built and run once before the
+    rounds: its first run pays for memory its later ones reuse), the two timed in turn in the
+    same minutes, the order alternating (this machine's rate moves by up to 30 % between calls
     minutes apart, so a share of figures measured minutes apart moves with it)."""
-    nstep = recording["inputs"].shape[1]
+    replayer = UnrecordedReplay(recording, threads)
+    replayer.run()
     shares = []
     for r in range(rounds):
         seconds = {}
         for what in ("replay", "engine") if r % 2 == 0 else ("engine", "replay"):
             if what == "replay":
-                replay_s, replayed, _ = replay_unrecorded(recording, threads, runs=1)
-                seconds[what] = replay_s / (replayed * nstep)
+                seconds[what] = replayer.run() / (replayer.episodes * replayer.nstep)
             else:
                 t0 = time.perf_counter()
                 call()

@@ -54,15 +54,21 @@ def test_the_unrecorded_replay_ends_where_the_plain_loop_ended():
 
 def test_paired_shares_time_the_engine_and_the_replay_in_turn(monkeypatch):
     """Each round's share is the engine's rate over the replay's, from one replay and one call timed
-    in turn, the order alternating: a replay of 2 s for 3 x 10 steps and a call of 4 s for 60
-    steps both take 1/15 s a step (share 1); a call of 8 s halves the share."""
+    in turn, the order alternating, after one untimed replay: a replay of 2 s for 3 x 10 steps and
+    a call of 4 s for 60 steps both take 1/15 s a step (share 1); a call of 8 s halves the share."""
     clock, log = [0.0], []
     monkeypatch.setattr(ep.time, "perf_counter", lambda: clock[0])
 
-    def fake_replay(recording, threads, runs=2):
-        log.append("replay")
-        assert threads == 2 and runs == 1
-        return 2.0, 3, 0.0
+    class FakeReplay:
+        episodes, nstep = 3, 10
+
+        def __init__(self, recording, threads):
+            assert threads == 2
+            log.append("built")
+
+        def run(self):
+            log.append("replay")
+            return 2.0
 
     def call(seconds):
         def run():
@@ -70,9 +76,9 @@ def test_paired_shares_time_the_engine_and_the_replay_in_turn(monkeypatch):
             clock[0] += seconds
         return run
 
-    monkeypatch.setattr(ep, "replay_unrecorded", fake_replay)
+    monkeypatch.setattr(ep, "UnrecordedReplay", FakeReplay)
     recording = {"inputs": np.zeros((3, 10, 1))}
     assert ep.paired_shares(recording, 2, call(4.0), steps=60, rounds=3) == [1.0, 1.0, 1.0]
-    assert log == ["replay", "engine", "engine", "replay", "replay", "engine"]
+    assert log == ["built", "replay", "replay", "engine", "engine", "replay", "replay", "engine"]
     assert ep.paired_shares(recording, 2, call(8.0), steps=60, rounds=2) == [0.5, 0.5]
     assert ep.paired_shares(recording, 2, call(8.0), steps=60, rounds=0) == []
