@@ -223,7 +223,10 @@ def paired_shares(recording: dict, threads: int, call, steps: int, rounds: int) 
 
 def measure(engine, params, worlds, cores: int, call=None, steps: int = 0, rounds: int = 0) -> dict:
     """The figures of the module docstring for this batch; with ``call`` (an engine's call on it,
-    ``steps`` control steps), also ``paired_shares`` over ``rounds`` (``paired_shares``)."""
+    ``steps`` control steps), also ``paired_shares`` over ``rounds`` (``paired_shares``), unless
+    an episode diverged."""
+    if call is not None and steps <= 0:
+        raise ValueError(f"an engine's call needs its control steps, got {steps}")
     load_before = os.getloadavg()[0]
     recording = record(engine, params, worlds)
     result = dict(episodes=recording["episodes"], episodes_replayed=len(recording["models"]), cores=cores,
@@ -241,7 +244,8 @@ def measure(engine, params, worlds, cores: int, call=None, steps: int = 0, round
                                                  result[f"unrecorded_{where}_steps_per_s"])
         result["replay_max_state_error"] = max(errors)
         result["all_cores_over_one_core"] = result["all_cores_steps_per_s"] / result["one_core_steps_per_s"]
-        if call is not None and rounds:
+        # an engine's diverged episode stops early and the replay leaves it out: their steps differ
+        if call is not None and rounds and result["episodes_replayed"] == result["episodes"]:
             result["paired_shares"] = paired_shares(recording, cores, call, steps, rounds)
     result["load_avg_after"] = os.getloadavg()[0]
     return result

@@ -156,19 +156,20 @@ def loop(engine, params, worlds) -> dict:
 
 
 def native_engine(scn, task, params, worlds, workers: int, seconds, threads: int = 1):
-    """(the one-process engine, the engine: it, or a pool of ``workers`` processes around it),
-    started, its processes' first call made."""
+    """(the one-process engine, the engine: it, or a pool of ``workers`` processes around it,
+    the seconds its start took), started, its processes' first call made."""
     from mjxskill.engine.native import NativeRollout, ProcessPoolRollout
 
     inner = NativeRollout(scn, task, worlds=worlds.config_index.shape[1], episode_seconds=seconds)
     inner.threads = threads
     engine = ProcessPoolRollout(inner, workers) if workers > 1 else inner
+    t0 = time.perf_counter()
     if isinstance(engine, ProcessPoolRollout):
         engine.start()
     # One parameter set first: each process loads the compiled law from numba's cache on its
     # first call (~0.5 s), which a training run pays once, not per batch.
     engine.run_worlds(params[:1], type(worlds)(*(x[:1] for x in worlds)))
-    return inner, engine
+    return inner, engine, time.perf_counter() - t0
 
 
 def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1, calls: int = 1) -> dict:
@@ -179,9 +180,7 @@ def native(scn, task, params, worlds, workers: int, seconds, threads: int = 1, c
     (``physics_share``, over all the calls)."""
     import numpy as np
 
-    t0 = time.perf_counter()
-    inner, engine = native_engine(scn, task, params, worlds, workers, seconds, threads)
-    start_s = time.perf_counter() - t0
+    inner, engine, start_s = native_engine(scn, task, params, worlds, workers, seconds, threads)
     b, w = worlds.config_index.shape
     timing = {}
     if workers == 1 and threads == 1:  # time MuJoCo's step inside the call

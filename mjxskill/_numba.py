@@ -14,7 +14,9 @@ def compiled(function):
     Divisions follow IEEE as numpy's do (``error_model="numpy"``): Python's model tests every
     divisor for zero and branches to raise, which costs the law ~10 % of its time, and an
     exception could not leave MuJoCo's control callback anyway (the kernels' divisors are
-    positive where they divide)."""
+    positive where they divide). numba's cache is keyed by a module's source, not by these
+    options: after changing them, delete the ``__pycache__/*.nbi``/``*.nbc`` files (or touch the
+    kernels' modules), or the code measured is the code compiled before."""
     options = dict(nogil=True, error_model="numpy")
     try:
         return numba.njit(cache=True, **options)(function)

@@ -46,7 +46,10 @@ class ControllerConfig(NamedTuple):
             limits.append(float(np.max(np.abs(model.actuator_ctrlrange[act[0]]))))
         kw = dict(dt=float(model.opt.timestep))
         kw.update(overrides)
-        return cls(site_id, int(model.site_bodyid[site_id]), tuple(limits), **kw)
+        config = cls(site_id, int(model.site_bodyid[site_id]), tuple(limits), **kw)
+        if not config.pinv_damping > 0:  # the compiled law's Cholesky pivots are >= sqrt(pinv_damping)
+            raise ValueError(f"pinv_damping must be positive, got {config.pinv_damping!r}")
+        return config
 
 
 def rate_limit(previous, target, max_delta, xp):

@@ -54,13 +54,15 @@ def test_the_unrecorded_replay_ends_where_the_plain_loop_ended():
 
 def test_paired_shares_time_the_engine_and_the_replay_in_turn(monkeypatch):
     """Each round's share is the engine's rate over the replay's, from one replay and one call timed
-    in turn, the order alternating, after one untimed replay: a replay of 2 s for 3 x 10 steps and
-    a call of 4 s for 60 steps both take 1/15 s a step (share 1); a call of 8 s halves the share."""
+    in turn, the order alternating, after one untimed replay. The replay counts the episodes it
+    replays (4: three repeated to a multiple of two threads), not the recording's: 2 s for 4 x 10
+    steps and a call of 3 s for 60 steps both take 1/20 s a step (share 1); a call of 6 s halves
+    the share. Each timer spans only its own part (the replay moves the clock too)."""
     clock, log = [0.0], []
     monkeypatch.setattr(ep.time, "perf_counter", lambda: clock[0])
 
     class FakeReplay:
-        episodes, nstep = 3, 10
+        episodes, nstep = 4, 10
 
         def __init__(self, recording, threads):
             assert threads == 2
@@ -68,6 +70,7 @@ def test_paired_shares_time_the_engine_and_the_replay_in_turn(monkeypatch):
 
         def run(self):
             log.append("replay")
+            clock[0] += 2.0
             return 2.0
 
     def call(seconds):
@@ -78,7 +81,23 @@ def test_paired_shares_time_the_engine_and_the_replay_in_turn(monkeypatch):
 
     monkeypatch.setattr(ep, "UnrecordedReplay", FakeReplay)
     recording = {"inputs": np.zeros((3, 10, 1))}
-    assert ep.paired_shares(recording, 2, call(4.0), steps=60, rounds=3) == [1.0, 1.0, 1.0]
+    assert ep.paired_shares(recording, 2, call(3.0), steps=60, rounds=3) == [1.0, 1.0, 1.0]
     assert log == ["built", "replay", "replay", "engine", "engine", "replay", "replay", "engine"]
-    assert ep.paired_shares(recording, 2, call(8.0), steps=60, rounds=2) == [0.5, 0.5]
-    assert ep.paired_shares(recording, 2, call(8.0), steps=60, rounds=0) == []
+    assert ep.paired_shares(recording, 2, call(6.0), steps=60, rounds=2) == [0.5, 0.5]
+    assert ep.paired_shares(recording, 2, call(6.0), steps=60, rounds=0) == []
+
+
+def test_no_paired_share_when_an_episode_diverged_or_without_the_calls_steps(monkeypatch):
+    """A diverged episode is not replayed but the engine's call counts it: no share is reported
+    then, and one is with every episode replayed. An engine's call without its step count is refused."""
+    import pytest
+
+    for name in ("replay", "replay_unrecorded"):
+        monkeypatch.setattr(ep, name, lambda recording, threads, runs=2: (1.0, 2, 0.0))
+    monkeypatch.setattr(ep, "paired_shares", lambda recording, threads, call, steps, rounds: [0.9] * rounds)
+    recording = {"models": ["one"], "inputs": np.zeros((1, 10, 1))}
+    for episodes, shares in ((2, None), (1, [0.9, 0.9])):
+        monkeypatch.setattr(ep, "record", lambda engine, params, worlds: dict(recording, episodes=episodes))
+        assert ep.measure(None, None, None, 2, call=lambda: None, steps=10, rounds=2).get("paired_shares") == shares
+    with pytest.raises(ValueError, match="control steps"):
+        ep.measure(None, None, None, 2, call=lambda: None, rounds=2)

@@ -100,6 +100,13 @@ def test_config_reads_torque_limits_from_the_model():
     assert cfg.dt == 0.002 and cfg.nullspace_stiffness == 5.0
 
 
+@pytest.mark.parametrize("damping", [0.0, -1e-6, float("nan")])
+def test_config_refuses_a_pseudo_inverse_damping_that_is_not_positive(damping):
+    # the compiled law's Cholesky pivots are at least its square root: zero would divide by zero
+    with pytest.raises(ValueError, match="pinv_damping"):
+        ControllerConfig.from_model(load_scene("peg"), pinv_damping=damping)
+
+
 def test_command_packs_and_unpacks():
     command = make_command(jnp.arange(3.0), jnp.array([1.0, 0, 0, 0]), jnp.arange(6.0), jnp.arange(6.0) + 10)
     assert command.shape == (COMMAND_SIZE,)
