@@ -301,8 +301,9 @@ def main(argv=None) -> dict | None:
 
     paired = native_engine(scn, task, params, worlds, cores, args.seconds)[1] if args.paired_rounds else None
     try:  # the default engine (a worker per core) and the replay timed in turn, round by round
-        own = measure(engine, params, worlds, cores, call=paired and (lambda: paired.run_worlds(params, worlds)),
-                      steps=b * w * engine.control_steps_per_episode, rounds=args.paired_rounds)
+        call = None if paired is None else (lambda: paired.run_worlds(params, worlds))
+        own = measure(engine, params, worlds, cores, call=call, steps=b * w * engine.control_steps_per_episode,
+                      rounds=args.paired_rounds)
     finally:
         if paired is not None:
             paired.close()
@@ -341,10 +342,11 @@ def main(argv=None) -> dict | None:
     limit_own = own["all_cores_steps_per_s"]
     if limit_own:
         print(f"the best engine at {best['steps_per_s'] / limit_own:.2f} of the episodes' own physics on all cores")
-    paired_share = float(np.median(own["paired_shares"])) if own.get("paired_shares") else None
+    shares = own.get("paired_shares")
+    paired_share = float(np.median(shares)) if shares else None
     if paired_share is not None:
-        print(f"a worker per core, timed in turn with the replay over {args.paired_rounds} rounds: {paired_share:.2f} of "
-              f"the episodes' own physics (rounds {min(own['paired_shares']):.2f}-{max(own['paired_shares']):.2f})")
+        print(f"a worker per core, timed in turn with the replay over {args.paired_rounds} rounds: {paired_share:.2f} "
+              f"of the episodes' own physics (rounds {min(shares):.2f}-{max(shares):.2f})")
     best_of = {e: max((r for r in fast if r["engine"] == e), key=lambda r: r["steps_per_s"], default=None)
                for e in ("mjx", "native")}
     result = dict(

@@ -11,10 +11,10 @@
   (``batched_impedance_control``, one numpy operation per scalar operation of the compiled
   kernel ``mjxskill.engine.native.kernels.impedance_rows``, in its order: sums left to right, the
   damped pseudo-inverse applied to one vector through a Cholesky factorization of the symmetric
-  positive definite J J^T + lambda I). Each episode keeps its own ``MjModel`` copy (its world's friction) and
-  ``MjData``, rows never mix, and the compiled engine's episodes equal its results bit for bit
-  (tests/engine/native/test_batched.py); the plain loop's law, with BLAS and LAPACK, agrees with both
-  to rounding.
+  positive definite J J^T + lambda I). Each episode keeps its own ``MjModel`` copy (its world's
+  friction) and ``MjData``, rows never mix, and the compiled engine's episodes equal its results
+  bit for bit (tests/engine/native/test_batched.py); the plain loop's law, with BLAS and LAPACK,
+  agrees with both to rounding.
 """
 
 from __future__ import annotations
@@ -154,8 +154,8 @@ def batched_impedance_control(cfg: ControllerConfig, jac, site_pos, site_quat, q
     The law's reference for the compiled one (``mjxskill.engine.native.kernels.impedance_rows``),
     written with one numpy operation per scalar operation of it, in its order (sums left to
     right, the damped pseudo-inverse applied to one vector through a Cholesky factorization of
-    the symmetric positive definite J J^T + lambda I), so that the two agree bit for bit; the plain loop's law, with
-    BLAS and LAPACK, agrees with both to rounding. Rows never mix."""
+    the symmetric positive definite J J^T + lambda I), so that the two agree bit for bit; the
+    plain loop's law, with BLAS and LAPACK, agrees with both to rounding. Rows never mix."""
     n = len(jac)
     stiffness = rate_limit(state.stiffness, cmd_stiffness, cfg.stiffness_rate * cfg.dt, np)
     wrench = rate_limit(state.wrench, cmd_wrench, cfg.wrench_rate * cfg.dt, np)

@@ -7,6 +7,7 @@ import os
 import sys
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "benchmarks"))
 import episode_physics as ep
@@ -90,8 +91,6 @@ def test_paired_shares_time_the_engine_and_the_replay_in_turn(monkeypatch):
 def test_no_paired_share_when_an_episode_diverged_or_without_the_calls_steps(monkeypatch):
     """A diverged episode is not replayed but the engine's call counts it: no share is reported
     then, and one is with every episode replayed. An engine's call without its step count is refused."""
-    import pytest
-
     for name in ("replay", "replay_unrecorded"):
         monkeypatch.setattr(ep, name, lambda recording, threads, runs=2: (1.0, 2, 0.0))
     monkeypatch.setattr(ep, "paired_shares", lambda recording, threads, call, steps, rounds: [0.9] * rounds)
